@@ -1,0 +1,147 @@
+"""The exception and warning hierarchy of hamrkq.
+
+Every error hamrkq raises derives from :class:`HamrkqError`.  Errors caused by
+bad input are also :class:`ValueError` or :class:`TypeError` subclasses, so
+code written against NumPy/SciPy habits (``except ValueError``) keeps working.
+
+Numerical failures during a run are *not* exceptions: :func:`hamrkq.solve`
+returns the nodes computed so far with ``success=False`` and a status (see
+:class:`hamrkq.result.Status`).  The one exception is :class:`IntegrationError`,
+raised only where a caller asked for it explicitly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+
+__all__ = [
+    "ExpressionError",
+    "HamiltonianError",
+    "HamrkqError",
+    "HamrkqWarning",
+    "InputError",
+    "InputTypeError",
+    "IntegrationError",
+    "OptionError",
+    "ProblemFileError",
+    "ProblemNotFoundError",
+    "UndeclaredSymbolError",
+]
+
+
+class HamrkqError(Exception):
+    """Base class of every error raised by hamrkq."""
+
+
+class InputError(HamrkqError, ValueError):
+    """A value passed to a public function is not acceptable.
+
+    The message names the parameter and the offending value.
+    """
+
+
+class InputTypeError(HamrkqError, TypeError):
+    """A value passed to a public function has the wrong type."""
+
+
+class OptionError(InputError):
+    """An unknown option name or option value (method, keyword argument, ...)."""
+
+
+class HamiltonianError(InputError):
+    """A Hamiltonian failed validation.
+
+    Parameters
+    ----------
+    problems : iterable of str
+        Every problem found; all are reported in one message.
+    """
+
+    def __init__(self, problems: Iterable[str]):
+        self.problems = tuple(problems)
+        if len(self.problems) == 1:
+            message = f"invalid Hamiltonian: {self.problems[0]}"
+        else:
+            lines = "\n".join(f"  - {item}" for item in self.problems)
+            message = f"invalid Hamiltonian ({len(self.problems)} problems):\n{lines}"
+        super().__init__(message)
+
+
+class UndeclaredSymbolError(HamiltonianError):
+    """An expression uses symbols that are neither coordinates, momenta,
+    parameters nor the time ``t``."""
+
+    def __init__(self, symbols: Iterable[str], problems: Iterable[str] = ()):
+        self.symbols = tuple(sorted(symbols))
+        own = f"undeclared symbols: {', '.join(self.symbols)}"
+        super().__init__([own, *problems])
+
+
+class ProblemFileError(InputError):
+    """A problem file (TOML) is malformed.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    path : str or Path, optional
+        The file.
+    key : str, optional
+        The dotted TOML key at fault, for example ``"initial.q"``.
+    line : int, optional
+        The line number in the file, when known.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | Path | None = None,
+        key: str | None = None,
+        line: int | None = None,
+    ):
+        self.path = None if path is None else str(path)
+        self.key = key
+        self.line = line
+        self.detail = message
+        where = []
+        if self.path is not None:
+            where.append(self.path if line is None else f"{self.path}:{line}")
+        if key is not None:
+            where.append(f"key '{key}'")
+        prefix = ", ".join(where)
+        super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+class ExpressionError(ProblemFileError):
+    """An expression string was rejected by the restricted parser.
+
+    ``piece`` is the offending part of the text.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        piece: str | None = None,
+        path: str | Path | None = None,
+        key: str | None = None,
+        line: int | None = None,
+    ):
+        self.piece = piece
+        if piece is not None:
+            message = f"{message}: {piece!r}"
+        super().__init__(message, path=path, key=key, line=line)
+
+
+class ProblemNotFoundError(InputError, LookupError):
+    """Neither a catalogue entry nor a file of that name exists."""
+
+
+class IntegrationError(HamrkqError, RuntimeError):
+    """An integration failed and the caller asked for an exception."""
+
+
+class HamrkqWarning(UserWarning):
+    """Warnings issued by hamrkq (tolerance clamped, backend fallback, ...)."""

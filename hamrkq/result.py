@@ -1,0 +1,255 @@
+"""The result of an integration: :class:`Solution` and its :class:`Status`.
+
+A solution is immutable: every array it holds is read-only.  Arrays are
+time-major (row ``i`` is node ``i``) and states are ordered all ``q`` then all
+``p``.  Quantities a method does not produce (the RK8 track of ``"rk34"``, say)
+are ``None``.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Solution", "Status"]
+
+#: Version of the ``.npz`` layout written by :meth:`Solution.save`.
+FILE_FORMAT_VERSION = 1
+
+
+class Status(enum.Enum):
+    """Why an integration stopped.  ``value`` is a stable integer code,
+    ``description`` a sentence for humans."""
+
+    SUCCESS = (0, "The integration reached the end of the interval.")
+    STEP_SIZE_UNDERFLOW = (1, "The step size fell below the floor set by roundoff.")
+    NON_FINITE = (2, "The state or the right-hand side became non-finite (inf or nan).")
+    MAX_STEPS = (3, "The step limit max_steps was reached.")
+    INTERRUPTED = (4, "The run was interrupted (KeyboardInterrupt).")
+    TOLERANCE_UNATTAINABLE = (
+        5,
+        "The tolerance cannot be met in double precision: the RK8 track's own "
+        "error is not small against it.",
+    )
+    NEWTON_FAILED = (6, "The Newton iteration of an implicit method did not converge.")
+    EXTERNAL_FAILURE = (7, "An external solver reported a failure.")
+
+    def __init__(self, code: int, description: str):
+        self.code = code
+        self.description = description
+
+    @property
+    def success(self) -> bool:
+        """True only for :attr:`SUCCESS`."""
+        return self is Status.SUCCESS
+
+
+_ARRAY_FIELDS = ("t", "y", "z", "global_error", "gamma", "energy", "quenched")
+
+
+def _readonly(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
+    if array is None:
+        return None
+    out = np.array(array, dtype=dtype, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """Nodes, states and error estimates of one integration.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Node times.
+    y : ndarray, shape (N, 2n)
+        The reported solution (for RKQ: the quenched RK4 solution), columns
+        ``q_1..q_n, p_1..p_n``.
+    z : ndarray, shape (N, 2n) or None
+        The RK8 track (RKQ only).
+    global_error : ndarray, shape (N, 2n) or None
+        Estimated global error of ``y``: ``y - z`` (numerical minus exact,
+        the paper's sign).  Zero at quenched nodes.
+    gamma : ndarray, shape (N, 2n) or None
+        Estimated global error of the RK8 track ``z`` (Gamma).
+    energy : ndarray, shape (N,)
+        The Hamiltonian evaluated along ``y``.
+    quenched : ndarray of bool, shape (N,) or None
+        True where the node was quenched (``y`` replaced by ``z``).
+    stats : mapping
+        ``steps`` (accepted), ``rejected``, ``quenches``, ``nfev``, ``njev``
+        and any method-specific counters.
+    status : Status
+        Why the run stopped.
+    message : str
+        Human-readable account, naming ``t`` where a failure happened.
+    method : str
+        The method name passed to :func:`hamrkq.solve`.
+    options : mapping
+        The settings actually used (tolerances, safety, ...), JSON-friendly.
+    n : int
+        Degrees of freedom.
+    names : tuple of str
+        Names of the state components, ``q``'s then ``p``'s.
+    atol, rtol : ndarray, shape (2n,)
+        The tolerances, per component.
+    partial : bool
+        True when the run stopped early (the nodes are those computed so far).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    energy: np.ndarray
+    status: Status
+    message: str
+    method: str
+    n: int
+    names: tuple[str, ...]
+    atol: np.ndarray
+    rtol: np.ndarray
+    stats: Mapping[str, int] = field(default_factory=dict)
+    options: Mapping[str, Any] = field(default_factory=dict)
+    z: np.ndarray | None = None
+    global_error: np.ndarray | None = None
+    gamma: np.ndarray | None = None
+    quenched: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        for name in _ARRAY_FIELDS:
+            dtype = bool if name == "quenched" else float
+            set_(self, name, _readonly(getattr(self, name), dtype))
+        set_(self, "atol", _readonly(np.broadcast_to(self.atol, (2 * self.n,))))
+        set_(self, "rtol", _readonly(np.broadcast_to(self.rtol, (2 * self.n,))))
+        set_(self, "stats", MappingProxyType(dict(self.stats)))
+        set_(self, "options", MappingProxyType(dict(self.options)))
+        set_(self, "names", tuple(self.names))
+        if self.y.ndim != 2 or self.y.shape != (self.t.size, 2 * self.n):
+            raise ValueError(
+                f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})"
+            )
+
+    # -- views -------------------------------------------------------------
+    @property
+    def q(self) -> np.ndarray:
+        """Coordinates, shape (N, n)."""
+        return self.y[:, : self.n]
+
+    @property
+    def p(self) -> np.ndarray:
+        """Momenta, shape (N, n)."""
+        return self.y[:, self.n :]
+
+    @property
+    def success(self) -> bool:
+        """True when the integration reached the end of the interval."""
+        return self.status.success
+
+    @property
+    def partial(self) -> bool:
+        """True when the run stopped before the end of the interval."""
+        return not self.status.success
+
+    @property
+    def nfev(self) -> int:
+        """Number of right-hand-side evaluations."""
+        return int(self.stats.get("nfev", 0))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def __repr__(self) -> str:
+        return (
+            f"Solution(method={self.method!r}, nodes={self.t.size}, n={self.n}, "
+            f"status={self.status.name}, stats={dict(self.stats)})"
+        )
+
+    # -- persistence -------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the solution to an ``.npz`` file, atomically.
+
+        The file is written to a temporary name in the same directory and
+        renamed, so a crash never leaves a half-written file.  Loading it with
+        :meth:`load` gives back an equal solution, bit for bit.
+        """
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_suffix(path.suffix + ".npz")
+        arrays = {
+            name: getattr(self, name)
+            for name in _ARRAY_FIELDS
+            if getattr(self, name) is not None
+        }
+        meta = {
+            "format_version": FILE_FORMAT_VERSION,
+            "status": self.status.name,
+            "message": self.message,
+            "method": self.method,
+            "n": self.n,
+            "names": list(self.names),
+            "stats": dict(self.stats),
+            "options": _jsonable(dict(self.options)),
+            "partial": self.partial,
+        }
+        arrays["atol"] = self.atol
+        arrays["rtol"] = self.rtol
+        arrays["meta"] = np.array(json.dumps(meta))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                np.savez_compressed(handle, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Solution:
+        """Read a solution written by :meth:`save`."""
+        with np.load(Path(path), allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {name: data[name] for name in _ARRAY_FIELDS if name in data.files}
+            atol, rtol = data["atol"], data["rtol"]
+        return cls(
+            status=Status[meta["status"]],
+            message=meta["message"],
+            method=meta["method"],
+            n=int(meta["n"]),
+            names=tuple(meta["names"]),
+            stats=meta["stats"],
+            options=meta["options"],
+            atol=atol,
+            rtol=rtol,
+            **arrays,
+        )
+
+    def replace(self, **changes: Any) -> Solution:
+        """A copy with some fields changed (like :func:`dataclasses.replace`)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(changes)
+        return type(self)(**values)
+
+
+def _jsonable(value: Any) -> Any:
+    """Turn NumPy scalars and arrays inside ``value`` into plain Python."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
