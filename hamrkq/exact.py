@@ -1,0 +1,363 @@
+"""Built-in analytic solutions, referenced by name from problem files.
+
+A problem file may say ``[exact] builtin = "kepler"``; the catalogue then
+looks the name up in :data:`BUILTIN_EXACT` (a lookup, never an evaluation of
+text).  Each entry is a function ::
+
+    exact(t, y0, params, t0=0.0) -> ndarray, shape (N, 2n)
+
+that returns the exact state at the times ``t`` of the trajectory through
+``y0`` at time ``t0``.  It raises :class:`~hamrkq.errors.InputError` when
+``y0`` is outside the family of states it covers, so an exact solution is
+never silently wrong.
+
+Entries
+-------
+``"harmonic"``
+    ``H = (p**2 + q**2)/2``, any initial state.
+``"pendulum"``
+    ``H = p**2/2 - cos(q)``, libration (``H < 1``), through Jacobi elliptic
+    functions.
+``"kepler"``
+    ``H = (p1**2 + p2**2)/2 - 1/sqrt(q1**2 + q2**2)``, any bound (``H < 0``),
+    non-collision planar state, through Kepler's equation and the Lagrange
+    ``f`` and ``g`` coefficients.
+
+References
+----------
+.. [1] E. Hairer, C. Lubich and G. Wanner, *Geometric Numerical Integration*,
+   2nd ed., Springer, 2006, Sections I.1 and I.2.
+.. [2] R.H. Battin, *An Introduction to the Mathematics and Methods of
+   Astrodynamics*, AIAA, 1999, Section 4.3 (f and g in the eccentric anomaly).
+.. [3] J.M.A. Danby, *Fundamentals of Celestial Mechanics*, 2nd ed., 1988,
+   Section 6.6 (the starting value ``M + 0.85 e`` for Kepler's equation).
+.. [4] M. Abramowitz and I.A. Stegun, *Handbook of Mathematical Functions*,
+   Chapter 16 (Jacobi elliptic functions).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
+
+import numpy as np
+from scipy.special import ellipj, ellipk, ellipkinc
+
+from .errors import InputError, OptionError
+
+__all__ = [
+    "BUILTIN_EXACT",
+    "ExactSolution",
+    "get_exact",
+    "harmonic",
+    "kepler",
+    "pendulum",
+    "solve_kepler_equation",
+]
+
+#: Signature of a built-in exact solution.
+ExactSolution = Callable[..., np.ndarray]
+
+#: Newton iterations allowed for Kepler's equation.  The safeguarded iteration
+#: converges quadratically from Danby's start; 8 iterations suffice for
+#: e < 0.999999, the rest is margin for the bisection fallback.
+_KEPLER_MAX_ITER = 60
+
+#: Below this |E| the series of E - sin E is used: the direct difference
+#: loses all digits when E ~ e sin E (e near 1, E near 0).
+_SERIES_LIMIT = 0.5
+
+
+def _times(t: object) -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(t, dtype=float))
+    if arr.ndim != 1:
+        raise InputError(f"t must be a scalar or a 1-D array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError("t must be finite")
+    return arr
+
+
+def _state(y0: object, dim: int, name: str) -> np.ndarray:
+    arr = np.asarray(y0, dtype=float)
+    if arr.shape != (dim,):
+        raise InputError(
+            f"the {name!r} exact solution needs y0 of shape ({dim},) "
+            f"(q's then p's), got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"y0 must be finite, got {arr.tolist()}")
+    return arr
+
+
+# -- harmonic oscillator -------------------------------------------------------
+
+
+def harmonic(
+    t: object, y0: object, params: Mapping[str, float] | None = None, t0: float = 0.0
+) -> np.ndarray:
+    """Exact flow of ``H = (p**2 + q**2)/2``: a rotation of the phase plane.
+
+    Parameters
+    ----------
+    t : float or array_like, shape (N,)
+        Times.
+    y0 : array_like, shape (2,)
+        ``(q, p)`` at time ``t0``.
+    params : mapping, optional
+        Unused (the oscillator has unit frequency); accepted for a uniform
+        signature.
+    t0 : float, optional
+        Time of ``y0``.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        ``q = q0 cos(t - t0) + p0 sin(t - t0)``, ``p = p0 cos(t - t0) - q0 sin(t - t0)``.
+    """
+    tau = _times(t) - float(t0)
+    q0, p0 = _state(y0, 2, "harmonic")
+    c, s = np.cos(tau), np.sin(tau)
+    return np.column_stack([q0 * c + p0 * s, p0 * c - q0 * s])
+
+
+# -- pendulum ------------------------------------------------------------------
+
+
+def pendulum(
+    t: object, y0: object, params: Mapping[str, float] | None = None, t0: float = 0.0
+) -> np.ndarray:
+    """Exact libration of the pendulum ``H = p**2/2 - cos(q)``.
+
+    With ``k = sin(q_max/2)``, ``k**2 = (1 + H)/2``, the solution is
+    ``q = 2 asin(k sn(u, k**2))``, ``p = 2 k cn(u, k**2)`` with ``u = t - t0 + u0``;
+    the phase ``u0`` is the incomplete elliptic integral of the amplitude
+    ``phi0 = atan2(sin(q0/2), p0/2)`` ([4]_, 16.1).  The libration may be about
+    any stable equilibrium ``q = 2 pi j``; the solution keeps that branch.
+
+    Parameters
+    ----------
+    t : float or array_like, shape (N,)
+        Times.
+    y0 : array_like, shape (2,)
+        ``(q, p)`` at ``t0``, with ``H < 1``.
+    params : mapping, optional
+        Unused (unit length and gravity).
+    t0 : float, optional
+        Time of ``y0``.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+
+    Raises
+    ------
+    InputError
+        If ``H >= 1``: the separatrix (``H = 1``) and the rotations
+        (``H > 1``) are not covered.
+    """
+    tau = _times(t) - float(t0)
+    q0, p0 = _state(y0, 2, "pendulum")
+    # (1 + H)/2 written without the cancellation of 1 - cos(q).
+    m = float(0.25 * p0**2 + np.sin(0.5 * q0) ** 2)
+    if not m < 1.0:
+        raise InputError(
+            f"the 'pendulum' exact solution covers only librations, H = p**2/2 - cos(q) < 1; "
+            f"y0 = ({float(q0)!r}, {float(p0)!r}) has H = {2.0 * m - 1.0!r} "
+            f"(H = 1 is the separatrix, H > 1 a rotation)"
+        )
+    # The libration is about the equilibrium 2 pi j nearest to q0; work with
+    # the angle relative to it so that sin(q/2) has the right sign.
+    branch = 2.0 * np.pi * np.round(q0 / (2.0 * np.pi))
+    q0 = q0 - branch
+    if m == 0.0:
+        # At rest at the bottom: the equilibrium.
+        return np.column_stack([np.full_like(tau, branch), np.zeros_like(tau)])
+    k = np.sqrt(m)
+    phi0 = np.arctan2(np.sin(0.5 * q0), 0.5 * p0)
+    u0 = ellipkinc(phi0, m)
+    # Reduce the argument modulo the period 4K of sn and cn: ellipj is most
+    # accurate for small arguments, and long runs would otherwise lose digits.
+    period = 4.0 * ellipk(m)
+    u = np.remainder(tau + u0, period)
+    sn, cn, _dn, _ph = ellipj(u, m)
+    q = branch + 2.0 * np.arcsin(np.clip(k * sn, -1.0, 1.0))
+    p = 2.0 * k * cn
+    return np.column_stack([q, p])
+
+
+# -- Kepler problem --------------------------------------------------------------
+
+
+def _e_minus_sin(x: np.ndarray) -> np.ndarray:
+    """``x - sin(x)`` without cancellation for small ``|x|``."""
+    x = np.asarray(x, dtype=float)
+    small = np.abs(x) < _SERIES_LIMIT
+    out = x - np.sin(x)
+    xs = x[small]
+    x2 = xs * xs
+    # Taylor series x^3/3! - x^5/5! + ...; 9 terms reach 1e-17 relative at 0.5.
+    term = xs * x2 / 6.0
+    acc = np.zeros_like(xs)
+    for j in range(9):
+        acc += term
+        term = -term * x2 / ((2 * j + 4) * (2 * j + 5))
+    out[small] = acc
+    return out
+
+
+def solve_kepler_equation(mean_anomaly: object, e: float) -> np.ndarray:
+    """Solve Kepler's equation ``E - e sin(E) = M`` for the eccentric anomaly.
+
+    Vectorised safeguarded Newton iteration from Danby's starting value
+    ``M + 0.85 e`` ([3]_), with the residual written as
+    ``(1 - e) E + e (E - sin E) - M`` so that it keeps its digits for ``e``
+    near 1 and small ``E``.  The root is bracketed in ``[M, M + e]`` (after
+    reducing to ``0 <= M <= pi`` by symmetry), and any Newton iterate that
+    leaves the bracket is replaced by bisection, so the iteration converges
+    for every ``0 <= e < 1``.
+
+    Parameters
+    ----------
+    mean_anomaly : float or array_like
+        ``M``; any real values (reduced modulo ``2 pi`` internally).
+    e : float
+        Eccentricity, ``0 <= e < 1``.
+
+    Returns
+    -------
+    ndarray
+        ``E`` with ``E - M`` in ``[-pi, pi]``, i.e. on the same revolution as
+        ``M``; same shape as ``mean_anomaly``.
+    """
+    e = float(e)
+    if not 0.0 <= e < 1.0:
+        raise InputError(f"eccentricity e must satisfy 0 <= e < 1, got {e!r}")
+    M = np.asarray(mean_anomaly, dtype=float)
+    if not np.all(np.isfinite(M)):
+        raise InputError("mean_anomaly must be finite")
+    two_pi = 2.0 * np.pi
+    turns = np.round(M / two_pi)
+    reduced = M - two_pi * turns  # in [-pi, pi]
+    sign = np.where(reduced < 0.0, -1.0, 1.0)
+    target = np.abs(reduced)  # in [0, pi]; the root is odd in M
+    lo = target.copy()
+    hi = np.minimum(target + e, np.pi)
+    E = np.clip(target + 0.85 * e, lo, hi)
+    one_minus_e = 1.0 - e
+    tiny = 4.0 * np.finfo(float).eps
+    for _ in range(_KEPLER_MAX_ITER):
+        residual = one_minus_e * E + e * _e_minus_sin(E) - target
+        # F is increasing: the sign of the residual moves one end of the bracket.
+        lo = np.where(residual < 0.0, E, lo)
+        hi = np.where(residual > 0.0, E, hi)
+        slope = one_minus_e + 2.0 * e * np.sin(0.5 * E) ** 2  # 1 - e cos E
+        newton = E - residual / slope
+        inside = (newton >= lo) & (newton <= hi)
+        new = np.where(inside, newton, 0.5 * (lo + hi))
+        step = np.abs(new - E)
+        E = new
+        if np.all(step <= tiny * np.maximum(1.0, E)):
+            break
+    return sign * E + two_pi * turns
+
+
+def kepler(
+    t: object, y0: object, params: Mapping[str, float] | None = None, t0: float = 0.0
+) -> np.ndarray:
+    """Exact flow of the planar Kepler problem ``H = |p|**2/2 - 1/|q|``.
+
+    Any bound, non-collision state is accepted.  The semi-major axis is
+    ``a = -1/(2H)``; the eccentric anomaly relative to the initial one,
+    ``dE``, solves ``n (t - t0) = dE - e cos(E0) sin(dE) + e sin(E0) (1 - cos dE)``
+    with ``e cos(E0) = 1 - r0/a``, ``e sin(E0) = q0.p0/sqrt(a)``,
+    ``n = a**-1.5``; then ``q = f q0 + g p0``, ``p = f' q0 + g' p0`` with the
+    Lagrange coefficients in the eccentric anomaly ([2]_).  For the
+    catalogue's state at pericentre, ``q0 = (1 - e, 0)``,
+    ``p0 = (0, sqrt((1 + e)/(1 - e)))``, this is ``q1 = cos E - e``,
+    ``q2 = sqrt(1 - e**2) sin E`` with ``E - e sin E = t - t0`` ([1]_, I.2.2).
+
+    Parameters
+    ----------
+    t : float or array_like, shape (N,)
+        Times.
+    y0 : array_like, shape (4,)
+        ``(q1, q2, p1, p2)`` at ``t0``.
+    params : mapping, optional
+        Unused: the Hamiltonian has ``G M = 1``.  (The catalogue's parameter
+        ``e`` enters only through the initial state.)
+    t0 : float, optional
+        Time of ``y0``.
+
+    Returns
+    -------
+    ndarray, shape (N, 4)
+
+    Raises
+    ------
+    InputError
+        If the state is unbound (``H >= 0``), at the origin, or on a
+        collision orbit (zero angular momentum).
+    """
+    tau = _times(t) - float(t0)
+    y0 = _state(y0, 4, "kepler")
+    q0, p0 = y0[:2], y0[2:]
+    r0 = float(np.hypot(q0[0], q0[1]))
+    if r0 == 0.0:
+        raise InputError("the 'kepler' exact solution needs q0 != (0, 0) (the singularity)")
+    energy = 0.5 * float(p0 @ p0) - 1.0 / r0
+    if not energy < 0.0:
+        raise InputError(
+            f"the 'kepler' exact solution covers only bound orbits (H < 0); y0 = "
+            f"{y0.tolist()} has H = {energy!r} (parabolic or hyperbolic)"
+        )
+    ang = float(q0[0] * p0[1] - q0[1] * p0[0])
+    if ang == 0.0:
+        raise InputError(
+            f"the 'kepler' exact solution needs non-zero angular momentum; y0 = "
+            f"{y0.tolist()} lies on a collision orbit"
+        )
+    a = -0.5 / energy
+    sqrt_a = np.sqrt(a)
+    sigma0 = float(q0 @ p0)  # r0 dr/dt at t0
+    ec = 1.0 - r0 / a  # e cos E0
+    es = sigma0 / sqrt_a  # e sin E0
+    # (ec, es) = e (cos E0, sin E0) by construction; H < 0 and L != 0 give
+    # e < 1, but rounding can reach 1 on extremely eccentric orbits.
+    e = min(float(np.hypot(ec, es)), float(np.nextafter(1.0, 0.0)))
+    E0 = float(np.arctan2(es, ec))
+    M0 = E0 - e * np.sin(E0)
+    n = a**-1.5
+    E = solve_kepler_equation(M0 + n * tau, e)
+    dE = E - E0
+    s = np.sin(dE)
+    one_minus_c = 2.0 * np.sin(0.5 * dE) ** 2  # 1 - cos dE, without cancellation
+    r = a - (a - r0) * (1.0 - one_minus_c) + sigma0 * sqrt_a * s
+    f = 1.0 - (a / r0) * one_minus_c
+    g = a * sigma0 * one_minus_c + r0 * sqrt_a * s
+    fdot = -sqrt_a * s / (r * r0)
+    gdot = 1.0 - (a / r) * one_minus_c
+    q = f[:, None] * q0 + g[:, None] * p0
+    p = fdot[:, None] * q0 + gdot[:, None] * p0
+    return np.hstack([q, p])
+
+
+#: The registry, by name.  Read-only.
+BUILTIN_EXACT: Mapping[str, ExactSolution] = MappingProxyType(
+    {"harmonic": harmonic, "kepler": kepler, "pendulum": pendulum}
+)
+
+
+def get_exact(name: str) -> ExactSolution:
+    """Look up a built-in exact solution by name.
+
+    Raises
+    ------
+    OptionError
+        If ``name`` is not in :data:`BUILTIN_EXACT`; the message lists the
+        known names.
+    """
+    try:
+        return BUILTIN_EXACT[name]
+    except (KeyError, TypeError):
+        known = ", ".join(sorted(BUILTIN_EXACT))
+        raise OptionError(f"unknown built-in exact solution {name!r}; known: {known}") from None
