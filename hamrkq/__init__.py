@@ -1,0 +1,33 @@
+"""hamrkq: Hamiltonian systems integrated with Prentice's RKQ algorithm.
+
+Write a Hamiltonian as a SymPy expression (or load one from the catalogue);
+hamrkq derives Hamilton's equations and the Jacobian symbolically, generates
+fast numerical code, and integrates with explicit Runge-Kutta methods under
+stepwise control of the *global* error (J.S.C. Prentice, arXiv:1111.6996).
+"""
+
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
+
+from . import errors
+from .catalogue import Problem, list_problems, load_problem
+from .expressions import parse_expression
+from .hamiltonian import Hamiltonian
+from .result import Solution, Status
+
+try:
+    __version__ = _version("hamrkq")
+except PackageNotFoundError:  # a source checkout that is not installed
+    __version__ = "0.1.0"
+
+__all__ = [
+    "Hamiltonian",
+    "Problem",
+    "Solution",
+    "Status",
+    "__version__",
+    "errors",
+    "list_problems",
+    "load_problem",
+    "parse_expression",
+]

@@ -1,0 +1,7 @@
+"""``python -m hamrkq``: the command line."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,311 @@
+"""A restricted parser for the expressions in problem files and on the command line.
+
+Problem files are data, never code.  This module turns an expression string
+into a SymPy expression *without* ``eval``, ``exec``, ``sympify`` or
+``parse_expr``: the text is split into a syntax tree by :func:`ast.parse`
+(which only parses, it never runs anything), and the tree is walked node by
+node against a whitelist.  The SymPy expression is built directly from the
+accepted nodes.
+
+Accepted: numbers, declared names, ``t``, ``+ - * / **``, unary ``+``/``-``,
+parentheses, calls of ``sin cos tan asin acos atan atan2 sinh cosh tanh exp
+log sqrt Abs``, and the constants ``pi`` and ``E``.  Everything else (attribute
+access, subscripts, strings, lambdas, comprehensions, keyword arguments,
+comparisons, unlisted functions, dunder names, ...) is rejected with an
+:class:`~hamrkq.errors.ExpressionError` that names the offending piece.
+"""
+
+from __future__ import annotations
+
+import ast
+import keyword
+import math
+from collections.abc import Callable, Mapping
+from fractions import Fraction
+from pathlib import Path
+
+import sympy as sp
+
+from .errors import ExpressionError
+
+__all__ = [
+    "CONSTANTS",
+    "FUNCTIONS",
+    "MAX_DEPTH",
+    "MAX_LENGTH",
+    "RESERVED_NAMES",
+    "check_name",
+    "parse_expression",
+]
+
+#: Longest expression accepted, in characters.  Far above any catalogue entry
+#: (the outer solar system's Hamiltonian is about 3 000), far below what could
+#: make parsing itself a denial of service.
+MAX_LENGTH = 50_000
+
+#: Deepest nesting of the syntax tree accepted.  Python's own parser gives up
+#: near 200 nested parentheses; we stop well before any recursion limit.
+MAX_DEPTH = 60
+
+#: Largest magnitude of a numeric exponent: SymPy evaluates ``2**2**100``
+#: eagerly, which would never finish.
+MAX_EXPONENT = 1000
+
+#: Longest integer literal, in digits.
+MAX_DIGITS = 100
+
+#: Functions a file may call, with their number of arguments.
+FUNCTIONS: Mapping[str, tuple[Callable[..., sp.Expr], int]] = {
+    "sin": (sp.sin, 1),
+    "cos": (sp.cos, 1),
+    "tan": (sp.tan, 1),
+    "asin": (sp.asin, 1),
+    "acos": (sp.acos, 1),
+    "atan": (sp.atan, 1),
+    "atan2": (sp.atan2, 2),
+    "sinh": (sp.sinh, 1),
+    "cosh": (sp.cosh, 1),
+    "tanh": (sp.tanh, 1),
+    "exp": (sp.exp, 1),
+    "log": (sp.log, 1),
+    "sqrt": (sp.sqrt, 1),
+    "Abs": (sp.Abs, 1),
+}
+
+#: Named constants.
+CONSTANTS: Mapping[str, sp.Expr] = {"pi": sp.pi, "E": sp.E}
+
+#: Names a file may not declare as a coordinate, momentum or parameter.
+RESERVED_NAMES = frozenset({"t", *FUNCTIONS, *CONSTANTS})
+
+_BINARY = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
+}
+
+_UNARY = {ast.USub: lambda a: -a, ast.UAdd: lambda a: a}
+
+_OPERATOR_TEXT = {
+    ast.FloorDiv: "//",
+    ast.Mod: "%",
+    ast.MatMult: "@",
+    ast.BitAnd: "&",
+    ast.BitOr: "|",
+    ast.BitXor: "^",
+    ast.LShift: "<<",
+    ast.RShift: ">>",
+    ast.Invert: "~",
+    ast.Not: "not",
+}
+
+
+def check_name(name: object) -> str | None:
+    """Why ``name`` cannot be declared as a symbol, or ``None`` if it can."""
+    if not isinstance(name, str):
+        return f"a name must be a string, not {type(name).__name__}"
+    if not name.isidentifier() or not name.isascii():
+        return f"{name!r} is not a plain identifier"
+    if keyword.iskeyword(name):
+        return f"{name!r} is a Python keyword"
+    if name.startswith("_"):
+        return f"{name!r} starts with an underscore"
+    if name in RESERVED_NAMES:
+        return f"{name!r} is reserved (time, function or constant name)"
+    return None
+
+
+def parse_expression(
+    text: object,
+    symbols: Mapping[str, sp.Symbol],
+    *,
+    path: str | Path | None = None,
+    key: str | None = None,
+    line: int | None = None,
+) -> sp.Expr:
+    """Parse an expression string into a SymPy expression, safely.
+
+    Parameters
+    ----------
+    text : str, int or float
+        The expression.  Plain numbers are accepted as they are.
+    symbols : mapping of str to sympy.Symbol
+        The names the expression may use (coordinates, momenta, parameters and,
+        where time is allowed, ``t``).  Function and constant names are always
+        available.
+    path, key, line : optional
+        Where the text came from, for error messages.
+
+    Returns
+    -------
+    sympy.Expr
+
+    Raises
+    ------
+    ExpressionError
+        If the text is not an expression of the accepted form.  Nothing in the
+        text is ever executed.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> q, p = sp.symbols("q p")
+    >>> parse_expression("p**2/2 - cos(q)", {"q": q, "p": p})
+    p**2/2 - cos(q)
+    """
+    where = {"path": path, "key": key, "line": line}
+    if isinstance(text, bool):
+        raise ExpressionError("a boolean is not an expression", piece=str(text), **where)
+    if isinstance(text, int):
+        return sp.Integer(text)
+    if isinstance(text, float):
+        return _number(text, **where)
+    if not isinstance(text, str):
+        raise ExpressionError(
+            f"expected an expression string or a number, got {type(text).__name__}", **where
+        )
+    if len(text) > MAX_LENGTH:
+        raise ExpressionError(
+            f"expression is {len(text)} characters long, the limit is {MAX_LENGTH}",
+            piece=text[:40] + "...",
+            **where,
+        )
+    if not text.strip():
+        raise ExpressionError("empty expression", piece=text, **where)
+    if "\n" in text.strip() or "\r" in text:
+        raise ExpressionError("an expression must be on one line", piece=text[:60], **where)
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ExpressionError(f"not a valid expression ({exc.msg})", piece=text, **where) from None
+    except (ValueError, RecursionError, MemoryError):
+        raise ExpressionError("expression cannot be parsed", piece=text[:60], **where) from None
+    builder = _Builder(text.strip(), symbols, where)
+    return builder.build(tree.body, depth=0)
+
+
+def _number(value: float, **where) -> sp.Expr:
+    if not math.isfinite(value):
+        raise ExpressionError("numbers must be finite", piece=repr(value), **where)
+    # The shortest decimal that round-trips, as an exact rational: keeps
+    # symbolic checks (first integrals, simplification) exact.
+    frac = Fraction(repr(value))
+    return sp.Rational(frac.numerator, frac.denominator)
+
+
+class _Builder:
+    """Walks a syntax tree and builds the SymPy expression, or refuses."""
+
+    def __init__(self, text: str, symbols: Mapping[str, sp.Symbol], where: dict):
+        self.text = text
+        self.symbols = symbols
+        self.where = where
+
+    def fail(self, message: str, node: ast.AST) -> ExpressionError:
+        piece = ast.get_source_segment(self.text, node) or type(node).__name__
+        return ExpressionError(message, piece=piece, **self.where)
+
+    def build(self, node: ast.AST, depth: int) -> sp.Expr:
+        if depth > MAX_DEPTH:
+            raise self.fail(f"expression nested deeper than {MAX_DEPTH} levels", node)
+        if isinstance(node, ast.Constant):
+            return self.constant(node)
+        if isinstance(node, ast.Name):
+            return self.name(node)
+        if isinstance(node, ast.BinOp):
+            op = _BINARY.get(type(node.op))
+            if op is None:
+                text = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
+                raise self.fail(f"operator {text!r} is not allowed", node)
+            left = self.build(node.left, depth + 1)
+            right = self.build(node.right, depth + 1)
+            if isinstance(node.op, ast.Pow):
+                self.check_power(left, right, node)
+            return op(left, right)
+        if isinstance(node, ast.UnaryOp):
+            op = _UNARY.get(type(node.op))
+            if op is None:
+                text = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
+                raise self.fail(f"operator {text!r} is not allowed", node)
+            return op(self.build(node.operand, depth + 1))
+        if isinstance(node, ast.Call):
+            return self.call(node, depth)
+        raise self.fail(f"{_describe(node)} is not allowed in an expression", node)
+
+    def constant(self, node: ast.Constant) -> sp.Expr:
+        value = node.value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            kind = "a string" if isinstance(value, str | bytes) else type(value).__name__
+            raise self.fail(f"{kind} is not allowed in an expression", node)
+        if isinstance(value, int):
+            if len(str(abs(value))) > MAX_DIGITS:
+                raise self.fail(f"integer literal longer than {MAX_DIGITS} digits", node)
+            return sp.Integer(value)
+        return _number(value, **self.where)
+
+    def name(self, node: ast.Name) -> sp.Expr:
+        ident = node.id
+        if ident.startswith("__"):
+            raise self.fail("dunder names are not allowed", node)
+        if ident in self.symbols:
+            return self.symbols[ident]
+        if ident in CONSTANTS:
+            return CONSTANTS[ident]
+        if ident in FUNCTIONS:
+            raise self.fail(f"function {ident!r} used without arguments", node)
+        raise self.fail("unknown name (not a declared symbol, t, pi or E)", node)
+
+    def call(self, node: ast.Call, depth: int) -> sp.Expr:
+        if not isinstance(node.func, ast.Name):
+            raise self.fail("only the listed functions may be called", node)
+        ident = node.func.id
+        if ident not in FUNCTIONS:
+            raise self.fail(f"function {ident!r} is not allowed", node)
+        if node.keywords:
+            raise self.fail("keyword arguments are not allowed", node)
+        if any(isinstance(arg, ast.Starred) for arg in node.args):
+            raise self.fail("starred arguments are not allowed", node)
+        function, arity = FUNCTIONS[ident]
+        if len(node.args) != arity:
+            raise self.fail(
+                f"{ident} takes {arity} argument{'s' if arity > 1 else ''}, "
+                f"got {len(node.args)}",
+                node,
+            )
+        args = [self.build(arg, depth + 1) for arg in node.args]
+        return function(*args)
+
+    def check_power(self, base: sp.Expr, exponent: sp.Expr, node: ast.AST) -> None:
+        if exponent.is_Number and abs(exponent) > MAX_EXPONENT:
+            raise self.fail(f"exponent larger than {MAX_EXPONENT} in magnitude", node)
+        if base.is_Number and exponent.is_Number and abs(base) > 1 and abs(exponent) > 64:
+            raise self.fail("numeric power too large", node)
+
+
+def _describe(node: ast.AST) -> str:
+    names = {
+        ast.Attribute: "attribute access",
+        ast.Subscript: "subscripting",
+        ast.Lambda: "lambda",
+        ast.ListComp: "a comprehension",
+        ast.SetComp: "a comprehension",
+        ast.DictComp: "a comprehension",
+        ast.GeneratorExp: "a generator expression",
+        ast.Compare: "a comparison",
+        ast.BoolOp: "a boolean operator",
+        ast.IfExp: "a conditional expression",
+        ast.List: "a list",
+        ast.Tuple: "a tuple",
+        ast.Dict: "a dict",
+        ast.Set: "a set",
+        ast.JoinedStr: "an f-string",
+        ast.NamedExpr: "an assignment expression",
+        ast.Await: "await",
+        ast.Yield: "yield",
+        ast.YieldFrom: "yield",
+        ast.Starred: "a starred expression",
+        ast.Slice: "a slice",
+    }
+    return names.get(type(node), type(node).__name__)
