@@ -1,0 +1,428 @@
+"""Symbolic Hamiltonians: validation and lazily derived quantities.
+
+A :class:`Hamiltonian` holds ``H(q, p; parameters, t)`` and the symbols that
+play each role.  Everything derived from it (Hamilton's equations, the
+Jacobian, Poisson brackets, the numerical functions) is computed on first use
+and cached; the object itself is immutable.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Iterable, Mapping, Sequence
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .errors import HamiltonianError, InputError, InputTypeError, UndeclaredSymbolError
+
+__all__ = ["TIME", "Hamiltonian", "is_zero"]
+
+#: The time symbol used when H does not bring its own ``t``.
+TIME = sp.Symbol("t", real=True)
+
+ParameterSpec = Mapping[Any, Any] | Sequence[sp.Symbol] | None
+
+
+def is_zero(expr: sp.Expr) -> bool:
+    """Decide symbolically that ``expr`` is identically zero.
+
+    Tries cheap canonical forms first (expansion, rational cancellation) and
+    falls back to :func:`sympy.simplify`.  Returns False when SymPy cannot prove
+    it: this is a proof, never a numerical sampling.
+    """
+    if not isinstance(expr, sp.Basic):
+        return expr == 0
+    if expr == 0:
+        return True
+    for transform in (sp.expand, _cancel, _trig_expand, sp.simplify):
+        try:
+            expr = transform(expr)
+        except (TypeError, ValueError, NotImplementedError, RecursionError):
+            continue
+        if expr == 0:
+            return True
+    return False
+
+
+def _cancel(expr: sp.Expr) -> sp.Expr:
+    return sp.cancel(sp.together(expr))
+
+
+def _trig_expand(expr: sp.Expr) -> sp.Expr:
+    return sp.expand(sp.expand_trig(expr))
+
+
+def _as_number(value: Any, what: str) -> float:
+    """A finite float from a number or a SymPy expression without free symbols."""
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{what} must be a number, not the string {value!r}")
+    if isinstance(value, sp.Basic):
+        if value.free_symbols:
+            names = ", ".join(sorted(str(s) for s in value.free_symbols))
+            raise InputError(f"{what} = {value} has free symbols ({names})")
+        try:
+            number = complex(sp.N(value, 17))
+        except (TypeError, ValueError):
+            raise InputError(f"{what} = {value} is not a number") from None
+        if number.imag != 0:
+            raise InputError(f"{what} = {value} is not real")
+        value = number.real
+    elif isinstance(value, bool) or not isinstance(value, numbers.Real | np.floating):
+        raise InputTypeError(f"{what} must be a real number, not {type(value).__name__}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InputError(f"{what} must be finite, got {value}")
+    return value
+
+
+class Hamiltonian:
+    """A Hamiltonian ``H(q, p)``, validated, with derived quantities on demand.
+
+    Parameters
+    ----------
+    H : sympy.Expr
+        The Hamiltonian, a scalar expression.
+    q, p : sequence of sympy.Symbol
+        Coordinates and conjugate momenta, of equal length n.
+    parameters : mapping or sequence of sympy.Symbol, optional
+        Parameters of H.  A mapping gives default values (``{a: 6.0}``; the key
+        may also be the parameter's name); a value of ``None`` means "no
+        default, must be given when solving".  A sequence declares parameters
+        without defaults.
+    t : sympy.Symbol, optional
+        The time symbol.  By default the free symbol of H named ``t`` if there
+        is one, else :data:`TIME`.
+    name : str, optional
+        A label used in reports.
+
+    Raises
+    ------
+    HamiltonianError
+        Listing every problem found at once: q and p of different lengths,
+        duplicated symbols, a non-scalar H, undeclared free symbols
+        (:class:`~hamrkq.errors.UndeclaredSymbolError`), bad parameter values.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> q, p = sp.symbols("q p")
+    >>> ham = Hamiltonian(p**2/2 - (1 - p/6)*sp.cos(q), q=[q], p=[p])
+    >>> ham.rhs.T
+    Matrix([[p + cos(q)/6, -(1 - p/6)*sin(q)]])
+    """
+
+    def __init__(
+        self,
+        H: sp.Expr,
+        q: Sequence[sp.Symbol] | sp.Symbol,
+        p: Sequence[sp.Symbol] | sp.Symbol,
+        parameters: ParameterSpec = None,
+        *,
+        t: sp.Symbol | None = None,
+        name: str | None = None,
+    ):
+        problems: list[str] = []
+        H = _check_scalar(H, problems)
+        q = _symbol_tuple(q, "q", problems)
+        p = _symbol_tuple(p, "p", problems)
+        if len(q) != len(p):
+            problems.append(f"q has {len(q)} symbols but p has {len(p)}")
+        if not q and not p:
+            problems.append("q and p are empty: at least one degree of freedom is needed")
+        free = H.free_symbols if H is not None else set()
+        if t is None:
+            named_t = [s for s in free if s.name == "t"]
+            t = named_t[0] if len(named_t) == 1 else TIME
+        elif not isinstance(t, sp.Symbol):
+            problems.append(f"t must be a sympy Symbol, got {t!r}")
+            t = TIME
+        params, defaults = _parameters(parameters, free, problems)
+        declared = [*q, *p, *params, t]
+        seen: set[sp.Symbol] = set()
+        duplicated = sorted({str(s) for s in declared if s in seen or seen.add(s)})
+        if duplicated:
+            problems.append(f"duplicated symbols: {', '.join(duplicated)}")
+        undeclared = {str(s) for s in free if s not in set(declared)}
+        if undeclared:
+            raise UndeclaredSymbolError(undeclared, problems)
+        if problems:
+            raise HamiltonianError(problems)
+        object.__setattr__(self, "_H", H)
+        object.__setattr__(self, "_q", q)
+        object.__setattr__(self, "_p", p)
+        object.__setattr__(self, "_params", params)
+        object.__setattr__(self, "_defaults", defaults)
+        object.__setattr__(self, "_t", t)
+        object.__setattr__(self, "name", name)
+
+    # immutability: cached_property writes to __dict__ directly, which is allowed.
+    def __setattr__(self, key: str, value: Any) -> None:
+        raise AttributeError(f"Hamiltonian is immutable (cannot set {key!r})")
+
+    def __delattr__(self, key: str) -> None:
+        raise AttributeError(f"Hamiltonian is immutable (cannot delete {key!r})")
+
+    # -- the declaration ----------------------------------------------------
+    @property
+    def H(self) -> sp.Expr:
+        """The Hamiltonian expression."""
+        return self._H
+
+    @property
+    def q(self) -> tuple[sp.Symbol, ...]:
+        """Coordinates."""
+        return self._q
+
+    @property
+    def p(self) -> tuple[sp.Symbol, ...]:
+        """Momenta."""
+        return self._p
+
+    @property
+    def state(self) -> tuple[sp.Symbol, ...]:
+        """The state symbols, all q then all p."""
+        return self._q + self._p
+
+    @property
+    def parameters(self) -> tuple[sp.Symbol, ...]:
+        """Parameter symbols, sorted by name (deterministic)."""
+        return self._params
+
+    @property
+    def defaults(self) -> Mapping[sp.Symbol, float]:
+        """Default parameter values (only those that have one)."""
+        return dict(self._defaults)
+
+    @property
+    def t(self) -> sp.Symbol:
+        """The time symbol."""
+        return self._t
+
+    @property
+    def n(self) -> int:
+        """Degrees of freedom."""
+        return len(self._q)
+
+    @property
+    def dim(self) -> int:
+        """Dimension of phase space, 2n."""
+        return 2 * len(self._q)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Names of the state components."""
+        return tuple(str(s) for s in self.state)
+
+    @property
+    def time_dependent(self) -> bool:
+        """True when H depends explicitly on t."""
+        return self._t in self._H.free_symbols
+
+    def __repr__(self) -> str:
+        label = f"{self.name!r}, " if self.name else ""
+        return f"Hamiltonian({label}H={self._H}, q={list(self._q)}, p={list(self._p)})"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Hamiltonian):
+            return NotImplemented
+        return (self._H, self._q, self._p, self._params, self._t) == (
+            other._H,
+            other._q,
+            other._p,
+            other._params,
+            other._t,
+        ) and self._defaults == other._defaults
+
+    def __hash__(self) -> int:
+        return hash((self._H, self._q, self._p, self._params, self._t))
+
+    # -- derived, symbolic ----------------------------------------------------
+    @cached_property
+    def rhs(self) -> sp.Matrix:
+        """Hamilton's equations' right-hand side, (dH/dp, -dH/dq), 2n x 1."""
+        dq = [sp.diff(self._H, pi) for pi in self._p]
+        dp = [-sp.diff(self._H, qi) for qi in self._q]
+        return sp.Matrix(dq + dp)
+
+    @cached_property
+    def equations(self) -> list[sp.Eq]:
+        """Hamilton's equations as ``Eq(Derivative(y_k, t), rhs_k)``."""
+        return [
+            sp.Eq(sp.Derivative(y, self._t), f, evaluate=False)
+            for y, f in zip(self.state, self.rhs, strict=True)
+        ]
+
+    @cached_property
+    def jacobian(self) -> sp.Matrix:
+        """Jacobian of the right-hand side with respect to (q, p), 2n x 2n."""
+        return self.rhs.jacobian(sp.Matrix(self.state))
+
+    @cached_property
+    def gradient(self) -> sp.Matrix:
+        """Gradient of H with respect to (q, p), 2n x 1."""
+        return sp.Matrix([sp.diff(self._H, y) for y in self.state])
+
+    def poisson_bracket(self, F: sp.Expr, G: sp.Expr | None = None) -> sp.Expr:
+        """The Poisson bracket ``{F, G}`` (``G`` defaults to H).
+
+        ``{F, G} = sum_i dF/dq_i dG/dp_i - dF/dp_i dG/dq_i``, so that
+        ``dF/dt = {F, H} + dF/dt|explicit`` along the flow.
+        """
+        G = self._H if G is None else G
+        return sp.Add(
+            *(
+                sp.diff(F, qi) * sp.diff(G, pi) - sp.diff(F, pi) * sp.diff(G, qi)
+                for qi, pi in zip(self._q, self._p, strict=True)
+            )
+        )
+
+    def time_derivative(self, F: sp.Expr) -> sp.Expr:
+        """The derivative of ``F`` along the flow: ``{F, H} + dF/dt``."""
+        return self.poisson_bracket(F) + sp.diff(F, self._t)
+
+    def is_first_integral(self, F: sp.Expr) -> bool:
+        """True if ``F`` is conserved by the flow, proved symbolically.
+
+        Checks ``{F, H} + dF/dt == 0`` with :func:`is_zero`; False means SymPy
+        could not prove it (or it is false).
+        """
+        return is_zero(self.time_derivative(F))
+
+    @cached_property
+    def is_separable(self) -> bool:
+        """True if ``H = T(p) + V(q)``: every mixed derivative d2H/dq_i dp_j is 0."""
+        return all(is_zero(sp.diff(self._H, qi, pj)) for qi in self._q for pj in self._p)
+
+    # -- numbers --------------------------------------------------------------
+    def parameter_values(self, values: Mapping[Any, Any] | None = None) -> np.ndarray:
+        """Parameter values as a float array ordered like :attr:`parameters`.
+
+        Parameters
+        ----------
+        values : mapping, optional
+            Overrides of the defaults, keyed by symbol or by name.
+
+        Raises
+        ------
+        InputError
+            An unknown parameter, a value that is not a finite real number, or a
+            parameter with neither a default nor a given value.
+        """
+        chosen = dict(self._defaults)
+        by_name = {s.name: s for s in self._params}
+        for key, value in (values or {}).items():
+            symbol = by_name.get(key) if isinstance(key, str) else key
+            if symbol not in self._params:
+                known = ", ".join(by_name) or "none"
+                raise InputError(f"unknown parameter {key!s} (parameters: {known})")
+            chosen[symbol] = _as_number(value, f"parameter {symbol}")
+        missing = [s.name for s in self._params if s not in chosen]
+        if missing:
+            raise InputError(f"no value for parameter(s): {', '.join(missing)}")
+        return np.array([chosen[s] for s in self._params], dtype=float)
+
+    @cached_property
+    def numeric(self):
+        """The numerical functions (:class:`~hamrkq.numeric.NumericHamiltonian`),
+        generated once."""
+        from .numeric import NumericHamiltonian
+
+        return NumericHamiltonian(self)
+
+    def state_values(self, q0: Any, p0: Any) -> np.ndarray:
+        """Initial values as one float array ``(q0..., p0...)``, validated.
+
+        Accepts numbers, SymPy numbers or expressions without free symbols.
+        """
+        parts = []
+        for label, values in (("q0", q0), ("p0", p0)):
+            if isinstance(values, str | bytes):
+                raise InputTypeError(f"{label} must be a sequence of numbers, not a string")
+            if isinstance(values, numbers.Number | sp.Basic) and not isinstance(
+                values, sp.MatrixBase
+            ):
+                values = [values]
+            try:
+                seq = list(np.asarray(values, dtype=object).ravel())
+            except (TypeError, ValueError):
+                raise InputTypeError(f"{label} must be a sequence of numbers") from None
+            if len(seq) != self.n:
+                raise InputError(
+                    f"{label} has {len(seq)} values but the system has {self.n} "
+                    f"degree{'s' if self.n != 1 else ''} of freedom"
+                )
+            parts.extend(_as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
+        return np.array(parts, dtype=float)
+
+
+def _check_scalar(H: Any, problems: list[str]) -> sp.Expr | None:
+    if isinstance(H, str):
+        problems.append(
+            "H is a string; build a SymPy expression (or use hamrkq.parse_expression "
+            "or a problem file): hamrkq never evaluates text"
+        )
+        return None
+    if isinstance(H, sp.MatrixBase | list | tuple | np.ndarray):
+        shape = getattr(H, "shape", (len(H),))
+        problems.append(f"H must be a scalar expression, got an array of shape {shape}")
+        return None
+    if isinstance(H, numbers.Number) and not isinstance(H, bool):
+        return sp.Float(H) if isinstance(H, float) else sp.Integer(H)
+    if not isinstance(H, sp.Expr):
+        problems.append(f"H must be a SymPy expression, got {type(H).__name__}")
+        return None
+    if isinstance(H, sp.Eq | sp.Rel):
+        problems.append("H must be an expression, not a relation")
+        return None
+    return H
+
+
+def _symbol_tuple(symbols: Any, label: str, problems: list[str]) -> tuple[sp.Symbol, ...]:
+    if isinstance(symbols, sp.Symbol):
+        symbols = [symbols]
+    if isinstance(symbols, str) or not isinstance(symbols, Iterable):
+        problems.append(f"{label} must be a sequence of SymPy symbols, got {symbols!r}")
+        return ()
+    result = []
+    for item in symbols:
+        if isinstance(item, sp.Symbol):
+            result.append(item)
+        else:
+            problems.append(f"{label} contains {item!r}, which is not a SymPy Symbol")
+    return tuple(result)
+
+
+def _parameters(
+    spec: ParameterSpec, free: set, problems: list[str]
+) -> tuple[tuple[sp.Symbol, ...], dict[sp.Symbol, float]]:
+    if spec is None:
+        return (), {}
+    items: Iterable[tuple[Any, Any]]
+    if isinstance(spec, Mapping):
+        items = spec.items()
+    elif isinstance(spec, str) or not isinstance(spec, Iterable):
+        problems.append(f"parameters must be a mapping or a sequence of symbols, got {spec!r}")
+        return (), {}
+    else:
+        items = ((s, None) for s in spec)
+    by_name = {s.name: s for s in free}
+    symbols: list[sp.Symbol] = []
+    defaults: dict[sp.Symbol, float] = {}
+    for key, value in items:
+        symbol = key
+        if isinstance(key, str):
+            symbol = by_name.get(key, sp.Symbol(key, real=True))
+        if not isinstance(symbol, sp.Symbol):
+            problems.append(f"parameter {key!r} is not a SymPy Symbol or a name")
+            continue
+        symbols.append(symbol)
+        if value is not None:
+            try:
+                defaults[symbol] = _as_number(value, f"parameter {symbol}")
+            except (InputError, InputTypeError) as exc:
+                problems.append(str(exc))
+    return tuple(sorted(symbols, key=lambda s: s.name)), defaults
