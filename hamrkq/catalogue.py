@@ -1,0 +1,432 @@
+"""The problem catalogue: TOML files describing classic Hamiltonian problems.
+
+A problem file is data, never code: its expressions go through the restricted
+parser of :mod:`hamrkq.expressions`.  The format is documented in
+``docs/catalogue.md``.  The catalogue's own files live in the repository's
+``problems/`` folder, installed as the package ``hamrkq.problems``.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .errors import InputError, ProblemFileError, ProblemNotFoundError
+from .expressions import check_name, parse_expression
+from .hamiltonian import Hamiltonian
+
+__all__ = ["Problem", "catalogue_dir", "list_problems", "load_problem"]
+
+#: Largest problem file accepted, in bytes.
+MAX_FILE_BYTES = 1_000_000
+
+TOP_LEVEL_KEYS = frozenset(
+    {
+        "name",
+        "title",
+        "description",
+        "references",
+        "coordinates",
+        "momenta",
+        "hamiltonian",
+        "parameters",
+        "initial",
+        "integration",
+        "invariants",
+        "exact",
+        "expected",
+    }
+)
+REQUIRED_KEYS = ("name", "coordinates", "momenta", "hamiltonian", "initial")
+INTEGRATION_KEYS = frozenset(
+    {
+        "t_span",
+        "method",
+        "atol",
+        "rtol",
+        "first_step",
+        "max_step",
+        "max_steps",
+        "step",
+        "quench",
+        "quench_threshold",
+        "safety",
+        "tolerance_rule",
+        "global_error_estimate",
+        "z_method",
+    }
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A catalogue entry: a Hamiltonian with initial values and settings.
+
+    Attributes
+    ----------
+    name, title, description : str
+    references : tuple of str
+    hamiltonian : Hamiltonian
+    q0, p0 : ndarray
+        Initial values for the current parameter values.
+    t_span : tuple of float
+    integration : mapping
+        Default settings for :func:`hamrkq.solve` (method, atol, rtol, ...).
+    invariants : mapping of str to sympy.Expr
+        First integrals besides H.
+    exact : callable or None
+        ``exact(t) -> ndarray (N, 2n)``, the exact solution for these initial
+        values and parameters, where the file gives one.
+    expected : mapping
+        Published reference values, with their sources.
+    parameters : mapping of str to float
+        The parameter values in use.
+    path : Path or None
+        The file it came from.
+    """
+
+    name: str
+    title: str
+    description: str
+    references: tuple[str, ...]
+    hamiltonian: Hamiltonian
+    initial_exprs: tuple[sp.Expr, ...]
+    t_span_exprs: tuple[sp.Expr, sp.Expr]
+    integration: Mapping[str, Any]
+    invariants: Mapping[str, sp.Expr]
+    exact_spec: Mapping[str, Any] | None
+    expected: Mapping[str, Any]
+    parameters: Mapping[str, float]
+    path: Path | None = None
+    _values: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        ham = self.hamiltonian
+        params = ham.parameter_values(self.parameters)
+        subs = dict(zip(ham.parameters, params, strict=True))
+        y0 = np.array([float(sp.N(e.subs(subs), 17)) for e in self.initial_exprs])
+        t_span = tuple(float(sp.N(e.subs(subs), 17)) for e in self.t_span_exprs)
+        if not np.all(np.isfinite(y0)):
+            raise ProblemFileError("initial values are not finite", path=self.path, key="initial")
+        self._values.update(y0=y0, t_span=t_span, params=params)
+        y0.setflags(write=False)
+        object.__setattr__(self, "integration", MappingProxyType(dict(self.integration)))
+        object.__setattr__(self, "invariants", MappingProxyType(dict(self.invariants)))
+        object.__setattr__(self, "expected", MappingProxyType(dict(self.expected)))
+        object.__setattr__(self, "parameters", MappingProxyType(dict(self.parameters)))
+
+    @property
+    def y0(self) -> np.ndarray:
+        """Initial state, all q then all p."""
+        return self._values["y0"]
+
+    @property
+    def q0(self) -> np.ndarray:
+        """Initial coordinates."""
+        return self.y0[: self.hamiltonian.n]
+
+    @property
+    def p0(self) -> np.ndarray:
+        """Initial momenta."""
+        return self.y0[self.hamiltonian.n :]
+
+    @property
+    def t_span(self) -> tuple[float, float]:
+        """Default time interval."""
+        return self._values["t_span"]
+
+    @property
+    def parameter_array(self) -> np.ndarray:
+        """Parameter values ordered like ``hamiltonian.parameters``."""
+        return self._values["params"]
+
+    @property
+    def exact(self) -> Callable[[Any], np.ndarray] | None:
+        """The exact solution ``t -> (N, 2n)``, or None."""
+        if self.exact_spec is None:
+            return None
+        if "exact" not in self._values:
+            self._values["exact"] = _exact_function(self)
+        return self._values["exact"]
+
+    def invariant_functions(self) -> dict[str, Callable]:
+        """Each invariant as ``f(t, Y) -> (N,)`` at the current parameters."""
+        from .numeric import vectorized
+
+        params = self.parameter_array
+        result = {}
+        for name, expr in self.invariants.items():
+            fn = vectorized(self.hamiltonian, [expr])
+            result[name] = lambda t, Y, fn=fn: fn(t, Y, params)[..., 0]
+        return result
+
+    def with_parameters(self, **values: float) -> Problem:
+        """The same problem with other parameter values (initial values follow)."""
+        unknown = sorted(set(values) - {s.name for s in self.hamiltonian.parameters})
+        if unknown:
+            raise InputError(f"problem {self.name!r} has no parameter(s) {', '.join(unknown)}")
+        merged = {**self.parameters, **{k: float(v) for k, v in values.items()}}
+        return replace(self, parameters=merged, _values={})
+
+    def __repr__(self) -> str:
+        return f"Problem({self.name!r}, n={self.hamiltonian.n}, t_span={self.t_span})"
+
+
+def catalogue_dir() -> Path:
+    """The folder holding the catalogue's TOML files."""
+    try:
+        folder = resources.files("hamrkq.problems")
+        path = Path(str(folder))
+        if any(path.glob("*.toml")):
+            return path
+    except (ModuleNotFoundError, TypeError):
+        pass
+    # A source checkout without installation: problems/ beside the package.
+    return Path(__file__).resolve().parent.parent / "problems"
+
+
+def list_problems() -> list[str]:
+    """Names of the catalogue's problems, sorted."""
+    return sorted(path.stem for path in catalogue_dir().glob("*.toml"))
+
+
+def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
+    """Load a problem by catalogue name or from a ``.toml`` file.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A catalogue name (see :func:`list_problems`) or a path to a file.
+    **parameters : float
+        Parameter values overriding the file's defaults.
+
+    Raises
+    ------
+    ProblemNotFoundError
+        Neither a catalogue entry nor an existing file.
+    ProblemFileError
+        The file is malformed; the message names the file, the line when known,
+        and the key.
+    """
+    path = Path(name_or_path)
+    text_name = str(name_or_path)
+    if not (path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name):
+        path = catalogue_dir() / f"{text_name}.toml"
+        if not path.is_file():
+            names = ", ".join(list_problems())
+            raise ProblemNotFoundError(
+                f"no problem named {text_name!r} in the catalogue (known: {names}) "
+                "and no such file"
+            )
+    elif not path.is_file():
+        raise ProblemNotFoundError(f"problem file {text_name!r} does not exist")
+    problem = _parse_file(path)
+    return problem.with_parameters(**parameters) if parameters else problem
+
+
+# -- parsing ------------------------------------------------------------------
+
+
+def _parse_file(path: Path) -> Problem:
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise ProblemFileError(f"file is {size} bytes, the limit is {MAX_FILE_BYTES}", path=path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"not UTF-8 text ({exc.reason})", path=path) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        match = re.search(r"at line (\d+)", str(exc))
+        line = int(match.group(1)) if match else None
+        raise ProblemFileError(f"TOML syntax error: {exc}", path=path, line=line) from None
+    return _FileReader(path, text, data).problem()
+
+
+class _FileReader:
+    """Validates the parsed TOML of one file and builds the Problem."""
+
+    def __init__(self, path: Path, text: str, data: dict):
+        self.path, self.text, self.data = path, text, data
+
+    def error(self, message: str, key: str) -> ProblemFileError:
+        return ProblemFileError(message, path=self.path, key=key, line=self._line(key))
+
+    def _line(self, key: str) -> int | None:
+        """Best-effort line number of a dotted key (tomllib gives none)."""
+        *section, last = key.split(".")
+        table = ".".join(section)
+        current = ""
+        for number, line in enumerate(self.text.splitlines(), start=1):
+            stripped = line.strip()
+            header = re.match(r"^\[\s*([^\]]+?)\s*\]", stripped)
+            if header:
+                current = header.group(1)
+                if current == key:
+                    return number
+            elif current == table and re.match(rf"^\"?{re.escape(last)}\"?\s*=", stripped):
+                return number
+        return None
+
+    def expr(self, text: Any, symbols: Mapping[str, sp.Symbol], key: str) -> sp.Expr:
+        return parse_expression(text, symbols, path=self.path, key=key, line=self._line(key))
+
+    def table(self, key: str) -> dict:
+        value = self.data.get(key, {})
+        if not isinstance(value, dict):
+            raise self.error(f"must be a table, got {type(value).__name__}", key)
+        return value
+
+    def names(self, key: str) -> list[str]:
+        value = self.data[key]
+        if not isinstance(value, list) or not value:
+            raise self.error("must be a non-empty list of names", key)
+        for item in value:
+            reason = check_name(item)
+            if reason:
+                raise self.error(f"bad name: {reason}", key)
+        return value
+
+    def problem(self) -> Problem:
+        data = self.data
+        unknown = sorted(set(data) - TOP_LEVEL_KEYS)
+        if unknown:
+            raise self.error(f"unknown key(s): {', '.join(unknown)}", unknown[0])
+        for key in REQUIRED_KEYS:
+            if key not in data:
+                raise ProblemFileError("required key is missing", path=self.path, key=key)
+        name = data["name"]
+        if name != self.path.stem:
+            raise self.error(f"name {name!r} must equal the file stem {self.path.stem!r}", "name")
+        q_names, p_names = self.names("coordinates"), self.names("momenta")
+        param_table = self.table("parameters")
+        param_names = list(param_table)
+        for pname in param_names:
+            reason = check_name(pname)
+            if reason:
+                raise self.error(f"bad parameter name: {reason}", f"parameters.{pname}")
+        all_names = [*q_names, *p_names, *param_names]
+        repeated = sorted({n for n in all_names if all_names.count(n) > 1})
+        if repeated:
+            raise self.error(f"names declared twice: {', '.join(repeated)}", "coordinates")
+        symbols = {n: sp.Symbol(n, real=True) for n in all_names}
+        t = sp.Symbol("t", real=True)
+        params_only = {n: symbols[n] for n in param_names}
+        defaults = {}
+        for pname, value in param_table.items():
+            value_expr = self.expr(value, {}, f"parameters.{pname}")
+            defaults[pname] = float(sp.N(value_expr, 17))
+        H = self.expr(data["hamiltonian"], {**symbols, "t": t}, "hamiltonian")
+        try:
+            ham = Hamiltonian(
+                H,
+                q=[symbols[n] for n in q_names],
+                p=[symbols[n] for n in p_names],
+                parameters={symbols[n]: defaults[n] for n in param_names},
+                t=t,
+                name=name,
+            )
+        except InputError as exc:
+            raise self.error(str(exc), "hamiltonian") from None
+        initial = self.table("initial")
+        extra = sorted(set(initial) - {"q", "p"})
+        if extra:
+            raise self.error(f"unknown key(s): {', '.join(extra)}", f"initial.{extra[0]}")
+        init_exprs = []
+        for part, count in (("q", len(q_names)), ("p", len(p_names))):
+            values = initial.get(part)
+            if not isinstance(values, list) or len(values) != count:
+                raise self.error(f"must be a list of {count} values", f"initial.{part}")
+            init_exprs += [
+                self.expr(v, params_only, f"initial.{part}[{i}]") for i, v in enumerate(values)
+            ]
+        integration = self.table("integration")
+        extra = sorted(set(integration) - INTEGRATION_KEYS)
+        if extra:
+            raise self.error(f"unknown key(s): {', '.join(extra)}", f"integration.{extra[0]}")
+        span = integration.pop("t_span", None)
+        if not isinstance(span, list) or len(span) != 2:
+            raise self.error("t_span must be a list of two values", "integration.t_span")
+        span_exprs = tuple(self.expr(v, params_only, "integration.t_span") for v in span)
+        state_syms = {**symbols, "t": t}
+        invariants = {}
+        for iname, text in self.table("invariants").items():
+            invariants[iname] = self.expr(text, state_syms, f"invariants.{iname}")
+        exact = self.exact_spec({**params_only, "t": t}, len(q_names))
+        references = data.get("references", [])
+        if not isinstance(references, list) or not all(isinstance(r, str) for r in references):
+            raise self.error("must be a list of strings", "references")
+        return Problem(
+            name=name,
+            title=str(data.get("title", name)),
+            description=str(data.get("description", "")),
+            references=tuple(references),
+            hamiltonian=ham,
+            initial_exprs=tuple(init_exprs),
+            t_span_exprs=span_exprs,
+            integration=integration,
+            invariants=invariants,
+            exact_spec=exact,
+            expected=self.table("expected"),
+            parameters=defaults,
+            path=self.path,
+        )
+
+    def exact_spec(self, symbols: Mapping[str, sp.Symbol], n: int) -> dict | None:
+        table = self.table("exact")
+        if not table:
+            return None
+        if "builtin" in table:
+            from .exact import BUILTIN_EXACT
+
+            builtin = table["builtin"]
+            if set(table) != {"builtin"}:
+                raise self.error("builtin excludes other keys", "exact")
+            if builtin not in BUILTIN_EXACT:
+                known = ", ".join(sorted(BUILTIN_EXACT))
+                raise self.error(f"unknown builtin {builtin!r} (known: {known})", "exact.builtin")
+            return {"builtin": builtin}
+        if set(table) != {"q", "p"}:
+            raise self.error("must have either 'builtin' or both 'q' and 'p'", "exact")
+        exprs = []
+        for part in ("q", "p"):
+            values = table[part]
+            if not isinstance(values, list) or len(values) != n:
+                raise self.error(f"must be a list of {n} expressions", f"exact.{part}")
+            exprs += [self.expr(v, symbols, f"exact.{part}[{i}]") for i, v in enumerate(values)]
+        return {"expressions": tuple(exprs)}
+
+
+def _exact_function(problem: Problem) -> Callable[[Any], np.ndarray]:
+    spec = problem.exact_spec
+    ham = problem.hamiltonian
+    params = problem.parameter_array
+    if "builtin" in spec:
+        from .exact import BUILTIN_EXACT
+
+        solver = BUILTIN_EXACT[spec["builtin"]]
+        y0 = problem.y0.copy()
+        named = {s.name: float(v) for s, v in zip(ham.parameters, params, strict=True)}
+
+        def exact(t):
+            return solver(np.atleast_1d(np.asarray(t, dtype=float)), y0, named)
+
+        return exact
+    raw = sp.lambdify((ham.t, list(ham.parameters)), list(spec["expressions"]), dummify=True)
+
+    def exact(t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        columns = raw(t, params)
+        return np.column_stack([np.broadcast_to(c, t.shape) for c in columns]).astype(float)
+
+    return exact

@@ -1,0 +1,1 @@
+"""Subcommands of the ``hamrkq`` command line beyond ``list`` and ``show``."""
