@@ -1,0 +1,414 @@
+"""Butcher tableaus of the explicit Runge-Kutta methods RKQ uses, as cited data.
+
+Each tableau keeps its coefficients twice: exactly as published
+(``A_exact``, ``b_exact``, ``c_exact``) and as read-only float64 arrays
+(``A``, ``b``, ``c``) for the integrator.  The order-condition tests in
+``tests/test_tableaus.py`` check the exact form against every rooted-tree
+condition, and the float form by measured convergence order.
+
+Exact forms, by tableau:
+
+- :data:`RK3_KUTTA`, :data:`RK4_CLASSIC`: :class:`fractions.Fraction`.
+- :data:`COOPER_VERNER_RK8`: ``Fraction`` where rational, SymPy expressions in
+  ``sqrt(21)`` otherwise (the nodes are the Lobatto points ``(7 +- sqrt 21)/14``).
+- :data:`DOP853_RK8`: Hairer's published coefficients are 30-digit decimals.
+  Those that are evidently rational (a terminating decimal, or a repeating one
+  matching a small fraction to all 30 digits: 1/3, 4/13, 127/195, 6/7, 1/27)
+  are stored as ``Fraction``; the rest as the published :class:`decimal.Decimal`
+  values, which are *not* exact: the method's true coefficients lie in
+  ``Q(sqrt 6)`` (for instance ``c2 = (12 - 2 sqrt 6)/135``, ``c4 = (6 - sqrt
+  6)/30``) and the decimals satisfy the order conditions to about 1e-29.
+
+RK3 and RK4 share their first two stages: both have ``c1 = 0`` and ``c2 = 1/2``
+with ``a21 = 1/2``, so ``k1`` and ``k2`` can be computed once.  Kutta's third
+stage (``c = 1``, ``a31 = -1``, ``a32 = 2``) differs from RK4's stages 3 and 4,
+so one step of both methods together costs 5 evaluations of ``f``, not 7.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from decimal import Decimal
+from fractions import Fraction
+from types import MappingProxyType
+
+import numpy as np
+import sympy as sp
+
+from hamrkq.errors import InputError, InputTypeError, OptionError
+
+__all__ = [
+    "COOPER_VERNER_RK8",
+    "DOP853_RK8",
+    "RK3_KUTTA",
+    "RK4_CLASSIC",
+    "TABLEAUS",
+    "ButcherTableau",
+    "Coefficient",
+    "get_tableau",
+]
+
+#: One published coefficient: an exact rational, an exact SymPy expression
+#: (irrational algebraic numbers), or a published decimal that is not exact.
+Coefficient = Fraction | sp.Expr | Decimal
+
+# How the fields map onto the usual drawing of an s-stage explicit tableau
+# (indices 1-based in the drawing, 0-based in the arrays):
+#
+#   c_1 |                                 c[0]   |
+#   c_2 | a_21                            c[1]   | A[1,0]
+#   c_3 | a_31  a_32                      c[2]   | A[2,0]   A[2,1]
+#    :  |  :           .                   :     |   :               .
+#   c_s | a_s1  a_s2  ...  a_s,s-1        c[s-1] | A[s-1,0] ...  A[s-1,s-2]
+#   ----+---------------------------      -------+---------------------------
+#       | b_1   b_2   ...  b_s-1  b_s            | b[0]     ...  b[s-1]
+#
+# Stage i evaluates k_i = f(t + c_i h, y + h sum_{j<i} a_ij k_j) and the step
+# is y + h sum_i b_i k_i.  Entries on and above the diagonal are zero (explicit).
+
+
+def _to_float(value: Coefficient) -> float:
+    """Nearest float64 to an exact or decimal coefficient."""
+    if isinstance(value, (Fraction, Decimal, int)):
+        return float(value)  # correctly rounded for Fraction and Decimal
+    # 40 significant digits, then one rounding to float64.
+    return float(sp.N(value, 40))
+
+
+def _read_only(values: Sequence) -> np.ndarray:
+    array = np.array([_to_float(v) for v in values], dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class ButcherTableau:
+    """An explicit Runge-Kutta method as immutable, cited data.
+
+    Parameters
+    ----------
+    name : str
+        Short name, the key accepted by :func:`get_tableau`.
+    order : int
+        Classical order of the method.
+    stages : int
+        Number of stages ``s``.
+    reference : str
+        Citation of the publication the coefficients come from.
+    A_exact : tuple of tuple of Coefficient
+        The ``s x s`` coupling matrix, zero on and above the diagonal.
+    b_exact : tuple of Coefficient
+        The ``s`` weights.
+    c_exact : tuple of Coefficient
+        The ``s`` nodes.
+
+    Attributes
+    ----------
+    A : ndarray, shape (s, s), float64, read-only
+        ``A_exact`` rounded to float64, strictly lower triangular.
+    b : ndarray, shape (s,), float64, read-only
+        ``b_exact`` rounded to float64.
+    c : ndarray, shape (s,), float64, read-only
+        ``c_exact`` rounded to float64.
+    exact : bool
+        Whether every coefficient is exact (``False`` when some are published
+        decimals, as for DOP853).
+
+    Raises
+    ------
+    InputError
+        If the shapes disagree with ``stages`` or ``A_exact`` has a nonzero
+        entry on or above the diagonal.
+    """
+
+    name: str
+    order: int
+    stages: int
+    reference: str
+    A_exact: tuple[tuple[Coefficient, ...], ...] = field(repr=False)
+    b_exact: tuple[Coefficient, ...] = field(repr=False)
+    c_exact: tuple[Coefficient, ...] = field(repr=False)
+    A: np.ndarray = field(init=False, repr=False, compare=False)
+    b: np.ndarray = field(init=False, repr=False, compare=False)
+    c: np.ndarray = field(init=False, repr=False, compare=False)
+    exact: bool = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        s = self.stages
+        if len(self.b_exact) != s or len(self.c_exact) != s:
+            raise InputError(
+                f"tableau {self.name!r}: b_exact and c_exact must have {s} entries "
+                f"(stages), got {len(self.b_exact)} and {len(self.c_exact)}"
+            )
+        if len(self.A_exact) != s or any(len(row) != s for row in self.A_exact):
+            raise InputError(f"tableau {self.name!r}: A_exact must be {s} x {s}")
+        for i, row in enumerate(self.A_exact):
+            for j in range(i, s):
+                if row[j] != 0:
+                    raise InputError(
+                        f"tableau {self.name!r} is not explicit: "
+                        f"A_exact[{i}][{j}] = {row[j]} is on or above the diagonal"
+                    )
+        A = np.array([[_to_float(a) for a in row] for row in self.A_exact], dtype=np.float64)
+        A.setflags(write=False)
+        # Frozen dataclass: derived fields are set once, here, and never again.
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "b", _read_only(self.b_exact))
+        object.__setattr__(self, "c", _read_only(self.c_exact))
+        everything = (*self.b_exact, *self.c_exact, *(a for row in self.A_exact for a in row))
+        object.__setattr__(self, "exact", not any(isinstance(v, Decimal) for v in everything))
+
+
+def _F(text: str) -> Fraction:
+    return Fraction(text)
+
+
+def _square(s: int, entries: Mapping[tuple[int, int], Coefficient]) -> tuple:
+    """An ``s x s`` tuple matrix from ``{(i, j): a_ij}`` with 1-based indices
+    as printed in the papers; missing entries are exact zeros."""
+    rows = [[Fraction(0)] * s for _ in range(s)]
+    for (i, j), value in entries.items():
+        rows[i - 1][j - 1] = value
+    return tuple(tuple(row) for row in rows)
+
+
+RK3_KUTTA = ButcherTableau(
+    name="rk3",
+    order=3,
+    stages=3,
+    reference=(
+        "W. Kutta, Beitrag zur naeherungsweisen Integration totaler "
+        "Differentialgleichungen, Z. Math. Phys. 46 (1901) 435-453; "
+        "Hairer, Norsett & Wanner, Solving ODEs I, 2nd ed., Table II.1.1"
+    ),
+    A_exact=_square(3, {(2, 1): _F("1/2"), (3, 1): _F("-1"), (3, 2): _F("2")}),
+    b_exact=(_F("1/6"), _F("2/3"), _F("1/6")),
+    c_exact=(_F("0"), _F("1/2"), _F("1")),
+)
+"""Kutta's third-order method (3 stages); its ``k1``, ``k2`` are RK4's."""
+
+RK4_CLASSIC = ButcherTableau(
+    name="rk4",
+    order=4,
+    stages=4,
+    reference=(
+        "W. Kutta, Z. Math. Phys. 46 (1901) 435-453; "
+        "Hairer, Norsett & Wanner, Solving ODEs I, 2nd ed., Table II.1.2 (left)"
+    ),
+    A_exact=_square(4, {(2, 1): _F("1/2"), (3, 2): _F("1/2"), (4, 3): _F("1")}),
+    b_exact=(_F("1/6"), _F("1/3"), _F("1/3"), _F("1/6")),
+    c_exact=(_F("0"), _F("1/2"), _F("1/2"), _F("1")),
+)
+"""The classical fourth-order Runge-Kutta method (4 stages)."""
+
+_s21 = sp.sqrt(21)
+
+COOPER_VERNER_RK8 = ButcherTableau(
+    name="cooper_verner",
+    order=8,
+    stages=11,
+    reference=(
+        "G. J. Cooper and J. H. Verner, Some explicit Runge-Kutta methods of "
+        "high order, SIAM J. Numer. Anal. 9 (1972) 389-405; "
+        "J. C. Butcher, Numerical Methods for ODEs, 3rd ed. (2016), Sec. 33"
+    ),
+    A_exact=_square(
+        11,
+        {
+            (2, 1): _F("1/2"),
+            (3, 1): _F("1/4"),
+            (3, 2): _F("1/4"),
+            (4, 1): _F("1/7"),
+            (4, 2): -(7 + 3 * _s21) / 98,
+            (4, 3): (21 + 5 * _s21) / 49,
+            (5, 1): (11 + _s21) / 84,
+            (5, 3): (18 + 4 * _s21) / 63,
+            (5, 4): (21 - _s21) / 252,
+            (6, 1): (5 + _s21) / 48,
+            (6, 3): (9 + _s21) / 36,
+            (6, 4): (-231 + 14 * _s21) / 360,
+            (6, 5): (63 - 7 * _s21) / 80,
+            (7, 1): (10 - _s21) / 42,
+            (7, 3): (-432 + 92 * _s21) / 315,
+            (7, 4): (633 - 145 * _s21) / 90,
+            (7, 5): (-504 + 115 * _s21) / 70,
+            (7, 6): (63 - 13 * _s21) / 35,
+            (8, 1): _F("1/14"),
+            (8, 5): (14 - 3 * _s21) / 126,
+            (8, 6): (13 - 3 * _s21) / 63,
+            (8, 7): _F("1/9"),
+            (9, 1): _F("1/32"),
+            (9, 5): (91 - 21 * _s21) / 576,
+            (9, 6): _F("11/72"),
+            (9, 7): -(385 + 75 * _s21) / 1152,
+            (9, 8): (63 + 13 * _s21) / 128,
+            (10, 1): _F("1/14"),
+            (10, 5): _F("1/9"),
+            (10, 6): -(733 + 147 * _s21) / 2205,
+            (10, 7): (515 + 111 * _s21) / 504,
+            (10, 8): -(51 + 11 * _s21) / 56,
+            (10, 9): (132 + 28 * _s21) / 245,
+            (11, 5): (-42 + 7 * _s21) / 18,
+            (11, 6): (-18 + 28 * _s21) / 45,
+            (11, 7): -(273 + 53 * _s21) / 72,
+            (11, 8): (301 + 53 * _s21) / 72,
+            (11, 9): (28 - 28 * _s21) / 45,
+            (11, 10): (49 - 7 * _s21) / 18,
+        },
+    ),
+    b_exact=(
+        _F("1/20"),
+        *(Fraction(0),) * 6,
+        _F("49/180"),
+        _F("16/45"),
+        _F("49/180"),
+        _F("1/20"),
+    ),
+    c_exact=(
+        _F("0"),
+        _F("1/2"),
+        _F("1/2"),
+        (7 + _s21) / 14,
+        (7 + _s21) / 14,
+        _F("1/2"),
+        (7 - _s21) / 14,
+        (7 - _s21) / 14,
+        _F("1/2"),
+        (7 + _s21) / 14,
+        _F("1"),
+    ),
+)
+"""Cooper & Verner's 11-stage eighth-order method (weights: Lobatto quadrature
+on 5 points)."""
+
+
+def _D(text: str) -> Decimal:
+    return Decimal(text)
+
+
+DOP853_RK8 = ButcherTableau(
+    name="dop853",
+    order=8,
+    stages=12,
+    reference=(
+        "E. Hairer, S. P. Norsett and G. Wanner, Solving Ordinary Differential "
+        "Equations I, 2nd ed., Springer (1993), Sec. II.10 and the code DOP853 "
+        "(Dormand & Prince's 8(5,3) pair); coefficients as in dop853.f"
+    ),
+    A_exact=_square(
+        12,
+        {
+            (2, 1): _D("5.26001519587677318785587544488e-2"),
+            (3, 1): _D("1.97250569845378994544595329183e-2"),
+            (3, 2): _D("5.91751709536136983633785987549e-2"),
+            (4, 1): _D("2.95875854768068491816892993775e-2"),
+            (4, 3): _D("8.87627564304205475450678981324e-2"),
+            (5, 1): _D("2.41365134159266685502369798665e-1"),
+            (5, 3): _D("-8.84549479328286085344864962717e-1"),
+            (5, 4): _D("9.24834003261792003115737966543e-1"),
+            (6, 1): _F("1/27"),  # published 3.7037037037037037037037037037e-2
+            (6, 4): _D("1.70828608729473871279604482173e-1"),
+            (6, 5): _D("1.25467687566822425016691814123e-1"),
+            (7, 1): _F("19/512"),  # published 3.7109375e-2
+            (7, 4): _D("1.70252211019544039314978060272e-1"),
+            (7, 5): _D("6.02165389804559606850219397283e-2"),
+            (7, 6): _F("-9/512"),  # published -1.7578125e-2
+            (8, 1): _D("3.70920001185047927108779319836e-2"),
+            (8, 4): _D("1.70383925712239993810214054705e-1"),
+            (8, 5): _D("1.07262030446373284651809199168e-1"),
+            (8, 6): _D("-1.53194377486244017527936158236e-2"),
+            (8, 7): _D("8.27378916381402288758473766002e-3"),
+            (9, 1): _D("6.24110958716075717114429577812e-1"),
+            (9, 4): _D("-3.36089262944694129406857109825"),
+            (9, 5): _D("-8.68219346841726006818189891453e-1"),
+            (9, 6): _D("2.75920996994467083049415600797e1"),
+            (9, 7): _D("2.01540675504778934086186788979e1"),
+            (9, 8): _D("-4.34898841810699588477366255144e1"),
+            (10, 1): _D("4.77662536438264365890433908527e-1"),
+            (10, 4): _D("-2.48811461997166764192642586468"),
+            (10, 5): _D("-5.90290826836842996371446475743e-1"),
+            (10, 6): _D("2.12300514481811942347288949897e1"),
+            (10, 7): _D("1.52792336328824235832596922938e1"),
+            (10, 8): _D("-3.32882109689848629194453265587e1"),
+            (10, 9): _D("-2.03312017085086261358222928593e-2"),
+            (11, 1): _D("-9.3714243008598732571704021658e-1"),
+            (11, 4): _D("5.18637242884406370830023853209"),
+            (11, 5): _D("1.09143734899672957818500254654"),
+            (11, 6): _D("-8.14978701074692612513997267357"),
+            (11, 7): _D("-1.85200656599969598641566180701e1"),
+            (11, 8): _D("2.27394870993505042818970056734e1"),
+            (11, 9): _D("2.49360555267965238987089396762"),
+            (11, 10): _D("-3.0467644718982195003823669022"),
+            (12, 1): _D("2.27331014751653820792359768449"),
+            (12, 4): _D("-1.05344954667372501984066689879e1"),
+            (12, 5): _D("-2.00087205822486249909675718444"),
+            (12, 6): _D("-1.79589318631187989172765950534e1"),
+            (12, 7): _D("2.79488845294199600508499808837e1"),
+            (12, 8): _D("-2.85899827713502369474065508674"),
+            (12, 9): _D("-8.87285693353062954433549289258"),
+            (12, 10): _D("1.23605671757943030647266201528e1"),
+            (12, 11): _D("6.43392746015763530355970484046e-1"),
+        },
+    ),
+    b_exact=(
+        _D("5.42937341165687622380535766363e-2"),
+        *(Fraction(0),) * 4,
+        _D("4.45031289275240888144113950566"),
+        _D("1.89151789931450038304281599044"),
+        _D("-5.8012039600105847814672114227"),
+        _D("3.1116436695781989440891606237e-1"),
+        _D("-1.52160949662516078556178806805e-1"),
+        _D("2.01365400804030348374776537501e-1"),
+        _D("4.47106157277725905176885569043e-2"),
+    ),
+    c_exact=(
+        _F("0"),
+        _D("0.526001519587677318785587544488e-1"),  # (12 - 2 sqrt 6)/135
+        _D("0.789002279381515978178381316732e-1"),  # (6 - sqrt 6)/45
+        _D("0.118350341907227396726757197510"),  # (6 - sqrt 6)/30
+        _D("0.281649658092772603273242802490"),  # (6 + sqrt 6)/30
+        _F("1/3"),
+        _F("1/4"),
+        _F("4/13"),
+        _F("127/195"),
+        _F("3/5"),
+        _F("6/7"),
+        _F("1"),
+    ),
+)
+"""The 12-stage eighth-order formula of DOP853 (its 13th stage and embedded
+5th/3rd-order error estimators are not part of this tableau)."""
+
+#: Every tableau by name (read-only).
+TABLEAUS: Mapping[str, ButcherTableau] = MappingProxyType(
+    {t.name: t for t in (RK3_KUTTA, RK4_CLASSIC, DOP853_RK8, COOPER_VERNER_RK8)}
+)
+
+
+def get_tableau(name: str) -> ButcherTableau:
+    """Look up a tableau by name.
+
+    Parameters
+    ----------
+    name : str
+        One of ``"rk3"``, ``"rk4"``, ``"dop853"``, ``"cooper_verner"``.
+
+    Returns
+    -------
+    ButcherTableau
+
+    Raises
+    ------
+    OptionError
+        If ``name`` is not a known tableau; the message lists the valid names.
+    InputTypeError
+        If ``name`` is not a string.
+    """
+    if not isinstance(name, str):
+        raise InputTypeError(f"tableau name must be a str, got {type(name).__name__}: {name!r}")
+    try:
+        return TABLEAUS[name]
+    except KeyError:
+        valid = ", ".join(repr(k) for k in TABLEAUS)
+        raise OptionError(f"unknown tableau {name!r}; valid names: {valid}") from None
