@@ -1,0 +1,559 @@
+"""`solve`: the one public entry for integrating a Hamiltonian system.
+
+:func:`solve` validates its input (every message names the parameter and the
+value), fills in defaults from a catalogue :class:`~hamrkq.catalogue.Problem`,
+dispatches to a method through a small table (:data:`METHODS`) and packs the
+result into a :class:`~hamrkq.result.Solution`.  The numerics live elsewhere:
+the RKQ loop in :mod:`hamrkq.rkq`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import sys
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from . import rkq
+from .errors import HamrkqWarning, InputError, InputTypeError, OptionError
+from .hamiltonian import Hamiltonian
+from .result import Solution, Status
+from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+
+__all__ = ["BACKENDS", "METHODS", "MethodSpec", "Task", "solve"]
+
+EPS = float(np.finfo(float).eps)
+#: Relative tolerances below this are raised to it (with a warning): below
+#: about 100 eps the local error test measures rounding, as in SciPy.
+MIN_RTOL = 100 * EPS
+#: Default step limit (accepted plus rejected attempts): a guard against runs
+#: that would never end, far above the ~62 000 steps of the paper's problem.
+DEFAULT_MAX_STEPS = 1_000_000
+#: Default for ``gamma_limit``: the run stops when the RK8 track's own
+#: estimated error (plus rounding) exceeds this fraction of the tolerance, so
+#: that a reported node's true error stays within (1 + 0.05) x tolerance.
+DEFAULT_GAMMA_LIMIT = 0.05
+
+QUENCH_MODES = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
+TOLERANCE_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
+GAMMA_MODES = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
+Z_METHODS = ("dop853", "cooper_verner")
+BACKENDS = ("python",)
+
+
+@dataclass(frozen=True)
+class Task:
+    """A validated integration request, handed to a method's runner."""
+
+    ham: Hamiltonian
+    params: np.ndarray
+    t0: float
+    t_end: float
+    y0: np.ndarray
+    atol: np.ndarray
+    rtol: np.ndarray
+    options: Mapping[str, Any]  # the validated keyword options
+    progress: Callable[[float, float], None] | None
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """A method :func:`solve` can dispatch to.
+
+    ``run(task, backend) -> rkq.RunOutput``; ``rk8`` says whether the method
+    produces the RK8 track (``z``, ``gamma``, ``quenched``).
+    """
+
+    name: str
+    summary: str
+    run: Callable[[Task, str], rkq.RunOutput]
+    backends: tuple[str, ...]
+    rk8: bool
+
+
+def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
+    o = task.options
+    rk8 = get_tableau(o["z_method"]) if o["method"] == "rk34q8" else None
+    numeric = task.ham.numeric
+    return rkq.run(
+        numeric.rhs,
+        numeric.jac,
+        task.params,
+        task.t0,
+        task.y0,
+        task.t_end,
+        rk3=RK3_KUTTA,
+        rk4=RK4_CLASSIC,
+        rk8=rk8,
+        atol=task.atol,
+        rtol=task.rtol,
+        quench=QUENCH_MODES[o["quench"]],
+        rule=TOLERANCE_RULES[o["tolerance_rule"]],
+        gamma=GAMMA_MODES[o["global_error_estimate"]],
+        safety=o["safety"],
+        theta=o["quench_threshold"],
+        max_step=o["max_step"],
+        max_steps=o["max_steps"],
+        gamma_limit=o["gamma_limit"],
+        keep_every=o["keep_every"],
+        t_eval=o["t_eval"],
+        first_step=o["first_step"],
+        progress=task.progress,
+    )
+
+
+#: Dispatch table: method name -> :class:`MethodSpec`.  Later methods
+#: ("midpoint", "gauss4", "scipy:DOP853", ...) and backends ("numba") are
+#: added here without touching :func:`solve`.
+METHODS: dict[str, MethodSpec] = {
+    "rk34q8": MethodSpec(
+        "rk34q8",
+        "RKQ: RK3/RK4 local extrapolation with an RK8 track and quenching (Prentice)",
+        _run_rk,
+        ("python",),
+        rk8=True,
+    ),
+    "rk34": MethodSpec(
+        "rk34",
+        "RK3/RK4 local extrapolation only (the paper's comparison)",
+        _run_rk,
+        ("python",),
+        rk8=False,
+    ),
+}
+
+
+def solve(
+    system_or_problem: Any,
+    q0: Any = None,
+    p0: Any = None,
+    t_span: Any = None,
+    *,
+    method: str | None = None,
+    atol: Any = None,
+    rtol: Any = None,
+    parameters: Mapping[Any, Any] | None = None,
+    quench: str | None = None,
+    quench_threshold: float | None = None,
+    safety: float | None = None,
+    tolerance_rule: str | None = None,
+    global_error_estimate: str | None = None,
+    z_method: str | None = None,
+    first_step: float | None = None,
+    max_step: float | None = None,
+    max_steps: int | None = None,
+    gamma_limit: float | None = None,
+    keep_every: int = 1,
+    t_eval: Any = None,
+    backend: str = "python",
+    progress: bool | Callable[[float, float], None] | None = None,
+) -> Solution:
+    """Integrate Hamilton's equations with RKQ (or RK34) and return the nodes.
+
+    Parameters
+    ----------
+    system_or_problem : Hamiltonian or Problem
+        The system.  With a catalogue :class:`~hamrkq.catalogue.Problem`, its
+        ``q0``, ``p0``, ``t_span`` and ``integration`` settings are the
+        defaults and the keywords below override them.
+    q0, p0 : sequence of n numbers
+        Initial coordinates and momenta: numbers, SymPy numbers or SymPy
+        expressions without free symbols.
+    t_span : (t0, t_end)
+        Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
+        t0`` returns the single initial node.
+    method : {"rk34q8", "rk34"}
+        ``"rk34q8"`` (default): Prentice's RKQ.  ``"rk34"``: RK3/RK4 local
+        extrapolation only (no RK8 track: ``z``, ``global_error``, ``gamma``
+        and ``quenched`` are None).
+    atol : float or array of 2n floats, default 1e-6
+        Absolute tolerance, positive.
+    rtol : float or array of 2n floats, default 0
+        Relative tolerance, zero or positive; values below 100 eps are
+        raised to 100 eps with a :class:`~hamrkq.errors.HamrkqWarning`.
+    parameters : mapping, optional
+        Parameter values by symbol or name, overriding the defaults (with a
+        Problem whose initial values depend on them, those follow).
+    quench : {"node", "redo"}, default "node"
+        ``"node"``: where ``|y - z| > theta delta`` replace the node by the
+        RK8 value.  ``"redo"``: restart that step from the RK8 value at its
+        start (once; if it fails again, quench the node).
+    quench_threshold : float, default 1
+        theta, positive.
+    safety : float, default 0.9
+        Safety factor of the step-size controller, in (0, 1].
+    tolerance_rule : {"componentwise", "prentice"}, default "componentwise"
+        ``delta_k = max(atol_k, rtol_k |y_k|)`` per component, or the paper's
+        scalar ``delta = min_k max(atol_k, rtol_k |y_k|)``.
+    global_error_estimate : {"tangent", "paper", "off"}, default "tangent"
+        How Gamma (the RK8 track's global error) is propagated: the exact
+        linearisation of the RK8 step, the paper's ``(I + h J)``, or not at
+        all (then ``gamma`` is None).
+    z_method : {"dop853", "cooper_verner"}, default "dop853"
+        The RK8 tableau of the track.
+    first_step : float, optional
+        Initial step size; by default Hairer-Norsett-Wanner's heuristic for
+        order 3 (as SciPy's ``select_initial_step``).
+    max_step : float, default inf
+        Largest step size.
+    max_steps : int, default 1 000 000
+        Limit on step attempts (accepted plus rejected).
+    gamma_limit : float, default 0.05
+        The run stops with ``Status.TOLERANCE_UNATTAINABLE`` at the first node
+        where ``max_k (|Gamma_k| + rounding_k) / delta_k`` exceeds it (``inf``
+        disables the check); see ``docs/algorithm.md``.
+    keep_every : int, default 1
+        Keep every k-th accepted node (and the first and last).
+    t_eval : array, optional
+        Keep only these times (inside ``t_span``, strictly monotonic in the
+        direction of integration); steps are clipped to land on them.
+    backend : {"python"}
+        Where the step loop runs.
+    progress : bool or callable, optional
+        True: a progress bar on stderr when it is a terminal.  A callable is
+        called as ``progress(fraction, t)`` every few thousand steps.
+
+    Returns
+    -------
+    Solution
+        Nodes, error estimates, energy, counters and the status.  Numerical
+        failures (step-size underflow, non-finite values, the step limit, an
+        unattainable tolerance, Ctrl-C) are not raised: the nodes computed so
+        far come back with ``success=False`` and a message naming ``t``.
+
+    Raises
+    ------
+    InputError, InputTypeError, OptionError
+        Bad input, with the parameter and value named.
+
+    References
+    ----------
+    J.S.C. Prentice, "Global Error Control in the Runge-Kutta Solution of a
+    Hamiltonian System using the RKQ Algorithm", arXiv:1111.6996 (2011).
+    """
+    ham, defaults, q0, p0, t_span, parameters = _system(
+        system_or_problem, q0, p0, t_span, parameters
+    )
+    pick = _Defaults(defaults)
+    method = _choice("method", pick("method", method, "rk34q8"), METHODS)
+    spec = METHODS[method]
+    if backend not in spec.backends:
+        known = BACKENDS if backend not in BACKENDS else spec.backends
+        raise OptionError(
+            f"backend={backend!r} is not available for method {method!r}; "
+            f"valid: {', '.join(map(repr, known))}"
+        )
+    params = ham.parameter_values(parameters)
+    y0 = ham.state_values(q0, p0)
+    t0, t_end = _span(t_span)
+    dim = ham.dim
+    atol_v = _tolerance("atol", pick("atol", atol, 1e-6), dim, positive=True)
+    rtol_v = _tolerance("rtol", pick("rtol", rtol, 0.0), dim, positive=False)
+    if np.any((rtol_v > 0) & (rtol_v < MIN_RTOL)):
+        warnings.warn(
+            f"rtol={_show(rtol)} is below 100 eps and is raised to {MIN_RTOL:.3g}",
+            HamrkqWarning,
+            stacklevel=2,
+        )
+        rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
+    options = {
+        "method": method,
+        "quench": _choice("quench", pick("quench", quench, "node"), QUENCH_MODES),
+        "quench_threshold": _positive(
+            "quench_threshold", pick("quench_threshold", quench_threshold, 1.0)
+        ),
+        "safety": _positive("safety", pick("safety", safety, 0.9), upper=1.0),
+        "tolerance_rule": _choice(
+            "tolerance_rule",
+            pick("tolerance_rule", tolerance_rule, "componentwise"),
+            TOLERANCE_RULES,
+        ),
+        "global_error_estimate": _choice(
+            "global_error_estimate",
+            pick("global_error_estimate", global_error_estimate, "tangent"),
+            GAMMA_MODES,
+        ),
+        "z_method": _choice("z_method", pick("z_method", z_method, "dop853"), Z_METHODS),
+        "max_step": _positive("max_step", pick("max_step", max_step, math.inf), inf=True),
+        "max_steps": _count("max_steps", pick("max_steps", max_steps, DEFAULT_MAX_STEPS)),
+        "gamma_limit": _positive(
+            "gamma_limit", DEFAULT_GAMMA_LIMIT if gamma_limit is None else gamma_limit, inf=True
+        ),
+        "keep_every": _count("keep_every", keep_every),
+        "t_eval": _t_eval(t_eval, t0, t_end),
+        "first_step": None,
+    }
+    step = pick("first_step", first_step, None)
+    if step is not None:
+        step = _positive("first_step", step)
+        if t_end != t0 and step > abs(t_end - t0):
+            raise InputError(
+                f"first_step={step!r} exceeds the length of t_span ({abs(t_end - t0)!r})"
+            )
+        options["first_step"] = step
+    if options["t_eval"] is not None and keep_every != 1:
+        raise InputError(
+            f"keep_every={keep_every!r} and t_eval cannot be combined: t_eval already "
+            "chooses the nodes that are kept"
+        )
+    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, _progress(progress))
+    out = spec.run(task, backend)
+    return _solution(task, spec, out, backend)
+
+
+# -- validation ------------------------------------------------------------------
+
+
+class _Defaults:
+    """``pick(name, given, fallback)``: the keyword if given, else the
+    problem's setting, else the fallback."""
+
+    def __init__(self, settings: Mapping[str, Any]):
+        self.settings = settings
+
+    def __call__(self, name: str, given: Any, fallback: Any) -> Any:
+        if given is not None:
+            return given
+        return self.settings.get(name, fallback)
+
+
+def _system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
+    """The Hamiltonian and the defaults a Problem supplies."""
+    from .catalogue import Problem
+
+    if parameters is not None and not isinstance(parameters, Mapping):
+        raise InputTypeError(
+            f"parameters must be a mapping of names or symbols to numbers, got {parameters!r}"
+        )
+    if isinstance(obj, Hamiltonian):
+        missing = [name for name, v in (("q0", q0), ("p0", p0), ("t_span", t_span)) if v is None]
+        if missing:
+            raise InputError(f"{', '.join(missing)} must be given when solving a Hamiltonian")
+        return obj, {}, q0, p0, t_span, parameters
+    if isinstance(obj, Problem):
+        problem = obj
+        if parameters:
+            names = {(k.name if isinstance(k, sp.Symbol) else k): v for k, v in parameters.items()}
+            problem = problem.with_parameters(**names)
+        merged = {**problem.parameters, **(parameters or {})}
+        return (
+            problem.hamiltonian,
+            dict(problem.integration),
+            problem.q0 if q0 is None else q0,
+            problem.p0 if p0 is None else p0,
+            problem.t_span if t_span is None else t_span,
+            merged,
+        )
+    raise InputTypeError(
+        "system_or_problem must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
+        f"got {type(obj).__name__}"
+    )
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _real(name: str, value: Any) -> float:
+    """A float from a real number or a SymPy number (never from a string)."""
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{name} must be a number, not the string {value!r}")
+    if isinstance(value, sp.Basic):
+        if value.free_symbols:
+            raise InputError(f"{name}={value} has free symbols")
+        value = complex(sp.N(value, 17))
+        if value.imag != 0:
+            raise InputError(f"{name}={value} is not real")
+        value = value.real
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputTypeError(f"{name} must be a real number, got {_show(value)}")
+    return float(value)
+
+
+def _span(t_span: Any) -> tuple[float, float]:
+    if isinstance(t_span, str | bytes) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+        raise InputError(f"t_span must be two numbers (t0, t_end), got {_show(t_span)}")
+    t0, t_end = (_real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
+    if not (math.isfinite(t0) and math.isfinite(t_end)):
+        raise InputError(f"t_span must be finite, got {_show(t_span)}")
+    return t0, t_end
+
+
+def _tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{name} must be a number or {dim} numbers, got {value!r}")
+    items = np.ravel(np.asarray(value, dtype=object)) if np.ndim(value) else [value]
+    if np.ndim(value) > 1 or len(items) not in (1, dim):
+        raise InputError(f"{name} must be a scalar or have {dim} entries, got {_show(value)}")
+    array = np.array([_real(name, v) for v in items], dtype=float)
+    bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
+    if np.any(bad):
+        need = "positive" if positive else "zero or positive"
+        raise InputError(f"{name} must be finite and {need}, got {_show(value)}")
+    return np.broadcast_to(array, (dim,)).copy()
+
+
+def _choice(name: str, value: Any, valid: Any) -> str:
+    if not isinstance(value, str) or value not in valid:
+        listing = ", ".join(repr(v) for v in valid)
+        raise OptionError(f"{name}={_show(value)} is not valid; valid values: {listing}")
+    return value
+
+
+def _positive(name: str, value: Any, *, inf: bool = False, upper: float | None = None) -> float:
+    number = _real(name, value)
+    if not (number > 0) or (math.isinf(number) and not inf) or math.isnan(number):
+        raise InputError(f"{name} must be a positive number, got {_show(value)}")
+    if upper is not None and number > upper:
+        raise InputError(f"{name} must be at most {upper}, got {_show(value)}")
+    return number
+
+
+def _count(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {_show(value)}")
+    return int(value)
+
+
+def _t_eval(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
+    if t_eval is None:
+        return None
+    try:
+        times = np.array([_real("t_eval", v) for v in np.ravel(np.asarray(t_eval, dtype=object))])
+    except TypeError:
+        raise InputTypeError(f"t_eval must be an array of numbers, got {_show(t_eval)}") from None
+    if np.ndim(t_eval) != 1 or times.size == 0:
+        raise InputError(f"t_eval must be a non-empty 1-D array, got {_show(t_eval)}")
+    lo, hi = min(t0, t_end), max(t0, t_end)
+    if not np.all(np.isfinite(times)) or times.min() < lo or times.max() > hi:
+        raise InputError(f"t_eval must lie within t_span ({t0!r}, {t_end!r})")
+    steps = np.diff(times) * (1.0 if t_end >= t0 else -1.0)
+    if np.any(steps <= 0):
+        raise InputError("t_eval must be strictly monotonic in the direction of integration")
+    return times
+
+
+def _progress(progress: Any) -> Callable[[float, float], None] | None:
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        return _terminal_bar() if sys.stderr is not None and sys.stderr.isatty() else None
+    if callable(progress):
+        return progress
+    raise InputTypeError(f"progress must be a bool or a callable, got {_show(progress)}")
+
+
+def _terminal_bar(width: int = 40) -> Callable[[float, float], None]:
+    def show(fraction: float, t: float) -> None:
+        filled = int(width * min(max(fraction, 0.0), 1.0))
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {fraction:6.1%} t={t:.6g}")
+        sys.stderr.flush()
+
+    return show
+
+
+# -- the result ------------------------------------------------------------------
+
+_STATUS_BY_CODE = {status.code: status for status in Status}
+
+
+def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) -> Solution:
+    o = task.options
+    gamma_mode = o["global_error_estimate"] if spec.rk8 else "off"
+    nfev_step, njev_step = rkq.evaluations_per_step(
+        o["method"], gamma_mode, get_tableau(o["z_method"]).stages
+    )
+    stats = dict(out.stats)
+    status = _STATUS_BY_CODE[out.status]
+    energy = task.ham.numeric.energy(out.t, out.y, task.params) if out.t.size else out.t
+    options: dict[str, Any] = {
+        "method": o["method"],
+        "backend": backend,
+        "t_span": [task.t0, task.t_end],
+        "atol": task.atol.tolist(),
+        "rtol": task.rtol.tolist(),
+        "tolerance_rule": o["tolerance_rule"],
+        "safety": o["safety"],
+        "first_step": out.first_step,
+        "first_step_rule": "given" if o["first_step"] is not None else "hairer-norsett-wanner",
+        "max_step": None if math.isinf(o["max_step"]) else o["max_step"],
+        "max_steps": o["max_steps"],
+        "keep_every": o["keep_every"],
+        "t_eval": None if o["t_eval"] is None else o["t_eval"].tolist(),
+        "parameters": {
+            s.name: float(v) for s, v in zip(task.ham.parameters, task.params, strict=True)
+        },
+        "nfev_per_step": nfev_step,
+        "njev_per_step": njev_step,
+    }
+    if spec.rk8:
+        options.update(
+            quench=o["quench"],
+            quench_threshold=o["quench_threshold"],
+            global_error_estimate=o["global_error_estimate"],
+            z_method=o["z_method"],
+            gamma_limit=None if math.isinf(o["gamma_limit"]) else o["gamma_limit"],
+        )
+    has_gamma = spec.rk8 and gamma_mode != "off"
+    return Solution(
+        t=out.t,
+        y=out.y,
+        energy=energy,
+        status=status,
+        message=_message(status, out, task),
+        method=o["method"],
+        n=task.ham.n,
+        names=task.ham.names,
+        atol=task.atol,
+        rtol=task.rtol,
+        stats=stats,
+        options=options,
+        z=out.z,
+        global_error=None if out.z is None else out.y - out.z,
+        gamma=out.gamma if has_gamma else None,
+        quenched=out.quenched,
+    )
+
+
+def _message(status: Status, out: rkq.RunOutput, task: Task) -> str:
+    t = out.t_last
+    if status is Status.SUCCESS:
+        text = f"The integration reached the end of the interval (t = {t!r})."
+    elif status is Status.STEP_SIZE_UNDERFLOW:
+        text = (
+            f"The step size {abs(out.h_fail):.3g} fell below the roundoff floor "
+            f"(10 eps |t|) at t = {t!r}."
+        )
+    elif status is Status.NON_FINITE:
+        text = f"The state or the right-hand side became non-finite (inf or nan) at t = {t!r}."
+    elif status is Status.MAX_STEPS:
+        text = f"The step limit max_steps = {task.options['max_steps']} was reached at t = {t!r}."
+    elif status is Status.INTERRUPTED:
+        text = f"Interrupted (KeyboardInterrupt) near t = {t!r}."
+    elif status is Status.TOLERANCE_UNATTAINABLE:
+        text = (
+            f"At t = {t!r} the RK8 track's estimated global error plus its rounding "
+            f"reached {out.max_ratio:.3g} x the tolerance (gamma_limit = "
+            f"{task.options['gamma_limit']:g}): the tolerance cannot be guaranteed in "
+            "double precision from here on; loosen atol/rtol."
+        )
+    else:  # pragma: no cover - other statuses come from other methods
+        text = f"{status.description} (t = {t!r})"
+    if not status.success:
+        text += f" The {out.t.size} nodes computed so far are kept."
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps:
+        text += (
+            f" Note: on {rounded} of {steps} steps the RK8 local error was below "
+            "double-precision rounding; there the Richardson estimate (and Gamma) "
+            "measures rounding, not truncation."
+        )
+    return text
