@@ -188,7 +188,7 @@ def pendulum(
 # -- Kepler problem --------------------------------------------------------------
 
 
-def _e_minus_sin(x: np.ndarray) -> np.ndarray:
+def _x_minus_sin(x: np.ndarray) -> np.ndarray:
     """``x - sin(x)`` without cancellation for small ``|x|``."""
     x = np.asarray(x, dtype=float)
     small = np.abs(x) < _SERIES_LIMIT
@@ -246,7 +246,7 @@ def solve_kepler_equation(mean_anomaly: object, e: float) -> np.ndarray:
     one_minus_e = 1.0 - e
     tiny = 4.0 * np.finfo(float).eps
     for _ in range(_KEPLER_MAX_ITER):
-        residual = one_minus_e * E + e * _e_minus_sin(E) - target
+        residual = one_minus_e * E + e * _x_minus_sin(E) - target
         # F is increasing: the sign of the residual moves one end of the bracket.
         lo = np.where(residual < 0.0, E, lo)
         hi = np.where(residual > 0.0, E, hi)
