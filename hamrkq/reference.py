@@ -37,6 +37,7 @@ __all__ = [
     "REFERENCE_RTOL",
     "TIGHTEST_RTOL",
     "Reference",
+    "hamiltonian_reference",
     "integrate_reference",
     "periodic_reference",
 ]
@@ -500,3 +501,57 @@ def integrate_reference(
     details = {"rtol": rtol, "atol": atol_arr.tolist(), "steps": steps, "nfev": nfev}
     method = f"DOP853 over [{t0:g}, {t_end:g}] (rtol={rtol:.2g}, scale-aware atol)"
     return Reference(t=t, y=y, estimated_error=error, method=method, details=details)
+
+
+# -- convenience for the symbolic layer ---------------------------------------
+def hamiltonian_reference(
+    system: Any,
+    y0: Any,
+    t_nodes: Any,
+    *,
+    params: Any = None,
+    t0: float | None = None,
+    periodic: bool | None = None,
+) -> Reference:
+    """Reference for a :class:`hamrkq.Hamiltonian` or a catalogue ``Problem``.
+
+    Parameters
+    ----------
+    system : Hamiltonian or Problem
+        A problem supplies its parameter values; a Hamiltonian its defaults.
+    y0 : array_like, shape (2n,)
+        State at ``t0`` (for a solution: ``sol.y[0]``).
+    t_nodes : array_like
+        Times wanted (for a solution: ``sol.t``).
+    params : array_like or mapping, optional
+        Parameter values (an array ordered like ``ham.parameters``, or a
+        mapping for ``ham.parameter_values``).
+    t0 : float, optional
+        Time of ``y0``; default ``t_nodes[0]``.
+    periodic : bool, optional
+        Use :func:`periodic_reference`.  Default: yes for an autonomous
+        system with one degree of freedom (its bounded orbits are periodic),
+        falling back to :func:`integrate_reference` if the orbit does not
+        return (an unbounded rotation, a separatrix); no otherwise.
+    """
+    ham = getattr(system, "hamiltonian", system)
+    if params is None:
+        params = (
+            system.parameter_array if hasattr(system, "parameter_array")
+            else ham.parameter_values()
+        )  # fmt: skip
+    elif isinstance(params, Mapping):
+        params = ham.parameter_values(params)
+    t = _times(t_nodes)
+    t0 = float(t[0]) if t0 is None else float(t0)
+    auto = periodic is None
+    if auto:
+        periodic = ham.n == 1 and not ham.time_dependent
+    rhs = ham.numeric.rhs
+    if periodic:
+        try:
+            return periodic_reference(rhs, y0, t, params, t0=t0)
+        except InputError:
+            if not auto:
+                raise
+    return integrate_reference(rhs, y0, t, params, t0=t0)

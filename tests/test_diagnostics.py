@@ -1,0 +1,239 @@
+"""Diagnostics on data with known answers (hamrkq.diagnostics)."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hamrkq.diagnostics import (
+    bound_ratio,
+    diagnose,
+    drift_summary,
+    energy_bound,
+    tolerance,
+    trajectory_bound,
+    trajectory_error,
+)
+from hamrkq.errors import InputError, OptionError
+from hamrkq.reference import integrate_reference
+from hamrkq.result import Solution, Status
+
+
+def make_solution(t, y, energy, *, z=None, gamma=None, atol=1e-6, rtol=0.0, n=1, **extra):
+    names = tuple([f"q{i + 1}" for i in range(n)] + [f"p{i + 1}" for i in range(n)])
+    if n == 1:
+        names = ("q", "p")
+    return Solution(
+        t=t, y=y, energy=energy, z=z, gamma=gamma,
+        global_error=None if z is None else np.asarray(y) - np.asarray(z),
+        status=extra.pop("status", Status.SUCCESS), message=extra.pop("message", "ok"),
+        method=extra.pop("method", "rk34q8"), n=n, names=names, atol=atol, rtol=rtol,
+        stats=extra.pop("stats", {"steps": len(t) - 1, "rejected": 0, "quenches": 0, "nfev": 1}),
+        **extra,
+    )  # fmt: skip
+
+
+def harmonic_energy(y):
+    return 0.5 * (y[:, 0] ** 2 + y[:, 1] ** 2)
+
+
+def harmonic_exact(t):
+    return np.column_stack([np.sin(t), np.cos(t)])
+
+
+# -- array functions with answers worked out by hand --------------------------
+def test_linear_drift_is_recovered_exactly():
+    t = np.linspace(0.0, 50.0, 501)
+    summary = drift_summary("H", t, 0.8 + 3e-7 * t)
+    assert summary.drift == pytest.approx(3e-7, rel=1e-9)
+    assert summary.drift_stderr < 1e-15
+    assert summary.max_abs == pytest.approx(1.5e-5, rel=1e-9)
+    assert summary.final == pytest.approx(1.5e-5, rel=1e-9)
+    assert summary.t_max == 50.0
+    assert summary.initial == 0.8
+    assert summary.relative_max == pytest.approx(1.5e-5 / 0.8)
+
+
+def test_drift_standard_error_matches_theory_for_white_noise():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0.0, 100.0, 20001)
+    sigma, slope = 1e-9, 2e-11
+    values = 1.0 + slope * t + sigma * rng.standard_normal(t.size)
+    summary = drift_summary("H", t, values)
+    theory = sigma / np.sqrt(np.sum((t - t.mean()) ** 2))  # OLS slope standard error
+    assert summary.drift_stderr == pytest.approx(theory, rel=0.05)
+    assert abs(summary.drift - slope) < 4 * theory
+
+
+def test_pure_oscillation_has_the_small_slope_least_squares_predicts():
+    # a sin(t) over N whole periods (length L = 2 pi N): the least-squares slope
+    # is int (t - L/2) a sin t dt / (L^3/12) = -12 a / L^2, not zero
+    t = np.linspace(0.0, 20 * np.pi, 40001)
+    summary = drift_summary("H", t, 0.5 + 1e-8 * np.sin(t))
+    assert summary.drift == pytest.approx(-12e-8 / (20 * np.pi) ** 2, rel=1e-3)
+    assert summary.max_abs == pytest.approx(1e-8, rel=1e-6)
+    assert abs(summary.final) < 1e-20
+
+
+def test_tolerance_rules_by_hand():
+    y = np.array([[3.0, -4.0], [0.0, 1e-9]])
+    componentwise = tolerance(y, 1e-6, 1e-6)
+    assert componentwise.tolist() == [[3e-6, 4e-6], [1e-6, 1e-6]]
+    assert trajectory_bound(componentwise)[0] == pytest.approx(5e-6)
+    prentice = tolerance(y, 1e-6, 1e-6, rule="prentice")  # the paper's min over components
+    assert prentice.tolist() == [[3e-6, 3e-6], [1e-6, 1e-6]]
+    assert trajectory_bound(prentice) == pytest.approx([3e-6 * np.sqrt(2), 1e-6 * np.sqrt(2)])
+    # absolute tolerance in 2-D: the paper's sqrt(2) delta
+    assert trajectory_bound(tolerance(y, 1e-6, 0.0)) == pytest.approx([np.sqrt(2) * 1e-6] * 2)
+
+
+def test_energy_bound_and_ratio_by_hand():
+    # harmonic oscillator, gradient of H = (q, p); nodes on the unit circle
+    y = np.array([[0.0, 1.0], [0.6, 0.8], [1.0, 0.0]])
+    delta = tolerance(y, 1e-6, 0.0)
+    bound = energy_bound(y, delta)  # (|q| + |p|) delta
+    assert bound == pytest.approx([1e-6, 1.4e-6, 1e-6])
+    observed = np.array([0.0, 0.7e-6, -0.25e-6])
+    ratio, where = bound_ratio(observed, bound, np.array([0.0, 1.0, 2.0]))
+    assert ratio == pytest.approx(0.5) and where == 1.0
+    assert bound_ratio(np.array([0.0, 1e-9]), np.array([0.0, 0.0]), np.arange(2.0))[0] == np.inf
+
+
+def test_trajectory_error_is_euclidean():
+    error = np.array([[3e-7, 4e-7], [0.0, 0.0], [-1e-6, 0.0]])
+    assert trajectory_error(error) == pytest.approx([5e-7, 0.0, 1e-6])
+
+
+# -- diagnose on synthetic solutions ------------------------------------------
+def synthetic_run(nodes=2001):
+    """Exact harmonic states plus a known error; an 'RK8 track' 1e-10 off."""
+    t = np.linspace(0.0, 10.0, nodes)
+    exact = harmonic_exact(t)
+    error = np.column_stack([4e-7 * np.sin(3 * t), -3e-7 * np.sin(2 * t)])  # zero at t = 0
+    y = exact + error
+    z = exact + 1e-10
+    gamma = np.full_like(y, 1e-10)
+    return make_solution(t, y, harmonic_energy(y), z=z, gamma=gamma), exact, error
+
+
+def test_diagnose_against_exact_known_error():
+    sol, _, error = synthetic_run()
+    diag = diagnose(sol, reference="exact", exact=harmonic_exact, gradient=lambda t, Y: Y.copy())
+    assert diag.error.source == "exact"
+    assert diag.error.max_abs == pytest.approx((4e-7, 3e-7), rel=1e-4)
+    assert diag.error.max_trajectory == pytest.approx(np.max(np.hypot(error[:, 0], error[:, 1])))
+    assert diag.error.bound_ratio == pytest.approx(diag.error.max_trajectory / (np.sqrt(2) * 1e-6))
+    np.testing.assert_allclose(diag.series["error"], error, atol=1e-16)
+    # the energy error is H(y) - H(y0) and stays within its first-order bound
+    expected = harmonic_energy(sol.y) - harmonic_energy(sol.y)[0]
+    np.testing.assert_allclose(diag.series["energy_error"], expected, rtol=0, atol=1e-18)
+    assert 0.1 < diag.energy_bound_ratio < 1.0
+    # the run's own estimate (y - z) is reported separately, with Gamma's accuracy
+    assert diag.estimated.source == "rk8"
+    assert diag.estimated.reference_accuracy == pytest.approx(1e-10)
+    assert diag.estimated.max_abs[0] == pytest.approx(4e-7 - 1e-10, rel=1e-3)
+
+
+def test_diagnose_rk8_and_none_and_auto():
+    sol, _, _ = synthetic_run(201)
+    rk8 = diagnose(sol, reference="rk8")
+    assert rk8.error is rk8.estimated
+    np.testing.assert_array_equal(rk8.series["reference"], sol.z)
+    assert rk8.gamma_max == pytest.approx(1e-10)
+    none = diagnose(sol, reference="none")
+    assert none.error is None and "error" not in none.series
+    assert diagnose(sol).error.source == "rk8"  # auto: no exact solution given
+    assert diagnose(sol, exact=harmonic_exact).error.source == "exact"
+    assert np.isnan(none.energy_bound_ratio)  # no gradient, no energy bound
+
+
+def test_independent_reference_object_is_accepted():
+    sol, _, error = synthetic_run(401)
+    ref = integrate_reference(
+        lambda t, y, params: np.array([y[1], -y[0]]), sol.y[0] - error[0], sol.t
+    )
+    diag = diagnose(sol, reference=ref)
+    assert diag.error.source == "independent"
+    assert diag.error.reference_accuracy == ref.estimated_error < 1e-11
+    assert diag.error.max_abs == pytest.approx((4e-7, 3e-7), rel=1e-4)
+
+
+def test_invariants_are_tracked_like_the_energy():
+    t = np.linspace(0.0, 10.0, 101)
+    grow = 1 + 1e-9 * t  # momenta scaled up: L = q1 p2 - q2 p1 = 1 + 1e-9 t exactly
+    y = np.column_stack([np.cos(t), np.sin(t), -np.sin(t) * grow, np.cos(t) * grow])
+    sol = make_solution(t, y, np.zeros_like(t), n=2)
+    momentum = {"angular_momentum": lambda t, Y: Y[:, 0] * Y[:, 3] - Y[:, 1] * Y[:, 2]}
+    diag = diagnose(sol, invariants=momentum)
+    (summary,) = diag.invariants
+    assert summary.initial == pytest.approx(1.0)
+    assert summary.drift == pytest.approx(1e-9, rel=1e-6)
+    assert summary.max_abs == pytest.approx(1e-8, rel=1e-6)
+    assert summary.t_max == 10.0
+
+
+def test_bad_reference_requests():
+    sol, _, _ = synthetic_run(11)
+    with pytest.raises(OptionError, match="reference must be one of"):
+        diagnose(sol, reference="best")
+    with pytest.raises(InputError, match="exact solution"):
+        diagnose(sol, reference="exact")
+    with pytest.raises(InputError, match="starts at"):
+        diagnose(sol, reference="exact", exact=lambda t: harmonic_exact(t + 1.0))
+    with pytest.raises(InputError, match="needs a problem"):
+        diagnose(sol, reference="independent")
+    no_track = make_solution(sol.t, sol.y, sol.energy, method="rk34")
+    with pytest.raises(InputError, match="RK8 track"):
+        diagnose(no_track, reference="rk8")
+    other = integrate_reference(lambda t, y, p: np.array([y[1], -y[0]]), sol.y[0], sol.t[:5])
+    with pytest.raises(InputError, match="node times"):
+        diagnose(sol, reference=other)
+
+
+def test_roundoff_gamma_and_partial_run_are_noted():
+    sol, _, _ = synthetic_run(51)
+    tiny = sol.replace(gamma=np.full_like(sol.y, 1e-17), status=Status.MAX_STEPS, message="stop")
+    diag = diagnose(tiny, reference="rk8")
+    assert any("roundoff" in note for note in diag.notes)
+    assert any("partial run" in note for note in diag.notes)
+    assert diag.status == "MAX_STEPS"
+
+
+def test_to_dict_is_strict_json_and_table_reads_well():
+    sol, _, _ = synthetic_run(101)
+    diag = diagnose(sol, exact=harmonic_exact, gradient=lambda t, Y: Y.copy())
+    data = diag.to_dict()
+    text = json.dumps(data, allow_nan=False)  # nan/inf became None
+    assert json.loads(text) == data
+    assert data["global_error"]["max_abs"]["q"] == pytest.approx(4e-7, rel=1e-4)
+    assert data["energy"]["max_abs"] == diag.energy.max_abs
+    assert data["rk8_estimated_global_error_max"] == pytest.approx(1e-10)
+    table = diag.table()
+    for label in ("energy error", "energy / bound", "true error", "trajectory / bound"):
+        assert label in table
+    assert diag.series["t"].flags.writeable is False
+
+
+# -- with the symbolic layer ---------------------------------------------------
+def test_catalogue_problem_exact_and_independent_references_agree():
+    from hamrkq import load_problem
+
+    problem = load_problem("harmonic")
+    ham, params = problem.hamiltonian, problem.parameter_array
+    t = np.linspace(0.0, 20.0, 401)
+    run = solve_ivp(
+        lambda t, y: ham.numeric.rhs(t, y, params), (0, 20), problem.y0, method="RK45",
+        rtol=1e-8, atol=1e-8, t_eval=t,
+    )  # fmt: skip
+    y = run.y.T
+    sol = make_solution(t, y, ham.numeric.energy(t, y, params), atol=1e-8)
+    by_exact = diagnose(sol, problem, reference="exact")
+    by_reference = diagnose(sol, problem, reference="independent")
+    assert by_reference.error.reference_accuracy < 1e-11
+    assert "period" in by_reference.error.description
+    np.testing.assert_allclose(by_reference.series["error"], by_exact.series["error"], atol=1e-11)
+    # gradient from the problem: H = (p^2 + q^2)/2 so the bound is (|q| + |p|) delta
+    np.testing.assert_allclose(
+        by_exact.series["energy_bound"], (np.abs(y[:, 0]) + np.abs(y[:, 1])) * 1e-8
+    )
