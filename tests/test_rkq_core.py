@@ -1,0 +1,233 @@
+"""The RKQ step loop (hamrkq.rkq) on plain NumPy right-hand sides.
+
+Everything here is checked against an exact solution or an independent
+computation: the Richardson estimate against the true local error of one RK8
+step, the tangent propagation against a finite difference of the step, the
+global error estimate Gamma against the true error of the RK8 track, the
+evaluation count against the documented formula.
+"""
+
+import numpy as np
+import pytest
+
+from hamrkq import exact, rkq
+from hamrkq.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+
+
+def harmonic_f(t, y, params):
+    return np.array([y[1], -y[0]])
+
+
+def harmonic_j(t, y, params):
+    return np.array([[0.0, 1.0], [-1.0, 0.0]])
+
+
+def pendulum_f(t, y, params):
+    return np.array([y[1], -np.sin(y[0])])
+
+
+def pendulum_j(t, y, params):
+    return np.array([[0.0, 1.0], [-np.cos(y[0]), 0.0]])
+
+
+def run(f, J, y0, t0, t_end, tol=1e-6, rk8=DOP853_RK8, **options):
+    dim = len(y0)
+    return rkq.run(f, J, np.zeros(0), t0, np.asarray(y0, float), t_end, rk3=RK3_KUTTA,
+                   rk4=RK4_CLASSIC, rk8=rk8, atol=np.full(dim, tol), rtol=np.zeros(dim),
+                   **options)  # fmt: skip
+
+
+def inplace(f):
+    def g(t, y, params, out):
+        out[...] = f(t, y, params)
+
+    return g
+
+
+def rk8_step(f, y, h):
+    """One DOP853 step by the loop's kernel; returns the new state."""
+    K = np.zeros((12, y.size))
+    inc = np.zeros(y.size)
+    rkq._rk_increment(inplace(f), 0.0, y, np.zeros_like(y), h, DOP853_RK8.A, DOP853_RK8.b,
+                      DOP853_RK8.c, None, K, np.zeros(y.size), inc, False)  # fmt: skip
+    return y + inc
+
+
+def test_richardson_estimates_the_true_local_error_of_one_rk8_step():
+    y0 = np.array([0.3, 0.8])
+    for h in (0.4, 0.8):
+        true = rk8_step(harmonic_f, y0, h) - exact.harmonic(h, y0)[0]
+        two_halves = rk8_step(harmonic_f, rk8_step(harmonic_f, y0, h / 2), h / 2)
+        estimate = (rk8_step(harmonic_f, y0, h) - two_halves) * 256 / 255
+        # The h^10 term of the error is not removed: a few per cent at h = 0.8.
+        np.testing.assert_allclose(estimate, true, rtol=0.05 * h)
+
+
+def test_tangent_propagation_is_the_linearisation_of_the_rk8_step():
+    y = np.array([1.1, -0.4])
+    v = np.array([0.7, 0.2])
+    h = 0.3
+    K, dK = np.zeros((12, 2)), np.zeros((12, 2))
+    inc, dinc = np.zeros(2), np.zeros(2)
+    njev = rkq._rk8_tangent(inplace(pendulum_f), inplace(pendulum_j), 0.0, y, np.zeros(2), h,
+                            DOP853_RK8.A, DOP853_RK8.b, DOP853_RK8.c, None, K, dK,
+                            np.zeros(2), np.zeros(2), np.zeros((2, 2)), v, inc, dinc)  # fmt: skip
+    eps = 1e-5
+    central = (rk8_step(pendulum_f, y + eps * v, h) - rk8_step(pendulum_f, y - eps * v, h)) / (
+        2 * eps
+    )
+    assert njev == 12
+    np.testing.assert_allclose(y + inc, rk8_step(pendulum_f, y, h), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(dinc, central, rtol=1e-8)
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-4])
+def test_gamma_tracks_the_true_error_of_the_rk8_track(tol):
+    y0 = np.array([0.0, 1.0])
+    out = run(pendulum_f, pendulum_j, y0, 0.0, 60.0, tol=tol, gamma_limit=np.inf)
+    true = np.linalg.norm(out.z - exact.pendulum(out.t, y0), axis=1)
+    estimate = np.linalg.norm(out.gamma, axis=1)
+    where = true > 1e-12
+    assert where.sum() > 0.3 * out.t.size
+    ratio = estimate[where] / true[where]
+    assert 0.9 < ratio.min() and ratio.max() < 1.1
+
+
+def test_reported_solution_within_tolerance_and_g_within_delta():
+    y0 = np.array([0.0, 1.0])
+    for tol in (1e-5, 1e-8):
+        out = run(pendulum_f, pendulum_j, y0, 0.0, 30.0, tol=tol)
+        assert out.status == 0
+        assert np.abs(out.y - out.z).max() <= tol
+        assert np.abs(out.y - exact.pendulum(out.t, y0)).max() <= 1.05 * tol
+        assert out.quenched.sum() == out.stats["quenches"] > 0
+
+
+def test_evaluation_counts_follow_the_documented_formula():
+    # Tight tolerance from a large first step forces some rejections.
+    out = run(pendulum_f, pendulum_j, [0.0, 1.0], 0.0, 10.0, tol=1e-8, first_step=2.0)
+    s = out.stats
+    assert s["rejected"] > 0
+    nfev, njev = rkq.evaluations_per_step("rk34q8", "tangent")
+    assert (nfev, njev) == (40, 12)
+    # f(t0, y0) serves as the first attempt's k1; a rejected attempt keeps k1.
+    assert s["nfev"] == 40 * s["steps"] + 4 * s["rejected"]
+    assert s["njev"] == 12 * s["steps"]
+    out34 = run(pendulum_f, pendulum_j, [0.0, 1.0], 0.0, 10.0, tol=1e-8, rk8=None)
+    s = out34.stats
+    # Plus one evaluation for the initial-step heuristic's probe.
+    assert s["nfev"] == 1 + 5 * s["steps"] + 4 * s["rejected"]
+    assert out34.z is None and s["quenches"] == 0
+
+
+def test_chunks_and_buffers_do_not_change_the_result():
+    y0 = [0.0, 1.0]
+    whole = run(pendulum_f, pendulum_j, y0, 0.0, 12.0, tol=1e-6)
+    pieces = run(pendulum_f, pendulum_j, y0, 0.0, 12.0, tol=1e-6, budget=7, buffer_rows=3)
+    for name in ("t", "y", "z", "gamma", "quenched"):
+        np.testing.assert_array_equal(getattr(whole, name), getattr(pieces, name))
+    assert whole.stats == pieces.stats
+
+
+def test_keep_every_keeps_a_subset_of_the_same_nodes():
+    y0 = [0.0, 1.0]
+    full = run(pendulum_f, pendulum_j, y0, 0.0, 12.0, tol=1e-6)
+    thin = run(pendulum_f, pendulum_j, y0, 0.0, 12.0, tol=1e-6, keep_every=10)
+    n = full.t.size
+    index = np.r_[np.arange(0, n, 10), n - 1] if (n - 1) % 10 else np.arange(0, n, 10)
+    np.testing.assert_array_equal(thin.t, full.t[index])
+    np.testing.assert_array_equal(thin.y, full.y[index])
+    np.testing.assert_array_equal(thin.gamma, full.gamma[index])
+
+
+def test_t_eval_lands_exactly_on_the_requested_times():
+    y0 = np.array([0.0, 1.0])
+    times = np.array([0.0, 0.001, 1.0, 2.5, 2.5000001, 7.0, 9.75])
+    out = run(pendulum_f, pendulum_j, y0, 0.0, 10.0, tol=1e-7, t_eval=times)
+    np.testing.assert_array_equal(out.t, times)
+    assert np.abs(out.y - exact.pendulum(times, y0)).max() <= 1.05e-7
+    later = run(pendulum_f, pendulum_j, y0, 0.0, 10.0, tol=1e-7, t_eval=times[2:])
+    np.testing.assert_array_equal(later.t, times[2:])
+
+
+def test_compensated_track_beats_plain_summation():
+    # Harmonic oscillator, 10 periods at 1e-10: the RK8 truncation error is
+    # ~1e-17 per step, so the track's error is its rounding.
+    y0 = np.array([0.0, 1.0])
+    out = run(harmonic_f, harmonic_j, y0, 0.0, 20 * np.pi, tol=1e-10)
+    ts = np.asarray(out.t)
+    z_err = np.abs(out.z - exact.harmonic(ts, y0)).max()
+    steps = out.stats["steps"]
+    # Plain summation would random-walk to ~sqrt(steps) eps; the track stays
+    # within a few ulps of the exact rotation.
+    assert steps > 9000
+    assert z_err < 2e-14 < np.sqrt(steps) * 2.2e-16
+    # Node times are the compensated sums of the steps: the last is exact.
+    assert out.t[-1] == 20 * np.pi
+
+
+def test_backward_integration_mirrors_forward():
+    y0 = np.array([0.5, 0.0])
+    fwd = run(pendulum_f, pendulum_j, y0, 0.0, 8.0, tol=1e-8)
+    bwd = run(pendulum_f, pendulum_j, y0, 0.0, -8.0, tol=1e-8)
+    assert bwd.t[-1] == -8.0 and np.all(np.diff(bwd.t) < 0)
+    # The pendulum is reversible: y(-t) = (q(t), -p(t)) for p0 = 0.
+    np.testing.assert_allclose(bwd.t, -fwd.t, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(bwd.y, fwd.y * [1, -1], rtol=0, atol=1e-14)
+    assert np.abs(bwd.y - exact.pendulum(bwd.t, y0)).max() <= 1.05e-8
+
+
+def test_finite_time_blow_up_stops_when_the_rk8_track_is_no_longer_exact_enough():
+    # y' = y^2, y(0) = 1: y = 1/(1 - t) blows up at t = 1; errors grow like y^2.
+    # The run must stop once the RK8 track's own error (Gamma) is no longer
+    # small against the tolerance: beyond that the bound cannot be promised.
+    f = lambda t, y, p: y**2  # noqa: E731
+    J = lambda t, y, p: np.array([[2 * y[0]]])  # noqa: E731
+    out = run(f, J, [1.0], 0.0, 2.0, tol=1e-6)
+    assert out.status == 5
+    assert 0.05 < out.max_ratio < 0.06
+    assert out.t[-1] == out.t_last < 1.0
+    exact_y = 1 / (1 - out.t)
+    # Gamma was right: the track's true error had reached ~5 % of the tolerance.
+    z_err = out.z[-1, 0] - exact_y[-1]
+    assert 0.8 < out.gamma[-1, 0] / z_err < 1.25 and abs(z_err) > 3e-8
+    assert np.abs(out.y[:, 0] - exact_y).max() <= 1.05e-6
+
+
+def test_non_finite_right_hand_side_ends_with_status_and_keeps_the_nodes():
+    # f is nan beyond y = 0.5: steps into it are rejected until the step size
+    # underflows; the status says why.
+    f = lambda t, y, p: np.where(y < 0.5, 1.0, np.nan)  # noqa: E731
+    J = lambda t, y, p: np.zeros((1, 1))  # noqa: E731
+    out = run(f, J, [0.0], 0.0, 2.0, tol=1e-6)
+    assert out.status == 2
+    assert 0.5 - 1e-9 < out.t_last < 0.5 and out.t[-1] == out.t_last
+    np.testing.assert_allclose(out.y[:, 0], out.t, rtol=0, atol=1e-15)
+
+
+def test_max_steps_stops_and_keeps_the_last_node_with_keep_every():
+    out = run(pendulum_f, pendulum_j, [0.0, 1.0], 0.0, 100.0, tol=1e-6, max_steps=25,
+              keep_every=7)  # fmt: skip
+    assert out.status == 3
+    assert out.stats["steps"] + out.stats["rejected"] == 25
+    assert out.t[-1] == out.t_last and out.t.size == 1 + 25 // 7 + 1
+
+
+def test_tolerance_below_rounding_is_unattainable():
+    # delta = 1e-17 is below one ulp of |y| ~ 1: no double can be that close.
+    out = run(harmonic_f, harmonic_j, [0.0, 1.0], 0.0, 1.0, tol=1e-17)
+    assert out.status == 5
+    assert out.max_ratio > 1 and out.t.size == 2
+
+
+def test_redo_mode_restarts_from_the_track():
+    y0 = np.array([0.0, 1.0])
+    node = run(pendulum_f, pendulum_j, y0, 0.0, 30.0, tol=1e-6)
+    redo = run(pendulum_f, pendulum_j, y0, 0.0, 30.0, tol=1e-6, quench=rkq.QUENCH_REDO)
+    assert redo.stats["quenches"] > 0
+    assert np.abs(redo.y - redo.z).max() <= 1e-6
+    assert np.abs(redo.y - exact.pendulum(redo.t, y0)).max() <= 1.05e-6
+    # A redo re-uses the cached RK8 step: only the RK3/RK4 stages are repeated.
+    s = redo.stats
+    assert s["nfev"] == 1 + 40 * s["steps"] + 4 * s["rejected"] + 5 * s["quenches"]
+    assert node.stats["nfev"] == 1 + 40 * node.stats["steps"] + 4 * node.stats["rejected"]
