@@ -237,3 +237,26 @@ def test_catalogue_problem_exact_and_independent_references_agree():
     np.testing.assert_allclose(
         by_exact.series["energy_bound"], (np.abs(y[:, 0]) + np.abs(y[:, 1])) * 1e-8
     )
+
+
+@pytest.mark.slow
+def test_prentice2011_rk34q8_meets_the_papers_bounds():
+    """The issue's acceptance test: RK34Q8 at 1e-6 on the paper's problem."""
+    from hamrkq import load_problem
+    from hamrkq.solve import solve
+
+    problem = load_problem("prentice2011")
+    sol = solve(problem)  # RK34Q8, atol 1e-6, rtol 0, t in [0, 4000]
+    true = diagnose(sol, problem, reference="independent")
+    paper = diagnose(sol, problem, reference="rk8")
+    # the independent reference is far more accurate than the tolerance
+    assert true.error.reference_accuracy < 1e-8
+    assert true.error.bound_ratio <= 1.05  # trajectory error / (sqrt(2) 1e-6)
+    assert true.energy_bound_ratio <= 1.05  # |H - 0.8| / ((|q'| + |p'|) 1e-6)
+    # against its own RK8 track every node is within delta by construction
+    assert max(paper.error.max_abs) <= 1e-6 * (1 + 1e-12)
+    assert paper.error.bound_ratio <= 1.0 + 1e-12
+    # the two differ by the RK8 track's own error, which Gamma estimates
+    track_error = np.asarray(sol.z) - true.series["reference"]
+    assert np.max(np.abs(track_error - sol.gamma)) <= 0.5 * np.max(np.abs(track_error))
+    assert abs(true.energy.initial - 0.8) < 1e-15
