@@ -171,9 +171,9 @@ def _delta(atol, rtol, a, b, rel, rule, out, tmp):
     if rel:
         np.abs(a, out)
         np.abs(b, tmp)
-        np.maximum(out, tmp, out)
+        np.fmax(out, tmp, out)  # fmax: np.maximum deprecates a positional out
         np.multiply(out, rtol, out)
-        np.maximum(out, atol, out)
+        np.fmax(out, atol, out)
     else:
         out[:] = atol
     if rule == RULE_PRENTICE:
