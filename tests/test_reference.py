@@ -130,6 +130,14 @@ def test_prentice_long_grid_conserves_energy_and_is_self_consistent():
     assert ref.y[0].tolist() == pytest.approx([Q0_PRENTICE, 0.0], abs=1e-15)
 
 
+def test_pendulum_period_is_four_complete_elliptic_integrals():
+    from scipy.special import ellipk
+
+    # q0 = 0, p0 = 1: H = -1/2 = -cos(q_max), so q_max = pi/3, k = sin(pi/6) = 1/2
+    ref = periodic_reference(pendulum_rhs, [0.0, 1.0], [100.0])
+    assert abs(ref.details["period"] - 4 * ellipk(0.25)) < 2e-14
+
+
 def test_kepler_two_degrees_of_freedom_against_keplers_equation():
     e = 0.6
     y0 = [1 - e, 0.0, 0.0, np.sqrt((1 + e) / (1 - e))]
