@@ -54,7 +54,9 @@ def test_metadata(problem):
     assert problem.title and len(problem.description) > 200
     assert problem.references and all(len(r) > 20 for r in problem.references)
     assert problem.integration["method"] == "rk34q8"
-    assert problem.integration["atol"] > 0 and problem.integration["rtol"] >= 0
+    atol = np.asarray(problem.integration["atol"], dtype=float)
+    assert atol.shape in {(), (problem.hamiltonian.dim,)}
+    assert np.all(atol > 0) and problem.integration["rtol"] >= 0
     assert problem.t_span[0] == 0.0 < problem.t_span[1]
     assert "\n" not in problem.description  # line continuations, not line breaks
 
@@ -261,6 +263,9 @@ def test_outer_solar_system_data():
     np.testing.assert_array_equal(problem.q0, np.ravel(OSS_Q))
     expected_p = (np.array(OSS_MASSES)[:, None] * np.array(OSS_V)).ravel()
     np.testing.assert_allclose(problem.p0, expected_p, rtol=1e-15, atol=0)
+    # Momentum floors are m_i * 1e-11 (a velocity floor of 1e-11 AU/day), rounded.
+    floors = np.asarray(problem.integration["atol"])[18:].reshape(6, 3)
+    np.testing.assert_allclose(floors / np.array(OSS_MASSES)[:, None], 1e-11, rtol=0.1)
     rng = np.random.default_rng(7)
     for y in (problem.y0, problem.y0 * (1 + 0.1 * rng.standard_normal(36))):
         assert energy(problem, y)[0] == pytest.approx(
