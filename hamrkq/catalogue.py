@@ -417,9 +417,10 @@ def _exact_function(problem: Problem) -> Callable[[Any], np.ndarray]:
         solver = BUILTIN_EXACT[spec["builtin"]]
         y0 = problem.y0.copy()
         named = {s.name: float(v) for s, v in zip(ham.parameters, params, strict=True)}
+        t0 = problem.t_span[0]
 
         def exact(t):
-            return solver(np.atleast_1d(np.asarray(t, dtype=float)), y0, named)
+            return solver(np.atleast_1d(np.asarray(t, dtype=float)), y0, named, t0=t0)
 
         return exact
     raw = sp.lambdify((ham.t, list(ham.parameters)), list(spec["expressions"]), dummify=True)
