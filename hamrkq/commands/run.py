@@ -1,0 +1,240 @@
+"""``hamrkq run NAME|FILE``: integrate one problem and write a report.
+
+What it writes into ``--out`` (default ``./hamrkq-run/NAME``), every file
+atomically:
+
+- ``solution.npz``: the nodes, states and error estimates
+  (:meth:`hamrkq.Solution.save`; read back with ``Solution.load``);
+- ``summary.json``: the settings, every number of
+  :func:`hamrkq.diagnostics.diagnose`, the counters, wall times, the status
+  (``"partial": true`` when the run stopped early) and package versions;
+- the figures (PNG) of :mod:`hamrkq.plotting`, unless ``--no-plots``.
+
+The summary table goes to stdout, a progress bar to stderr on a terminal.
+Exit status: 0 success, 1 the integration failed or was interrupted (the
+partial results are still written), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+from hamrkq.catalogue import load_problem
+from hamrkq.diagnostics import diagnose
+from hamrkq.errors import HamrkqError, InputError, OptionError
+from hamrkq.report import OutputDir, ProgressBar, format_table, summary_dict, summary_rows
+from hamrkq.solve import BACKENDS, METHODS, solve
+
+__all__ = ["REFERENCE_CHOICES", "register", "run_command"]
+
+#: ``--reference`` values.  ``auto``: the exact solution where the catalogue
+#: has one, otherwise an independent DOP853 reference (hamrkq.reference).
+REFERENCE_CHOICES = ("auto", "exact", "independent", "rk8", "none")
+DEFAULT_ROOT = Path("hamrkq-run")
+
+#: File names of the figures; the ``_true`` variants are against the
+#: independent or exact reference, the others against the run's RK8 track
+#: (the paper's way) or, for a run without one, against the reference.
+FIGURES = {
+    "figure1": "figure1_solution.png",
+    "figure2": "figure2_global_error.png",
+    "figure3": "figure3_trajectory_error.png",
+    "figure2_true": "figure2_global_error_true.png",
+    "figure3_true": "figure3_trajectory_error_true.png",
+    "figure4": "figure4_rk8_error.png",
+}
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``run`` subcommand."""
+    p = subparsers.add_parser(
+        "run",
+        help="integrate a problem; write summary.json, solution.npz and figures",
+        description=(
+            "Integrate a catalogue problem (or a .toml problem file) and report: a "
+            "summary table on stdout; summary.json, solution.npz and the paper's "
+            "figures in --out. Settings not given come from the problem file. "
+            "Exit status: 0 success, 1 the integration failed (partial results are "
+            "written), 2 bad input."
+        ),
+    )
+    p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
+    p.add_argument(
+        "--method", metavar="M", help=f"integration method ({', '.join(METHODS)}); "
+        "default: the problem's"
+    )  # fmt: skip
+    p.add_argument("--atol", type=float, metavar="A", help="absolute tolerance")
+    p.add_argument("--rtol", type=float, metavar="R", help="relative tolerance")
+    p.add_argument("--t-end", type=float, metavar="T", help="end of the interval")
+    p.add_argument(
+        "--param", action="append", default=[], metavar="NAME=VALUE",
+        help="override a parameter of the problem (a number; repeatable)",
+    )  # fmt: skip
+    p.add_argument("--max-steps", type=int, metavar="N", help="limit on step attempts")
+    p.add_argument(
+        "--backend", metavar="B", help=f"where the step loop runs ({', '.join(BACKENDS)}); "
+        "default: solve's default"
+    )  # fmt: skip
+    p.add_argument(
+        "--reference", choices=REFERENCE_CHOICES, default="auto",
+        help="what the true error is measured against; auto: the exact solution if "
+        "the problem has one, else an independent high-accuracy integration",
+    )  # fmt: skip
+    p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-run/NAME)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+    p.add_argument("--no-plots", action="store_true", help="do not draw the figures")
+    p.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
+    p.set_defaults(func=run_command)
+
+
+def parse_parameters(items: list[str]) -> dict[str, float]:
+    """``["a=6", "b=0.5"]`` -> ``{"a": 6.0, "b": 0.5}``; values are plain numbers
+    (``float``), never expressions."""
+    values: dict[str, float] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not sep or not name.isidentifier() or not math.isfinite(value):
+            raise InputError(f"--param {item!r}: expected NAME=NUMBER with a finite number")
+        values[name] = value
+    return values
+
+
+def resolve_reference(kind: str, problem: Any, method: str) -> str:
+    """The reference kind for :func:`diagnose`, checked before the run starts."""
+    if kind == "auto":
+        return "exact" if problem.exact_spec is not None else "independent"
+    if kind == "exact" and problem.exact_spec is None:
+        raise OptionError(
+            f"--reference exact: problem {problem.name!r} has no exact solution; "
+            "use --reference independent"
+        )
+    spec = METHODS.get(method)
+    if kind == "rk8" and spec is not None and not spec.rk8:
+        raise OptionError(f"--reference rk8: method {method!r} has no RK8 track")
+    return kind
+
+
+def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
+    """Keywords for :func:`hamrkq.solve`: only what the command line set, so that
+    everything else keeps the problem's (or solve's) default."""
+    kwargs: dict[str, Any] = {}
+    for name in ("method", "atol", "rtol", "max_steps", "backend"):
+        value = getattr(args, name)
+        if value is not None:
+            kwargs[name] = value
+    if args.t_end is not None:
+        kwargs["t_span"] = (problem.t_span[0], args.t_end)
+    return kwargs
+
+
+def diagnose_safely(sol: Any, problem: Any, reference: str) -> tuple[Any, list[str]]:
+    """:func:`diagnose`, falling back to no reference when the reference cannot be
+    had (a diverging partial run, say): the run's own numbers are still reported."""
+    notes: list[str] = []
+    if len(sol) < 2:
+        return None, ["fewer than two nodes: no diagnostics"]
+    try:
+        return diagnose(sol, problem, reference=reference), notes
+    except HamrkqError as exc:
+        notes.append(f"reference {reference!r} unavailable ({exc}); true error not reported")
+    return diagnose(sol, problem, reference="none"), notes
+
+
+def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) -> list[str]:
+    """Draw and save the figures this run supports; returns notes on those skipped."""
+    from hamrkq import plotting
+
+    if len(sol) < 2:
+        return ["fewer than two nodes: no figures"]
+    true_ref = diag is not None and diag.error is not None and diag.error.source != "rk8"
+    jobs: list[tuple[str, Any]] = [("figure1", lambda: plotting.figure1(sol, title=title))]
+    for number, draw in (("2", plotting.figure2), ("3", plotting.figure3)):
+        jobs.append((f"figure{number}", lambda d=draw: d(sol, diagnostics=diag, title=title)))
+        if true_ref and sol.global_error is not None:
+            jobs.append(
+                (
+                    f"figure{number}_true",
+                    lambda d=draw: d(sol, diagnostics=diag, error="true", title=title),
+                )
+            )
+    if sol.gamma is not None:
+        jobs.append(("figure4", lambda: plotting.figure4(sol, title=title)))
+    notes = []
+    for key, draw in jobs:
+        try:
+            fig = draw()
+        except InputError as exc:  # e.g. no error to plot: RK34 with --reference none
+            notes.append(f"{FIGURES[key]} not drawn: {exc}")
+            continue
+        out.figure(FIGURES[key], fig, dpi=dpi)
+    return notes
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """The ``run`` subcommand; returns the exit status."""
+    problem = load_problem(args.problem)
+    if args.param:
+        problem = problem.with_parameters(**parse_parameters(args.param))
+    kwargs = solve_arguments(args, problem)
+    method = kwargs.get("method", problem.integration.get("method", "rk34q8"))
+    reference = resolve_reference(args.reference, problem, method)
+    if args.dpi < 10:
+        raise InputError(f"--dpi must be at least 10, got {args.dpi}")
+    out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
+
+    started = time.perf_counter()
+    with ProgressBar(f"{problem.name} {method}") as bar:
+        sol = solve(problem, progress=bar, **kwargs)
+    solve_time = time.perf_counter() - started
+    out.solution("solution.npz", sol)
+
+    notes: list[str] = []
+    diag = None
+    try:
+        diag, more = diagnose_safely(sol, problem, reference)
+        notes += more
+        if not args.no_plots:
+            notes += write_figures(out, sol, diag, title=problem.name, dpi=args.dpi)
+        interrupted = False
+    except KeyboardInterrupt:
+        notes.append("interrupted during diagnostics or plotting; report incomplete")
+        interrupted = True
+    total = time.perf_counter() - started
+    settings = {
+        "command": "run",
+        "problem": args.problem,
+        "reference": reference,
+        "plots": not args.no_plots,
+        "dpi": args.dpi,
+        "out": str(out.path),
+        "cli_overrides": kwargs,
+        "parameters": dict(problem.parameters),
+    }
+    summary = summary_dict(
+        sol,
+        diag,
+        problem=problem,
+        settings=settings,
+        wall_time={"solve": solve_time, "total": total},
+        notes=notes,
+    )
+    summary["files"] = [*out.written, "summary.json"]
+    out.json("summary.json", summary)
+
+    print(f"{problem.name}: {problem.title}")
+    print(format_table(summary_rows(sol, diag, wall_time=solve_time)))
+    if not sol.success:
+        print(f"message: {sol.message}")
+    for note in [*(diag.notes if diag is not None else ()), *notes]:
+        print(f"note: {note}")
+    print(f"wrote {out.path}/: {', '.join(out.written)}")
+    return 0 if sol.success and not interrupted else 1

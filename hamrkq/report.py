@@ -1,0 +1,384 @@
+"""Shared pieces of the ``run`` and ``reproduce`` commands: output files and reports.
+
+- :class:`OutputDir`: the output-directory policy (an existing non-empty
+  directory is refused unless ``force``) and atomic writing of every file
+  (a temporary name in the same directory, then :func:`os.replace`), so a
+  crash or Ctrl-C never leaves a half-written file under its final name.
+- :func:`summary_dict`: the content of ``summary.json`` for one run: the
+  settings, every number :func:`hamrkq.diagnostics.diagnose` found, the
+  counters, wall times, the status and the package versions.
+- :func:`summary_rows` and :func:`format_table`: the text table printed on
+  stdout.
+- :class:`ProgressBar`: a progress bar on a terminal that appears only once a
+  run has lasted about a second, and never when stderr is not a terminal.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+from collections.abc import Iterable, Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from hamrkq.errors import InputError
+
+__all__ = [
+    "SUMMARY_FORMAT_VERSION",
+    "OutputDir",
+    "ProgressBar",
+    "format_table",
+    "jsonable",
+    "package_versions",
+    "summary_dict",
+    "summary_rows",
+    "write_atomic",
+]
+
+#: Version of the layout of ``summary.json``; bumped when keys change meaning.
+SUMMARY_FORMAT_VERSION = 1
+#: Distributions whose versions go into ``summary.json`` (what a rerun needs).
+VERSIONED = ("hamrkq", "numpy", "scipy", "sympy", "matplotlib", "numba")
+#: Files that hamrkq's commands write, as glob patterns: with ``force`` these
+#: (and only these) are removed first, so that no stale figure from an earlier
+#: run sits beside the new results.  A user's own files are never touched.
+OWN_FILES = ("summary.json", "comparison.md", "solution*.npz", "figure[0-9]_*.png")
+
+
+# -- files -------------------------------------------------------------------
+def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` whole or not at all (temporary file + rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(raw)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def jsonable(value: Any) -> Any:
+    """Plain JSON values: NumPy scalars and arrays become Python ones; nan and
+    inf become None (``summary.json`` is strict JSON, readable anywhere)."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        number = float(value)
+        return number if math.isfinite(number) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)  # reading the umask means setting it; restore at once
+    os.umask(mask)
+    return mask
+
+
+class OutputDir:
+    """An output directory and the files written into it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The directory; created (with its parents) when missing.
+    force : bool
+        Allow an existing non-empty directory.  hamrkq's own earlier outputs
+        there (:data:`OWN_FILES`) are removed first; other files are kept.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a file, or a non-empty directory and ``force`` is false.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, force: bool = False):
+        self.path = Path(path)
+        self.force = force
+        self.written: list[str] = []
+        self._ready = False
+        # Check now, create later: a bad --out fails before a long run, and a
+        # run that fails validation leaves no empty directory behind.
+        if self.path.exists() and not self.path.is_dir():
+            raise InputError(f"--out {str(self.path)!r} exists and is not a directory")
+        if self.path.is_dir() and any(self.path.iterdir()) and not force:
+            raise InputError(
+                f"output directory {str(self.path)!r} exists and is not empty; "
+                "pass --force to write into it, or choose another --out"
+            )
+
+    def _prepare(self) -> None:
+        if self._ready:
+            return
+        if self.force and self.path.is_dir():
+            for pattern in OWN_FILES:
+                for old in self.path.glob(pattern):
+                    if old.is_file():
+                        old.unlink()
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._ready = True
+
+    def _record(self, path: Path) -> Path:
+        # mkstemp creates files readable by their owner only; results are
+        # ordinary files, so give them the permissions the umask allows.
+        os.chmod(path, 0o666 & ~_umask())
+        self.written.append(path.name)
+        return path
+
+    def file(self, name: str) -> Path:
+        """The path of ``name`` inside the directory (created on first use)."""
+        self._prepare()
+        return self.path / name
+
+    def text(self, name: str, text: str) -> Path:
+        """Write a text file atomically."""
+        return self._record(write_atomic(self.file(name), text))
+
+    def json(self, name: str, data: Any) -> Path:
+        """Write strict JSON atomically (see :func:`jsonable`)."""
+        text = json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n"
+        return self._record(write_atomic(self.file(name), text))
+
+    def solution(self, name: str, solution: Any) -> Path:
+        """:meth:`hamrkq.Solution.save` (atomic itself)."""
+        return self._record(solution.save(self.file(name)))
+
+    def figure(self, name: str, fig: Any, *, dpi: int = 120) -> Path:
+        """:func:`hamrkq.plotting.save_figure` (atomic itself)."""
+        from hamrkq.plotting import save_figure
+
+        return self._record(save_figure(fig, self.file(name), dpi=dpi))
+
+
+# -- summary.json --------------------------------------------------------------
+def package_versions() -> dict[str, str | None]:
+    """Python, the platform and the versions of hamrkq and its dependencies."""
+    from hamrkq import __version__
+
+    versions: dict[str, str | None] = {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+    }
+    for name in VERSIONED:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = __version__ if name == "hamrkq" else None
+    return versions
+
+
+def summary_dict(
+    solution: Any,
+    diagnostics: Any,
+    *,
+    problem: Any = None,
+    settings: Mapping[str, Any] | None = None,
+    wall_time: Mapping[str, float] | None = None,
+    notes: Iterable[str] = (),
+) -> dict[str, Any]:
+    """Everything about one run, for ``summary.json``.
+
+    Parameters
+    ----------
+    solution : Solution
+    diagnostics : Diagnostics or None
+        From :func:`hamrkq.diagnostics.diagnose`; its :meth:`to_dict` is stored
+        unchanged under ``"diagnostics"``, so the file and a library call with
+        the same settings agree number for number.
+    problem : Problem, optional
+    settings : mapping, optional
+        The command's own settings (reference kind, output options, ...);
+        the solution's ``options`` (what :func:`hamrkq.solve` actually used)
+        are stored beside them.
+    wall_time : mapping, optional
+        Seconds, by phase.
+    notes : iterable of str
+        Caveats the command found (besides the diagnostics' own notes).
+    """
+    out: dict[str, Any] = {
+        "format_version": SUMMARY_FORMAT_VERSION,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+    }
+    if problem is not None:
+        out["problem"] = {
+            "name": problem.name,
+            "title": problem.title,
+            "file": None if problem.path is None else str(problem.path),
+            "degrees_of_freedom": problem.hamiltonian.n,
+            "hamiltonian": str(problem.hamiltonian.H),
+            "parameters": dict(problem.parameters),
+            "q0": problem.q0,
+            "p0": problem.p0,
+        }
+    out["settings"] = {**dict(settings or {}), "solve": dict(solution.options)}
+    out.update(
+        status=solution.status.name,
+        success=solution.success,
+        partial=solution.partial,
+        message=solution.message,
+        nodes=len(solution),
+        t_final=float(solution.t[-1]) if len(solution) else None,
+        stats=dict(solution.stats),
+        wall_time_s=dict(wall_time or {}),
+        diagnostics=None if diagnostics is None else diagnostics.to_dict(),
+        notes=list(notes),
+        versions=package_versions(),
+    )
+    return jsonable(out)
+
+
+# -- the table on stdout ----------------------------------------------------------
+def _num(value: Any, spec: str = ".3e") -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return format(value, spec)
+
+
+def summary_rows(
+    solution: Any, diagnostics: Any, wall_time: float | None = None
+) -> list[tuple[str, str]]:
+    """The rows of the run summary: (label, text)."""
+    sol, diag = solution, diagnostics
+    stats = sol.stats
+    rows = [
+        ("method", sol.method),
+        ("status", f"{sol.status.name}" + ("" if sol.success else " (partial results)")),
+        ("nodes", f"{len(sol)} (t = {_num(sol.t[0], 'g')} .. {_num(sol.t[-1], 'g')})"),
+        ("steps", f"{stats.get('steps', 0)} accepted, {stats.get('rejected', 0)} rejected"),
+        ("quenches", str(stats.get("quenches", 0)) if sol.z is not None else "n/a (no RK8 track)"),
+        ("f evaluations", str(stats.get("nfev", 0))),
+    ]
+    if wall_time is not None:
+        rows.append(("wall time", f"{wall_time:.2f} s"))
+    if diag is None:
+        return rows
+    if diag.estimated is not None:
+        rows.append(("max est. global error", _components(diag.estimated)))
+        rows.append(("  trajectory / bound", _num(diag.estimated.bound_ratio, ".4f")))
+    if diag.error is not None and diag.error is not diag.estimated:
+        rows.append((f"max true error ({diag.error.source})", _components(diag.error)))
+        rows.append(("  reference accuracy", f"~{_num(diag.error.reference_accuracy, '.1e')}"))
+        rows.append(("  trajectory / bound", _num(diag.error.bound_ratio, ".4f")))
+    if diag.energy is not None:
+        rows.append(
+            (
+                "max |H - H(0)|",
+                f"{_num(diag.energy.max_abs)} "
+                f"(drift {_num(diag.energy.drift, '+.2e')} per unit t)",
+            )
+        )
+    rows.append(("  energy / bound", _num(diag.energy_bound_ratio, ".4f")))
+    for inv in diag.invariants:
+        rows.append((f"max |{inv.name} - {inv.name}(0)|", _num(inv.max_abs)))
+    if math.isfinite(diag.gamma_max):
+        rows.append(("max |Gamma| (RK8 track)", _num(diag.gamma_max)))
+    return rows
+
+
+def _components(summary: Any) -> str:
+    parts = ", ".join(
+        f"{n} {_num(v)}" for n, v in zip(summary.names, summary.max_abs, strict=True)
+    )
+    return f"{parts}; trajectory {_num(summary.max_trajectory)}"
+
+
+def format_table(rows: Iterable[tuple[str, str]]) -> str:
+    """Two aligned columns."""
+    rows = list(rows)
+    width = max((len(label) for label, _ in rows), default=0)
+    return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)
+
+
+# -- progress ----------------------------------------------------------------
+class ProgressBar:
+    """``progress(fraction, t)`` for :func:`hamrkq.solve`: a bar on a terminal.
+
+    Nothing is drawn before ``delay`` seconds have passed (short runs stay
+    quiet) or when ``stream`` is not a terminal (pipes, files, CI logs).
+
+    Parameters
+    ----------
+    label : str
+        Shown before the bar.
+    stream : file, optional
+        Default ``sys.stderr``.
+    delay : float
+        Seconds before the bar first appears.
+    enabled : bool, optional
+        Force the bar on or off; default: whether ``stream`` is a terminal.
+    """
+
+    def __init__(
+        self,
+        label: str,
+        *,
+        stream: TextIO | None = None,
+        delay: float = 1.0,
+        enabled: bool | None = None,
+        width: int = 30,
+    ):
+        self.label = label
+        self.stream = sys.stderr if stream is None else stream
+        if enabled is None:
+            isatty = getattr(self.stream, "isatty", None)
+            enabled = bool(isatty and isatty())
+        self.enabled = enabled
+        self.delay = delay
+        self.width = width
+        self.start = time.monotonic()
+        self.drawn = False
+
+    def __call__(self, fraction: float, t: float) -> None:
+        if not self.enabled:
+            return
+        elapsed = time.monotonic() - self.start
+        if elapsed < self.delay:
+            return
+        fraction = min(max(fraction, 0.0), 1.0)
+        filled = int(self.width * fraction)
+        eta = elapsed * (1 - fraction) / fraction if fraction > 0 else float("nan")
+        eta_text = f"{eta:5.0f} s left" if math.isfinite(eta) else ""
+        bar = "#" * filled + "." * (self.width - filled)
+        self.stream.write(
+            f"\r{self.label} [{bar}] {fraction:6.1%}  t={t:<10.6g} {elapsed:5.0f} s {eta_text}"
+        )
+        self.stream.flush()
+        self.drawn = True
+
+    def close(self) -> None:
+        """End the bar's line (if one was drawn)."""
+        if self.drawn:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.drawn = False
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
