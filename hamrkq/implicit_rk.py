@@ -258,23 +258,28 @@ def _newton(rhs, params, t, y, h, tab, lu, piv, z, max_iter, out):
     or ``(None, why)``.
     """
     s = tab.stages
-    a, c = tab.a, tab.c
+    # Per-step constants hoisted out of the iteration: the loop runs millions of
+    # times on long runs and NumPy's per-call overhead dominates small systems.
+    stage_t = [t + ci * h for ci in tab.c.tolist()]
+    ha = h * tab.a
     f = np.empty_like(z)
+    flat = s * z.shape[1]
     prev = np.inf
     # Component-wise relative size: state components may differ by many orders
     # of magnitude (planet momenta), so a single norm would hide small ones.
     weight_y = np.maximum(np.abs(y), TINY)
+    amax = np.maximum.reduce
     for k in range(1, max_iter + 1):
         for i in range(s):
-            f[i] = rhs(t + c[i] * h, y + z[i], params)
+            f[i] = rhs(stage_t[i], y + z[i], params)
         out.nfev += s
-        residual = h * (a @ f) - z
-        dz, _ = lapack.dgetrs(lu, piv, residual.ravel())
-        dz = dz.reshape(z.shape)
+        residual = ha @ f
+        residual -= z
+        dz = lapack.dgetrs(lu, piv, residual.reshape(flat))[0].reshape(z.shape)
         z += dz
         out.iterations += 1
-        weight = np.maximum(weight_y, np.abs(z).max(axis=0))
-        size = float((np.abs(dz) / weight).max())
+        weight = np.maximum(weight_y, amax(np.abs(z), axis=0))
+        size = float(amax(np.abs(dz) / weight, axis=None))
         if not math.isfinite(size):
             return None, f"the iteration produced non-finite values after {k} iterations"
         if size <= NEWTON_TOL:
