@@ -174,6 +174,11 @@ def _group_label(sol: Solution, name: str) -> str:
     return name if sol.n == 1 else f"max_k |{name}_k|"
 
 
+def _pair_style(style: dict, k: int, n: int) -> dict:
+    """For n > 1 the pair k has its own colour; the run keeps its line style."""
+    return style if n == 1 else {**style, "color": f"C{k}"}
+
+
 def _first_periods(t: np.ndarray, q: np.ndarray, periods: int) -> float:
     """End of the first ``periods`` oscillations of ``q`` (upward mean crossings)."""
     centred = q - q.mean()
@@ -213,7 +218,7 @@ def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None 
             else:
                 for k in pairs:
                     suffix = "" if sol.n == 1 else f" (k={k + 1})"
-                    ax.plot(t, part[:, k], label=label + suffix, **style, alpha=1 - 0.2 * k)
+                    ax.plot(t, part[:, k], label=label + suffix, **_pair_style(style, k, sol.n))
         for k in pairs if pairs is not None else [None]:
             x = np.linalg.norm(sol.q, axis=1) if k is None else sol.q[:, k]
             y = np.linalg.norm(sol.p, axis=1) if k is None else sol.p[:, k]
@@ -222,7 +227,8 @@ def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None 
             index = np.arange(0, x.size, max(1, -(-x.size // PHASE_POINTS)))
             suffix = "" if k is None or sol.n == 1 else f" (k={k + 1})"
             on_top = {"zorder": 3} if number == 0 else {"zorder": 2, "alpha": 0.6}
-            ax_phase.plot(x[index], y[index], label=label + suffix, **style, **on_top)
+            pair = style if k is None else _pair_style(style, k, sol.n)
+            ax_phase.plot(x[index], y[index], label=label + suffix, **pair, **on_top)
         tt, dh = _thin(sol.t, sol.energy - sol.energy[0])
         ax_h.plot(tt, dh, label=f"{label} (H(0) = {sol.energy[0]:.10g})", **style)
     names = ("|q|", "|p|") if pairs is None else ("q", "p") if first.n == 1 else ("q_k", "p_k")
