@@ -11,9 +11,11 @@ from importlib.metadata import version as _version
 
 from . import errors
 from .catalogue import Problem, list_problems, load_problem
+from .diagnostics import Diagnostics, diagnose
 from .expressions import parse_expression
 from .hamiltonian import Hamiltonian
 from .result import Solution, Status
+from .solve import solve
 
 try:
     __version__ = _version("hamrkq")
@@ -21,13 +23,16 @@ except PackageNotFoundError:  # a source checkout that is not installed
     __version__ = "0.1.0"
 
 __all__ = [
+    "Diagnostics",
     "Hamiltonian",
     "Problem",
     "Solution",
     "Status",
     "__version__",
+    "diagnose",
     "errors",
     "list_problems",
     "load_problem",
     "parse_expression",
+    "solve",
 ]
