@@ -1,0 +1,103 @@
+"""Bad input to hamrkq.solve raises at once, with the parameter and the value
+named in the message; nothing from the input is ever evaluated as code."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from hamrkq.catalogue import load_problem
+from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.hamiltonian import Hamiltonian
+from hamrkq.solve import solve
+
+q, p, a = sp.symbols("q p a")
+HAM = Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
+
+
+def call(**changes):
+    args = {"q0": [0.0], "p0": [1.0], "t_span": (0, 1)}
+    args.update(changes)
+    return solve(HAM, args.pop("q0"), args.pop("p0"), args.pop("t_span"), **args)
+
+
+@pytest.mark.parametrize(
+    ("changes", "error", "pattern"),
+    [
+        ({"q0": [0.0, 1.0]}, InputError, "q0 has 2 values"),
+        ({"p0": [np.nan]}, InputError, "p0.*finite"),
+        ({"q0": "0.5"}, InputTypeError, "q0"),
+        ({"q0": [a]}, InputError, "free symbols"),
+        ({"t_span": (0, 1, 2)}, InputError, "t_span must be two numbers"),
+        ({"t_span": (0, np.inf)}, InputError, "t_span must be finite"),
+        ({"t_span": ("0", 1)}, InputTypeError, "t_span\\[0\\].*string"),
+        ({"atol": 0.0}, InputError, "atol must be finite and positive, got 0.0"),
+        ({"atol": -1e-6}, InputError, "atol.*-1e-06"),
+        ({"atol": [1e-6, 1e-6, 1e-6]}, InputError, "atol must be a scalar or have 2 entries"),
+        ({"atol": np.nan}, InputError, "atol must be finite"),
+        ({"atol": "1e-6"}, InputTypeError, "atol.*'1e-6'"),
+        ({"rtol": -1.0}, InputError, "rtol must be finite and zero or positive"),
+        ({"method": "rk45"}, OptionError, "method='rk45'.*'rk34q8', 'rk34'"),
+        ({"quench": "always"}, OptionError, "quench='always'.*'node', 'redo'"),
+        ({"tolerance_rule": "mixed"}, OptionError, "'componentwise', 'prentice'"),
+        ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'off'"),
+        ({"z_method": "rk4"}, OptionError, "z_method='rk4'.*'dop853', 'cooper_verner'"),
+        ({"backend": "numba"}, OptionError, "backend='numba'.*'python'"),
+        ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),
+        ({"safety": 1.5}, InputError, "safety must be at most 1.0, got 1.5"),
+        ({"quench_threshold": -1}, InputError, "quench_threshold.*-1"),
+        ({"max_step": 0}, InputError, "max_step must be a positive number, got 0"),
+        ({"max_steps": 0}, InputError, "max_steps must be a positive integer, got 0"),
+        ({"max_steps": 10.5}, InputError, "max_steps.*10.5"),
+        ({"keep_every": 0}, InputError, "keep_every must be a positive integer"),
+        ({"first_step": -0.1}, InputError, "first_step must be a positive number"),
+        ({"first_step": 2.0}, InputError, "first_step=2.0 exceeds the length of t_span"),
+        ({"gamma_limit": 0}, InputError, "gamma_limit must be a positive number"),
+        ({"t_eval": [0.5, 2.0]}, InputError, "t_eval must lie within t_span"),
+        ({"t_eval": [0.5, 0.2]}, InputError, "strictly monotonic"),
+        ({"t_eval": [0.2, 0.5], "keep_every": 2}, InputError, "keep_every=2 and t_eval"),
+        ({"parameters": {"b": 1.0}}, InputError, "unknown parameter b"),
+        ({"parameters": [1.0]}, InputTypeError, "parameters must be a mapping"),
+        ({"progress": "yes"}, InputTypeError, "progress must be a bool or a callable"),
+    ],
+)
+def test_bad_input_is_named(changes, error, pattern):
+    with pytest.raises(error, match=pattern):
+        call(**changes)
+
+
+def test_backward_t_eval_must_run_backward():
+    with pytest.raises(InputError, match="strictly monotonic"):
+        call(t_span=(1, 0), t_eval=[0.2, 0.5])
+    sol = call(t_span=(1, 0), t_eval=[0.5, 0.2])
+    assert sol.t.tolist() == [0.5, 0.2]
+
+
+def test_hamiltonian_needs_initial_values_and_span():
+    with pytest.raises(InputError, match="q0, t_span must be given"):
+        solve(HAM, p0=[1.0])
+
+
+def test_system_must_be_a_hamiltonian_or_problem():
+    with pytest.raises(InputTypeError, match=r"Hamiltonian or a hamrkq\.Problem, got str"):
+        solve("prentice2011")
+
+
+def test_problem_file_settings_are_validated_like_keywords():
+    pr = load_problem("harmonic")
+    bad = type(pr)(**{**pr.__dict__, "integration": {"method": "euler"}})
+    with pytest.raises(OptionError, match="method='euler'"):
+        solve(bad)
+
+
+def test_strings_are_never_evaluated(monkeypatch):
+    import builtins
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("eval/exec called")
+
+    monkeypatch.setattr(builtins, "eval", forbidden)
+    monkeypatch.setattr(builtins, "exec", forbidden)
+    monkeypatch.setattr(sp, "sympify", forbidden)
+    for changes in ({"atol": "__import__('os')"}, {"q0": ["1+1"]}, {"t_span": ("0", "1")}):
+        with pytest.raises((InputError, InputTypeError)):
+            call(**changes)
