@@ -302,8 +302,11 @@ def solve(
             f"keep_every={keep_every!r} and t_eval cannot be combined: t_eval already "
             "chooses the nodes that are kept"
         )
-    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, _progress(progress))
+    bar = _progress(progress)
+    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, bar)
     out = spec.run(task, backend)
+    if bar is not None and progress is True:
+        sys.stderr.write("\n")  # leave the finished bar on its own line
     return _solution(task, spec, out, backend)
 
 
