@@ -1,0 +1,380 @@
+"""Scalar source code generated from a Hamiltonian, cached on disk.
+
+:func:`generate_source` turns the symbolic right-hand side, Jacobian,
+Jacobian-vector product and energy of a :class:`~hamrkq.hamiltonian.Hamiltonian`
+into the text of a small Python module of plain scalar functions::
+
+    rhs(t, y, params, out)        # out[:] = dy/dt
+    jac(t, y, params, out)        # out[:, :] = d rhs / dy
+    jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
+    energy(t, y, params) -> float # H
+    energy_rows(t, Y, params, out) # out[i] = H(t[i], Y[i])
+
+The text is printed by SymPy's :class:`~sympy.printing.pycode.PythonCodePrinter`
+(``math`` functions) from the output of :func:`sympy.cse`.  Every symbol is
+printed as ``y[i]``, ``params[j]``, ``t``, ``v[k]`` or a numbered temporary, so
+no user-chosen name ever appears in the source, and the expression tree is
+checked against a whitelist of node types first (:func:`check_supported`):
+the compiled text comes from SymPy's printers over parsed expressions, never
+from raw file text.
+
+:func:`load_module` writes the text to the cache directory (:func:`cache_dir`)
+in a file named by a hash of the inputs (:func:`cache_key`) and imports it from
+there with :mod:`importlib`, so that a compiler that caches by source file
+(``numba``'s ``cache=True``) can keep its machine code beside it.  The functions
+are plain Python; :mod:`hamrkq.compiled` compiles them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from .errors import HamrkqError
+
+if TYPE_CHECKING:
+    from .hamiltonian import Hamiltonian
+
+__all__ = [
+    "CACHE_ENV",
+    "CODEGEN_VERSION",
+    "CodegenError",
+    "cache_dir",
+    "cache_key",
+    "check_supported",
+    "generate_source",
+    "load_module",
+]
+
+#: Environment variable that overrides the cache directory.
+CACHE_ENV = "HAMRKQ_CACHE_DIR"
+#: Version of the generated text's layout; part of every cache key, so a change
+#: to this module's output never meets a stale file.
+CODEGEN_VERSION = 2
+#: Prefix of generated module names (``sys.modules`` keys and file stems).
+MODULE_PREFIX = "hamrkq_gen_"
+
+# Functions that may appear in an expression, and what they print to.  The
+# problem-file grammar allows sin cos tan asin acos atan atan2 sinh cosh tanh
+# exp log sqrt Abs; differentiation adds sign (from Abs) and nothing else that
+# the printer cannot handle.
+_FUNCTIONS = (
+    sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2,
+    sp.sinh, sp.cosh, sp.tanh, sp.asinh, sp.acosh, sp.atanh,
+    sp.exp, sp.log, sp.Abs, sp.sign,
+)  # fmt: skip
+_ATOMS = (sp.Integer, sp.Rational, sp.Float, sp.Symbol)
+_OPERATIONS = (sp.Add, sp.Mul, sp.Pow)
+_CONSTANTS = (type(sp.pi), type(sp.E))
+_MODULE_LOCK = threading.Lock()
+_LOADED: dict[str, ModuleType] = {}
+
+
+class CodegenError(HamrkqError, ValueError):
+    """An expression cannot be turned into scalar code (an unsupported
+    function, an infinity or NaN, or a symbol that is not part of the system)."""
+
+
+def cache_dir() -> Path:
+    """The directory that holds generated modules and their compiled code.
+
+    ``$HAMRKQ_CACHE_DIR`` if set; otherwise the platform's per-user cache
+    directory: ``$XDG_CACHE_HOME/hamrkq`` or ``~/.cache/hamrkq`` on Linux and
+    other Unix systems, ``~/Library/Caches/hamrkq`` on macOS,
+    ``%LOCALAPPDATA%\\hamrkq\\Cache`` on Windows.  The directory is not created
+    here.
+    """
+    override = os.environ.get(CACHE_ENV)
+    if override:
+        return Path(override).expanduser()
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "hamrkq" / "Cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "hamrkq"
+    base = os.environ.get("XDG_CACHE_HOME")
+    # The XDG spec says a relative XDG_CACHE_HOME is invalid and must be ignored.
+    if not base or not os.path.isabs(base):
+        base = str(Path.home() / ".cache")
+    return Path(base) / "hamrkq"
+
+
+def _versions() -> str:
+    from . import __version__
+
+    try:
+        from importlib.metadata import version
+
+        numba_version = version("numba")
+    except Exception:  # numba absent or unreadable metadata: key on its absence
+        numba_version = "none"
+    return (
+        f"codegen={CODEGEN_VERSION};hamrkq={__version__};sympy={sp.__version__};"
+        f"numba={numba_version};python={sys.version_info[:2]}"
+    )
+
+
+def cache_key(ham: Hamiltonian, extra: str = "") -> str:
+    """Hex digest naming the generated module of ``ham``.
+
+    The key hashes ``srepr`` of H and of the ordered coordinates, momenta,
+    parameters and time symbol (everything generated is derived from these, in
+    this order), the versions of this generator, hamrkq, SymPy (which does the
+    derivation), numba and Python, and ``extra`` (for instance a method name).
+    It does not need the derived equations, so a warm cache is found without
+    differentiating anything.
+    """
+    text = "\n".join(
+        [
+            sp.srepr(ham.H),
+            sp.srepr(tuple(ham.q)),
+            sp.srepr(tuple(ham.p)),
+            sp.srepr(tuple(ham.parameters)),
+            sp.srepr(ham.t),
+            _versions(),
+            extra,
+        ]
+    )
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def check_supported(exprs: Sequence[sp.Expr], allowed: set[sp.Symbol]) -> None:
+    """Raise :class:`CodegenError` unless every node of ``exprs`` can be printed.
+
+    Allowed nodes: integers, rationals, finite floats, ``pi`` and ``E``, the
+    symbols in ``allowed``, ``+ * **`` and the functions of the problem-file
+    grammar (plus ``sign``, the derivative of ``Abs``).  All offending nodes
+    are listed in one message.
+    """
+    bad: set[str] = set()
+    for expr in exprs:
+        for node in sp.preorder_traversal(expr):
+            if isinstance(node, sp.Symbol):
+                if node not in allowed:
+                    bad.add(f"symbol {node}")
+            elif isinstance(node, sp.Float):
+                if not node.is_finite:
+                    bad.add(f"non-finite number {node}")
+            elif isinstance(node, _ATOMS + _OPERATIONS + _CONSTANTS + _FUNCTIONS):
+                continue
+            else:
+                bad.add(f"{type(node).__name__} ({node})")
+    if bad:
+        raise CodegenError("cannot generate scalar code for: " + "; ".join(sorted(bad)))
+
+
+class _ScalarPrinter(PythonCodePrinter):
+    """PythonCodePrinter with symbols renamed and floats printed exactly."""
+
+    def __init__(self, names: dict[sp.Symbol, str]):
+        super().__init__({"fully_qualified_modules": True, "standard": "python3"})
+        self._names = names
+
+    def _print_Symbol(self, expr: sp.Symbol) -> str:
+        # check_supported has already proved every symbol is in the table.
+        return self._names[expr]
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        # repr(float) round-trips; SymPy's default prints 15 digits and loses bits.
+        return repr(float(expr))
+
+
+def _block(
+    name: str,
+    signature: str,
+    doc: str,
+    exprs: Sequence[sp.Expr],
+    targets: Sequence[str],
+    names: dict[sp.Symbol, str],
+    prologue: Sequence[str] = (),
+    returns: bool = False,
+) -> list[str]:
+    """Lines of one function: CSE temporaries, then one assignment per target."""
+    temps = sp.numbered_symbols("_c")
+    replacements, reduced = sp.cse(list(exprs), symbols=temps, order="none")
+    names = dict(names)
+    for k, (symbol, _) in enumerate(replacements):
+        names[symbol] = f"c{k}"
+    printer = _ScalarPrinter(names)
+    lines = [f"def {name}({signature}):", f'    """{doc}"""', *prologue]
+    for symbol, value in replacements:
+        lines.append(f"    {names[symbol]} = {printer.doprint(value)}")
+    if returns:
+        lines.append(f"    return {printer.doprint(reduced[0])}")
+    else:
+        for target, value in zip(targets, reduced, strict=True):
+            lines.append(f"    {target} = {printer.doprint(value)}")
+    return lines
+
+
+def generate_source(ham: Hamiltonian) -> str:
+    """The text of a module defining ``rhs``, ``jac``, ``jvp`` and ``energy``.
+
+    Parameters
+    ----------
+    ham : Hamiltonian
+        The system; its symbolic right-hand side and Jacobian are derived here
+        if they were not yet.
+
+    Returns
+    -------
+    str
+        Python source using only ``math``, float arithmetic and item
+        assignment, so that ``numba.njit`` compiles it.
+
+    Raises
+    ------
+    CodegenError
+        If an expression contains something the printer cannot express.
+    """
+    dim = ham.dim
+    names: dict[sp.Symbol, str] = {s: f"y[{i}]" for i, s in enumerate(ham.state)}
+    names.update({s: f"params[{j}]" for j, s in enumerate(ham.parameters)})
+    names[ham.t] = "t"
+    vector = sp.symbols(f"_v0:{dim}", real=True)
+    names.update({s: f"v[{k}]" for k, s in enumerate(vector)})
+
+    rhs = list(ham.rhs)
+    jac = ham.jacobian
+    nonzero = [(i, j) for i in range(dim) for j in range(dim) if jac[i, j] != 0]
+    products = [sp.Add(*(jac[i, j] * vector[j] for j in range(dim))) for i in range(dim)]
+    check_supported([ham.H, *rhs, *products], set(names))
+
+    lines = [
+        '"""Generated by hamrkq.codegen: do not edit (the file is rewritten when',
+        "its hash changes).  State y = (q..., p...); params ordered like",
+        f'Hamiltonian.parameters.  dim = {dim}, parameters = {len(ham.parameters)}."""',
+        "",
+        "import math",
+        "",
+        f"DIM = {dim}",
+        f"NPARAMS = {len(ham.parameters)}",
+        f"CODEGEN_VERSION = {CODEGEN_VERSION}",
+        "",
+        "",
+    ]
+    lines += _block(
+        "rhs",
+        "t, y, params, out",
+        "out[:] = dy/dt = (dH/dp, -dH/dq).",
+        rhs,
+        [f"out[{i}]" for i in range(dim)],
+        names,
+    )
+    lines += ["", ""]
+    lines += _block(
+        "jac",
+        "t, y, params, out",
+        "out[:, :] = Jacobian of rhs with respect to y.",
+        [jac[i, j] for i, j in nonzero],
+        [f"out[{i}, {j}]" for i, j in nonzero],
+        names,
+        # Zeros first: callers reuse the output array between calls.
+        prologue=["    out[:, :] = 0.0"],
+    )
+    lines += ["", ""]
+    lines += _block(
+        "jvp",
+        "t, y, params, v, out",
+        "out[:] = Jacobian of rhs at y, times v.",
+        products,
+        [f"out[{i}]" for i in range(dim)],
+        names,
+    )
+    lines += ["", ""]
+    lines += _block("energy", "t, y, params", "H at one state.", [ham.H], [], names, returns=True)
+    lines += [
+        "",
+        "",
+        "def energy_rows(t, Y, params, out):",
+        '    """out[i] = H(t[i], Y[i]) for every row of Y."""',
+        "    for i in range(Y.shape[0]):",
+        "        out[i] = energy(t[i], Y[i], params)",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _import_file(name: str, path: Path) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:  # pragma: no cover - a .py path always has one
+        raise ImportError(f"cannot import generated module {path}")
+    module = importlib.util.module_from_spec(spec)
+    # Registered before executing, as importlib does, so numba can find the
+    # module of the functions it compiles.
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
+    return module
+
+
+def load_source(key: str, make_source, directory: Path | None = None) -> ModuleType:
+    """Import the module cached under ``key``, writing it first if needed.
+
+    ``make_source()`` is called only when the file does not exist yet.  The
+    file is written atomically (a temporary name, then a rename), so processes
+    that race to create it both end up importing a complete file.  Imported
+    modules are remembered for the rest of the process.
+    """
+    name = MODULE_PREFIX + key[:32]
+    directory = cache_dir() if directory is None else directory
+    path = directory / f"{name}.py"
+    with _MODULE_LOCK:
+        module = _LOADED.get(str(path))
+        if module is not None:
+            return module
+        directory.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            _write_atomically(path, make_source())
+        module = _import_file(name, path)
+        _LOADED[str(path)] = module
+        return module
+
+
+def load_module(ham: Hamiltonian, directory: Path | None = None) -> ModuleType:
+    """The generated module of ``ham``, from the cache or freshly written.
+
+    Parameters
+    ----------
+    ham : Hamiltonian
+    directory : Path, optional
+        Where to cache; :func:`cache_dir` by default.
+
+    Returns
+    -------
+    module
+        With plain-Python functions ``rhs``, ``jac``, ``jvp``, ``energy``,
+        ``energy_rows`` and the integers ``DIM`` and ``NPARAMS``.
+
+    Raises
+    ------
+    CodegenError
+        If the expressions cannot be printed (see :func:`check_supported`).
+    OSError
+        If the cache directory cannot be written.
+    """
+    return load_source(cache_key(ham), lambda: generate_source(ham), directory)

@@ -1,0 +1,259 @@
+"""Code generation: the generated scalar functions against the symbolic layer,
+hostile names, unsupported expressions, the cache directory and the cache key."""
+
+from __future__ import annotations
+
+import ast
+import math
+import sys
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq import codegen
+from hamrkq.codegen import CodegenError
+
+CATALOGUE = hamrkq.list_problems()
+
+
+def _states(problem, count=4, seed=0):
+    """The initial state and a few random states near it."""
+    rng = np.random.default_rng(seed)
+    y0 = problem.y0
+    scale = 0.1 * (1.0 + np.abs(y0))
+    return [y0] + [y0 + scale * rng.standard_normal(y0.size) for _ in range(count)]
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    """Every catalogue problem's generated module, in a private cache."""
+    directory = tmp_path_factory.mktemp("codegen")
+    return {
+        name: (problem, codegen.load_module(problem.hamiltonian, directory))
+        for name in CATALOGUE
+        for problem in [hamrkq.load_problem(name)]
+    }
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_generated_functions_match_the_symbolic_layer(generated, name):
+    problem, module = generated[name]
+    ham = problem.hamiltonian
+    numeric = ham.numeric
+    params = ham.parameter_values()
+    dim = ham.dim
+    assert (module.DIM, module.NPARAMS) == (dim, len(ham.parameters))
+    rng = np.random.default_rng(1)
+    for t, y in zip((0.0, 0.7, 3.1, -2.0, 11.0), _states(problem), strict=True):
+        f = np.full(dim, np.nan)
+        module.rhs(t, y, params, f)
+        J = np.full((dim, dim), np.nan)
+        module.jac(t, y, params, J)
+        v = rng.standard_normal(dim)
+        Jv = np.full(dim, np.nan)
+        module.jvp(t, y, params, v, Jv)
+        f_ref = numeric.rhs(t, y, params)
+        J_ref = numeric.jac(t, y, params)
+        scale_f = np.max(np.abs(f_ref)) + 1e-300
+        scale_J = np.max(np.abs(J_ref)) + 1e-300
+        assert np.max(np.abs(f - f_ref)) <= 1e-13 * scale_f
+        assert np.max(np.abs(J - J_ref)) <= 1e-13 * scale_J
+        assert np.max(np.abs(Jv - J_ref @ v)) <= 1e-12 * scale_J * np.max(np.abs(v))
+        H = module.energy(t, y, params)
+        assert math.isclose(H, float(numeric.energy(t, y, params)), rel_tol=1e-13, abs_tol=1e-15)
+
+
+def test_jac_overwrites_every_entry(generated):
+    """Callers reuse the Jacobian array, so the zeros must be written too."""
+    problem, module = generated["outer_solar_system"]
+    ham = problem.hamiltonian
+    J = np.full((ham.dim, ham.dim), 7.0)
+    module.jac(0.0, problem.y0, ham.parameter_values(), J)
+    reference = ham.numeric.jac(0.0, problem.y0, ham.parameter_values())
+    assert np.count_nonzero(reference == 0) > ham.dim**2 // 2  # mostly zeros
+    assert np.all(J[reference == 0] == 0)
+    np.testing.assert_allclose(J, reference, rtol=1e-13, atol=1e-13 * np.abs(reference).max())
+
+
+def test_energy_rows(generated):
+    problem, module = generated["kepler"]
+    ham = problem.hamiltonian
+    Y = np.array(_states(problem))
+    t = np.linspace(0.0, 1.0, len(Y))
+    out = np.empty(len(Y))
+    module.energy_rows(t, Y, ham.parameter_values(), out)
+    np.testing.assert_allclose(out, ham.numeric.energy(t, Y, ham.parameter_values()), rtol=1e-14)
+
+
+def test_time_dependent_hamiltonian_uses_t(tmp_path):
+    q, p, t, w = sp.symbols("q p t w", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 - q * sp.cos(w * t), q=[q], p=[p],
+                             parameters={w: 1.3})  # fmt: skip
+    module = codegen.load_module(ham, tmp_path)
+    out = np.empty(2)
+    module.rhs(2.0, np.array([0.5, -0.25]), np.array([1.3]), out)
+    np.testing.assert_allclose(out, [-0.25, -0.5 + math.cos(2.6)], rtol=1e-15)
+
+
+def test_floats_are_printed_exactly(tmp_path):
+    """SymPy prints 15 digits by default; the generated code must keep all 17."""
+    c = 0.1 + 0.2  # 0.30000000000000004, which '0.3' would change
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(sp.Float(c) * p**2 / 2 + q**2 / 2, q=[q], p=[p])
+    module = codegen.load_module(ham, tmp_path)
+    out = np.empty(2)
+    module.rhs(0.0, np.array([0.0, 1.0]), np.empty(0), out)
+    assert out[0] == c
+
+
+HOSTILE = [
+    "__import__('os').system('echo pwned')",
+    "y[0]); import os; (",
+    "out",
+    "math",
+    "def",
+    "lambda",
+]
+
+
+def test_user_names_never_reach_the_source(tmp_path):
+    qs = [sp.Symbol(name, real=True) for name in HOSTILE[:3]]
+    ps = [sp.Symbol(name, real=True) for name in HOSTILE[3:]]
+    a = sp.Symbol("params[0] + exec('1')", real=True)
+    H = sum(pi**2 for pi in ps) / 2 + a * sum(qi**2 for qi in qs) + qs[0] * ps[1]
+    ham = hamrkq.Hamiltonian(H, q=qs, p=ps, parameters={a: 2.0})
+    source = codegen.generate_source(ham)
+    for name in [*HOSTILE, "exec", "__import__", "pwned", "import os"]:
+        if name in ("out", "math", "def"):
+            continue  # these words legitimately occur in every generated file
+        assert name not in source
+    # Only the names the generator itself uses appear as identifiers.
+    tree = ast.parse(source)
+    identifiers = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
+    allowed = {"math", "t", "y", "params", "out", "v", "Y", "i", "range", "energy"}
+    temporaries = {n for n in identifiers if n.startswith("c") and n[1:].isdigit()}
+    assert identifiers - temporaries <= allowed | {"DIM", "NPARAMS", "CODEGEN_VERSION"}
+    imports = [node for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)]
+    assert [alias.name for node in imports for alias in node.names] == ["math"]
+    # And it computes the right thing.
+    module = codegen.load_module(ham, tmp_path)
+    y = np.arange(1.0, 7.0)
+    out = np.empty(6)
+    module.rhs(0.0, y, np.array([2.0]), out)
+    np.testing.assert_allclose(out, ham.numeric.rhs(0.0, y, np.array([2.0])), rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("make", "fragment"),
+    [
+        (lambda q, p: p**2 / 2 + sp.Function("f")(q), "f"),
+        (lambda q, p: p**2 / 2 + sp.gamma(q), "gamma"),
+        (lambda q, p: p**2 / 2 + sp.Piecewise((q, q > 0), (0, True)), "Piecewise"),
+        (lambda q, p: p**2 / 2 + sp.zoo * q, "zoo"),
+        (lambda q, p: p**2 / 2 + sp.erf(q), "erf"),
+    ],
+)
+def test_unsupported_expressions_are_named(make, fragment):
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(make(q, p), q=[q], p=[p])
+    with pytest.raises(CodegenError, match=fragment):
+        codegen.generate_source(ham)
+
+
+def test_abs_of_a_non_real_symbol_is_refused():
+    # For complex symbols d|q|/dq involves re, im and Derivative: not scalar code.
+    q, p = sp.symbols("q p")
+    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+    with pytest.raises(CodegenError, match="cannot generate scalar code"):
+        codegen.generate_source(ham)
+
+
+def test_abs_of_a_real_symbol_fails_on_its_second_derivative():
+    # rhs has sign(q), which prints; the Jacobian has DiracDelta(q), which does
+    # not (the numeric layer cannot lambdify it either).
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+    with pytest.raises(CodegenError, match="DiracDelta"):
+        codegen.generate_source(ham)
+
+
+# -- cache key and directory -------------------------------------------------------
+
+
+def _kepler(e=0.6):
+    return hamrkq.load_problem("kepler", e=e).hamiltonian
+
+
+def test_cache_key_is_stable_and_ignores_parameter_values():
+    assert codegen.cache_key(_kepler()) == codegen.cache_key(_kepler())
+    # Parameters are arguments of the generated code: their values are not in the key.
+    assert codegen.cache_key(_kepler(0.6)) == codegen.cache_key(_kepler(0.9))
+    assert len(codegen.cache_key(_kepler())) == 64
+
+
+def test_cache_key_changes_with_the_expressions_and_the_symbol_order():
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2", real=True)
+    H = (p1**2 + p2**2) / 2 + q1**4 + q2**2
+    base = hamrkq.Hamiltonian(H, q=[q1, q2], p=[p1, p2])
+    swapped = hamrkq.Hamiltonian(H, q=[q2, q1], p=[p2, p1])
+    other = hamrkq.Hamiltonian(H + q1 * q2, q=[q1, q2], p=[p1, p2])
+    keys = {codegen.cache_key(h) for h in (base, swapped, other)}
+    assert len(keys) == 3
+    assert codegen.cache_key(base, "rk34q8") != codegen.cache_key(base, "rk34")
+
+
+def test_cache_key_changes_with_the_versions(monkeypatch):
+    ham = _kepler()
+    before = codegen.cache_key(ham)
+    monkeypatch.setattr(codegen, "CODEGEN_VERSION", codegen.CODEGEN_VERSION + 1)
+    assert codegen.cache_key(ham) != before
+    monkeypatch.setattr(hamrkq, "__version__", "999.0")
+    monkeypatch.setattr(codegen, "CODEGEN_VERSION", codegen.CODEGEN_VERSION - 1)
+    assert codegen.cache_key(ham) != before
+
+
+def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.delenv(codegen.CACHE_ENV, raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    assert codegen.cache_dir() == tmp_path / "home" / ".cache" / "hamrkq"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert codegen.cache_dir() == tmp_path / "xdg" / "hamrkq"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/path")  # invalid by the XDG spec
+    assert codegen.cache_dir() == tmp_path / "home" / ".cache" / "hamrkq"
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "mine"))
+    assert codegen.cache_dir() == tmp_path / "mine"
+    monkeypatch.delenv(codegen.CACHE_ENV)
+    monkeypatch.setattr(sys, "platform", "darwin")
+    assert codegen.cache_dir() == tmp_path / "home" / "Library" / "Caches" / "hamrkq"
+
+
+def test_load_module_writes_once_and_names_the_file_by_the_key(tmp_path):
+    ham = hamrkq.load_problem("henon_heiles").hamiltonian
+    module = codegen.load_module(ham, tmp_path)
+    files = list(tmp_path.glob("*.py"))
+    assert [f.name for f in files] == [f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"]
+    stamp = files[0].stat().st_mtime_ns
+    assert codegen.load_module(ham, tmp_path) is module  # memoised in the process
+    assert files[0].stat().st_mtime_ns == stamp  # and never rewritten
+    assert files[0].read_text() == codegen.generate_source(ham)
+
+
+def test_load_module_uses_the_environment_directory(monkeypatch, tmp_path):
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "via-env"))
+    ham = hamrkq.load_problem("harmonic").hamiltonian
+    module = codegen.load_module(ham)
+    assert module.__file__.startswith(str(tmp_path / "via-env"))
+
+
+def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
+    """A second process finds the file: nothing is derived or printed again."""
+    ham = hamrkq.load_problem("toda").hamiltonian
+    path = tmp_path / f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"
+    path.write_text(codegen.generate_source(ham))
+    monkeypatch.setattr(codegen, "generate_source", lambda ham: pytest.fail("regenerated"))
+    module = codegen.load_module(ham, tmp_path)
+    assert module.DIM == 6
