@@ -49,12 +49,20 @@ EPS = float(np.finfo(float).eps)
 #: Newton has converged when every component of the increment is below
 #: NEWTON_TOL times the size of that component (of y_n or of the stages).
 NEWTON_TOL = 10.0 * EPS
-#: An iteration that stops shrinking below this (relative) level has reached its
-#: roundoff floor and is accepted; above it, a non-shrinking increment means
+#: That per-component test can be out of reach: a component that is zero by
+#: symmetry carries pure rounding noise (1e-20, say) that no iteration removes.
+#: So contraction is watched in the global measure max|dZ| / max|y, Z|: once it
+#: stops shrinking below NEWTON_FLOOR the iteration has reached its roundoff
+#: floor and is accepted; a global increment that stops shrinking above it means
 #: the iteration does not contract, and the step fails.
 NEWTON_FLOOR = 1.0e4 * EPS
-#: Smallest weight in the relative increment test (a component that is exactly
-#: zero in y and in every stage must have a zero increment to count as converged).
+#: In the per-component test a component is weighed with at least this fraction
+#: of the largest component: one that small is below the resolution of the state
+#: as a vector (zero by symmetry, say) and needs no relative accuracy of its own,
+#: while genuinely small components (a planet's momentum, 1e-12 of the positions)
+#: keep their own scale.
+WEIGHT_FLOOR = 1.0e-14
+#: Smallest weight of all (a state that is exactly zero).
 TINY = float(np.finfo(float).tiny)
 #: Default iteration limit.  Simplified Newton contracts at a rate of order
 #: h * ||J(Y) - J(y_n)||, so well-resolved steps need 3 to 8 iterations.
@@ -267,7 +275,7 @@ def _newton(rhs, params, t, y, h, tab, lu, piv, z, max_iter, out):
     prev = np.inf
     # Component-wise relative size: state components may differ by many orders
     # of magnitude (planet momenta), so a single norm would hide small ones.
-    weight_y = np.maximum(np.abs(y), TINY)
+    abs_y = np.abs(y)
     amax = np.maximum.reduce
     for k in range(1, max_iter + 1):
         for i in range(s):
@@ -278,11 +286,14 @@ def _newton(rhs, params, t, y, h, tab, lu, piv, z, max_iter, out):
         dz = lapack.dgetrs(lu, piv, residual.reshape(flat))[0].reshape(z.shape)
         z += dz
         out.iterations += 1
-        weight = np.maximum(weight_y, amax(np.abs(z), axis=0))
-        size = float(amax(np.abs(dz) / weight, axis=None))
+        weight = np.maximum(abs_y, amax(np.abs(z), axis=0))
+        scale = max(float(amax(weight)), TINY)
+        np.maximum(weight, WEIGHT_FLOOR * scale, out=weight)
+        absdz = np.abs(dz)
+        size = float(amax(absdz, axis=None)) / scale
         if not math.isfinite(size):
             return None, f"the iteration produced non-finite values after {k} iterations"
-        if size <= NEWTON_TOL:
+        if float(amax(absdz / weight, axis=None)) <= NEWTON_TOL:
             return f, ""
         if k > 1 and size >= prev:
             if size <= NEWTON_FLOOR:

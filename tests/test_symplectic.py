@@ -270,6 +270,41 @@ def test_symmetric_methods_retrace_their_steps(method):
     assert np.abs(fwd.y[-1] - kepler_y0(0.3)).max() > 1e-4
 
 
+@pytest.fixture(scope="module")
+def outer_solar_system():
+    # built once: generating the 36 x 36 Jacobian's code takes about 2 s
+    return hamrkq.load_problem("outer_solar_system")
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_multiscale_state_retraced_component_by_component(method, outer_solar_system):
+    # outer solar system: Pluto's momenta (~1e-11) sit 12 orders below the
+    # positions (~30); Newton must converge per component, not in a global norm,
+    # or the small components would lose their digits (measured: <= 4.3e-16)
+    problem = outer_solar_system
+    ham, y0 = problem.hamiltonian, problem.y0
+    fwd = solve_fixed(ham, y0, (0.0, 500.0), method, 50.0)
+    back = solve_fixed(ham, fwd.y[-1], (500.0, 0.0), method, 50.0)
+    moved = np.abs(fwd.y[-1] - y0) / np.abs(np.where(y0 == 0, 1.0, y0))
+    assert moved.max() > 1e-3
+    nonzero = y0 != 0
+    rel = np.abs(back.y[-1] - y0)[nonzero] / np.abs(y0[nonzero])
+    assert rel.max() < 1e-13, rel.max()
+    assert np.abs(back.y[-1] - y0)[~nonzero].max() < 1e-17  # the Sun's momentum
+
+
+@pytest.mark.parametrize("method", GAUSS)
+def test_components_zero_by_symmetry_do_not_stall_newton(method):
+    # the catalogue's Toda lattice keeps q2 = p2 = 0 by symmetry: those components
+    # carry only rounding noise (~1e-20), which a purely relative test never clears
+    problem = hamrkq.load_problem("toda")
+    sol = solve_fixed(problem.hamiltonian, problem.y0, (0.0, 20.0), method, 0.1)
+    assert sol.success, sol.message
+    assert sol.stats["newton_iterations"] < 12 * sol.stats["steps"]
+    assert np.ptp(sol.energy) < 1e-2 * abs(sol.energy[0])
+    assert np.abs(sol.y[:, [1, 4]]).max() < 1e-12  # the symmetry is kept
+
+
 # -- long-run energy behaviour (pendulum from the catalogue, 10 000 periods) --------
 PENDULUM_PERIOD = 6.743001419250385  # 4 K(1/4) for H = p^2/2 - cos q, q0 = 0, p0 = 1
 T_END = 10_000 * PENDULUM_PERIOD
