@@ -41,7 +41,15 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, InputTypeError, OptionError
-from .implicit_rk import GAUSS_TABLEAUS, MAX_NEWTON_ITER, LoopOutcome, Mesh, gauss_integrate
+from .implicit_rk import (
+    GAUSS_TABLEAUS,
+    MAX_NEWTON_ITER,
+    NEWTON_FLOOR,
+    NEWTON_TOL,
+    LoopOutcome,
+    Mesh,
+    gauss_integrate,
+)
 from .result import Solution, Status
 
 __all__ = [
@@ -484,6 +492,7 @@ def solve_fixed(
             "keep_every": int(keep_every),
             "max_newton_iter": int(max_newton_iter),
             "max_steps": max_steps,
-            "newton_tol": "10*eps relative, per component",
+            "newton_tol": NEWTON_TOL,
+            "newton_floor": NEWTON_FLOOR,
         },
     )
