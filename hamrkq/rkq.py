@@ -32,7 +32,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RunOutput", "advance", "evaluations_per_step", "initial_step", "run"]
+__all__ = [
+    "RunOutput",
+    "Workspace",
+    "advance",
+    "evaluations_per_step",
+    "initial_step",
+    "run",
+    "workspace",
+]
 
 EPS = 2.220446049250313e-16  # float64 machine epsilon
 
@@ -584,6 +592,111 @@ def _float_array(values) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
 
+@dataclass(frozen=True, eq=False)
+class Workspace:
+    """The arrays of one integration in progress, as :func:`advance` takes them.
+
+    Built by :func:`workspace`; the state at ``t0`` is loaded, nothing is
+    evaluated yet.  :func:`run` drives it in chunks; the SciPy solver
+    :class:`hamrkq.RK34Q8` drives it one accepted step at a time.
+    """
+
+    coefficients: tuple[np.ndarray, ...]  # A3, b3, c3, A4, b4, c4, A8, b8, c8
+    t_eval: np.ndarray
+    atol: np.ndarray
+    rtol: np.ndarray
+    iopt: np.ndarray
+    fopt: np.ndarray
+    fstate: np.ndarray
+    istate: np.ndarray
+    X: np.ndarray
+    K4: np.ndarray
+    K3: np.ndarray
+    K8: np.ndarray
+    dK8: np.ndarray
+    JM: np.ndarray
+
+    def advance_args(self) -> tuple[np.ndarray, ...]:
+        """The arguments of :func:`advance` between ``params`` and the outputs."""
+        return (
+            *self.coefficients, self.t_eval, self.atol, self.rtol, self.iopt, self.fopt,
+            self.fstate, self.istate, self.X, self.K4, self.K3, self.K8, self.dK8, self.JM,
+        )  # fmt: skip
+
+
+def workspace(
+    t0: float,
+    y0: np.ndarray,
+    t_end: float,
+    *,
+    rk3,
+    rk4,
+    rk8,
+    atol: np.ndarray,
+    rtol: np.ndarray,
+    quench: int = QUENCH_NODE,
+    rule: int = RULE_COMPONENTWISE,
+    gamma: int = GAMMA_TANGENT,
+    safety: float = 0.9,
+    theta: float = 1.0,
+    max_step: float = np.inf,
+    max_steps: int = 1_000_000,
+    gamma_limit: float = 0.05,
+    keep_every: int = 1,
+    t_eval: np.ndarray | None = None,
+) -> Workspace:
+    """Allocate the work arrays of an RKQ (``rk8`` a tableau) or RK34
+    (``rk8=None``) integration from ``(t0, y0)`` to ``t_end``.
+
+    The options are those of :func:`run` (already validated, as codes).  The
+    step size ``fstate[FS_H]`` is left at zero for the caller to set.
+    """
+    d = y0.shape[0]
+    A3, b3, c3 = (_float_array(v) for v in (rk3.A, rk3.b, rk3.c))
+    A4, b4, c4 = (_float_array(v) for v in (rk4.A, rk4.b, rk4.c))
+    shared = _shared_stages(A3, c3, A4, c4)
+    use_rk8 = rk8 is not None
+    if use_rk8:
+        A8, b8, c8 = (_float_array(v) for v in (rk8.A, rk8.b, rk8.c))
+        rich = 2.0**rk8.order / (2.0**rk8.order - 1.0)
+    else:
+        A8, b8, c8 = np.zeros((1, 1)), np.zeros(1), np.zeros(1)
+        rich = 0.0
+        gamma = GAMMA_OFF
+    s8 = b8.shape[0]
+    use_teval = t_eval is not None
+    rtol = _float_array(rtol)
+    iopt = np.array(
+        [quench, rule, gamma, int(use_rk8), keep_every, max_steps, shared, int(use_teval),
+         int(np.any(rtol > 0))],
+        dtype=np.int64,
+    )  # fmt: skip
+    fopt = np.array([safety, theta, max_step, gamma_limit, t_end, rich], dtype=np.float64)
+    fstate = np.zeros(FS_SIZE)
+    istate = np.zeros(IS_SIZE, dtype=np.int64)
+    X = np.zeros((X_ROWS, d))
+    X[U] = y0
+    X[ZHI] = y0
+    fstate[FS_T] = t0
+    istate[IS_STATUS] = ST_RUNNING
+    return Workspace(
+        coefficients=(A3, b3, c3, A4, b4, c4, A8, b8, c8),
+        t_eval=_float_array(t_eval if use_teval else []),
+        atol=_float_array(atol),
+        rtol=rtol,
+        iopt=iopt,
+        fopt=fopt,
+        fstate=fstate,
+        istate=istate,
+        X=X,
+        K4=np.zeros((b4.shape[0], d)),
+        K3=np.zeros((b3.shape[0], d)),
+        K8=np.zeros((s8, d)),
+        dK8=np.zeros((s8, d)),
+        JM=np.zeros((d, d)),
+    )
+
+
 def run(
     rhs: Callable,
     jac: Callable,
@@ -625,38 +738,18 @@ def run(
     if not inplace:
         rhs = _inplace(rhs, False)
         jac = _inplace(jac, True)
+    ws = workspace(
+        t0, y0, t_end, rk3=rk3, rk4=rk4, rk8=rk8, atol=atol, rtol=rtol, quench=quench,
+        rule=rule, gamma=gamma, safety=safety, theta=theta, max_step=max_step,
+        max_steps=max_steps, gamma_limit=gamma_limit, keep_every=keep_every, t_eval=t_eval,
+    )  # fmt: skip
     d = y0.shape[0]
-    A3, b3, c3 = (_float_array(v) for v in (rk3.A, rk3.b, rk3.c))
-    A4, b4, c4 = (_float_array(v) for v in (rk4.A, rk4.b, rk4.c))
-    shared = _shared_stages(A3, c3, A4, c4)
     use_rk8 = rk8 is not None
-    if use_rk8:
-        A8, b8, c8 = (_float_array(v) for v in (rk8.A, rk8.b, rk8.c))
-        rich = 2.0**rk8.order / (2.0**rk8.order - 1.0)
-    else:
-        A8, b8, c8 = np.zeros((1, 1)), np.zeros(1), np.zeros(1)
-        rich = 0.0
-        gamma = GAMMA_OFF
-    s8 = b8.shape[0]
+    gamma = int(ws.iopt[IO_GAMMA])
     use_teval = t_eval is not None
-    t_eval = _float_array(t_eval if use_teval else [])
-    atol = _float_array(atol)
-    rtol = _float_array(rtol)
-    rel = int(np.any(rtol > 0))
-    iopt = np.array(
-        [quench, rule, gamma, int(use_rk8), keep_every, max_steps, shared, int(use_teval), rel],
-        dtype=np.int64,
-    )
-    fopt = np.array([safety, theta, max_step, gamma_limit, t_end, rich], dtype=np.float64)
-    fstate = np.zeros(FS_SIZE)
-    istate = np.zeros(IS_SIZE, dtype=np.int64)
-    X = np.zeros((X_ROWS, d))
-    K4, K3 = np.zeros((b4.shape[0], d)), np.zeros((b3.shape[0], d))
-    K8, dK8, JM = np.zeros((s8, d)), np.zeros((s8, d)), np.zeros((d, d))
-    X[U] = y0
-    X[ZHI] = y0
-    fstate[FS_T] = t0
-    istate[IS_STATUS] = ST_RUNNING
+    t_eval, atol, rtol = ws.t_eval, ws.atol, ws.rtol
+    rel, rule = int(ws.iopt[IO_REL]), int(ws.iopt[IO_RULE])
+    fstate, istate, X = ws.fstate, ws.istate, ws.X
 
     rows = max(1, buffer_rows)
     chunks: list[tuple[np.ndarray, ...]] = []
@@ -695,10 +788,7 @@ def run(
                     h0 = float(first_step)
                 fstate[FS_H] = h0 if t_end > t0 else -h0
         while status == ST_RUNNING:
-            ret = advance(
-                rhs, jac, params, A3, b3, c3, A4, b4, c4, A8, b8, c8, t_eval, atol, rtol,
-                iopt, fopt, fstate, istate, X, K4, K3, K8, dK8, JM, *buffers, budget,
-            )  # fmt: skip
+            ret = advance(rhs, jac, params, *ws.advance_args(), *buffers, budget)
             if ret == RET_DONE:
                 status = int(istate[IS_STATUS])
             elif ret == RET_BUFFER_FULL:
