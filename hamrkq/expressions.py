@@ -54,6 +54,18 @@ MAX_EXPONENT = 1000
 #: Longest integer literal, in digits.
 MAX_DIGITS = 100
 
+#: Largest exact rational a number in an expression may become, in bits of
+#: its numerator or denominator.  ``((2**64)**64)**64`` would otherwise build a
+#: 262 144-bit integer (each further level multiplies that by 64), and a
+#: product of a few hundred long literals a number that Python refuses to
+#: print (more than 4 300 digits), failing far from the file.
+MAX_NUMBER_BITS = 4096
+
+#: Values that mean the text is undefined (``1/0``, ``0/0``, ``log(0)``) or
+#: not real (``sqrt(-1)``): a problem file has no use for them, and they would
+#: only fail later, far from the file and key that caused them.
+_UNDEFINED = (sp.zoo, sp.nan, sp.oo, -sp.oo, sp.I)
+
 #: Functions a file may call, with their number of arguments.
 FUNCTIONS: Mapping[str, tuple[Callable[..., sp.Expr], int]] = {
     "sin": (sp.sin, 1),
@@ -183,7 +195,25 @@ def parse_expression(
     except (ValueError, RecursionError, MemoryError):
         raise ExpressionError("expression cannot be parsed", piece=text[:60], **where) from None
     builder = _Builder(text.strip(), symbols, where)
-    return builder.build(tree.body, depth=0)
+    result = builder.build(tree.body, depth=0)
+    if any(_bits(number) > MAX_NUMBER_BITS for number in result.atoms(sp.Rational)):
+        raise ExpressionError(
+            f"a number in the expression exceeds {MAX_NUMBER_BITS} bits",
+            piece=text.strip()[:60],
+            **where,
+        )
+    if result.has(*_UNDEFINED):
+        raise ExpressionError(
+            f"expression is undefined, infinite or not real (it evaluates to {result})",
+            piece=text.strip()[:60],
+            **where,
+        )
+    return result
+
+
+def _bits(number: sp.Rational) -> int:
+    """Size of an exact rational: bits of its numerator or denominator."""
+    return max(abs(number.p).bit_length(), number.q.bit_length())
 
 
 def _number(value: float, **where) -> sp.Expr:
@@ -282,6 +312,9 @@ class _Builder:
             raise self.fail(f"exponent larger than {MAX_EXPONENT} in magnitude", node)
         if base.is_Number and exponent.is_Number and abs(base) > 1 and abs(exponent) > 64:
             raise self.fail("numeric power too large", node)
+        if base.is_Rational and exponent.is_Number and base != 0:
+            if _bits(base) * abs(float(exponent)) > MAX_NUMBER_BITS:
+                raise self.fail(f"numeric power too large (over {MAX_NUMBER_BITS} bits)", node)
 
 
 def _describe(node: ast.AST) -> str:
