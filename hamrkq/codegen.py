@@ -39,6 +39,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 import sympy as sp
+from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
 from .errors import HamrkqError
@@ -61,7 +62,9 @@ __all__ = [
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 2
+CODEGEN_VERSION = 3
+#: Integer powers up to this are printed as products (see _ScalarPrinter).
+MAX_PRODUCT_POWER = 4
 #: Prefix of generated module names (``sys.modules`` keys and file stems).
 MODULE_PREFIX = "hamrkq_gen_"
 
@@ -185,9 +188,62 @@ class _ScalarPrinter(PythonCodePrinter):
         # check_supported has already proved every symbol is in the table.
         return self._names[expr]
 
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        # Integer powers are spelled out so that every backend computes the
+        # same bits: Python's float ** int calls the C library's pow(), while
+        # numba multiplies (by squaring).  Products for |n| <= 4, otherwise a
+        # float exponent, which both send to pow().
+        exponent = expr.exp
+        if exponent.is_Integer and abs(int(exponent)) >= 2:
+            n = int(exponent)
+            base = self.parenthesize(expr.base, PRECEDENCE["Mul"], strict=True)
+            if abs(n) <= MAX_PRODUCT_POWER:
+                # Parenthesised: the product stands where a Pow (which binds
+                # tighter than * and /) stood, as in a/b**2 -> a/(b*b).
+                product = "*".join([base] * abs(n))
+                return f"({product})" if n > 0 else f"(1/({product}))"
+            base = self.parenthesize(expr.base, PRECEDENCE["Pow"], strict=True)
+            return f"{base}**{float(n)!r}" if n > 0 else f"{base}**({float(n)!r})"
+        return super()._print_Pow(expr, rational=rational)
+
     def _print_Float(self, expr: sp.Float) -> str:
         # repr(float) round-trips; SymPy's default prints 15 digits and loses bits.
         return repr(float(expr))
+
+
+def _hoist_power_bases(replacements, reduced, temps):
+    """Give every compound base of an integer power its own temporary.
+
+    The printer spells ``b**3`` as ``b*b*b``; without this, a base such as
+    ``cos(q)`` would be computed three times.  Bases are hoisted just before
+    the temporary (or output) that uses them, so definitions still precede uses.
+    """
+    known: dict[sp.Expr, sp.Symbol] = {}
+    ordered: list[tuple[sp.Symbol, sp.Expr]] = []
+
+    def visit(expr: sp.Expr) -> sp.Expr:
+        if expr.is_Atom:
+            return expr
+        args = tuple(visit(arg) for arg in expr.args)
+        if args != expr.args:
+            expr = expr.func(*args, evaluate=False)
+        if (
+            expr.is_Pow
+            and expr.exp.is_Integer
+            and abs(int(expr.exp)) >= 2
+            and not expr.base.is_Atom
+        ):
+            symbol = known.get(expr.base)
+            if symbol is None:
+                symbol = known[expr.base] = next(temps)
+                ordered.append((symbol, expr.base))
+            return sp.Pow(symbol, expr.exp, evaluate=False)
+        return expr
+
+    for symbol, value in replacements:
+        ordered.append((symbol, visit(value)))
+    outputs = [visit(value) for value in reduced]
+    return ordered, outputs
 
 
 def _block(
@@ -203,6 +259,7 @@ def _block(
     """Lines of one function: CSE temporaries, then one assignment per target."""
     temps = sp.numbered_symbols("_c")
     replacements, reduced = sp.cse(list(exprs), symbols=temps, order="none")
+    replacements, reduced = _hoist_power_bases(replacements, reduced, temps)
     names = dict(names)
     for k, (symbol, _) in enumerate(replacements):
         names[symbol] = f"c{k}"

@@ -257,3 +257,42 @@ def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
     monkeypatch.setattr(codegen, "generate_source", lambda ham: pytest.fail("regenerated"))
     module = codegen.load_module(ham, tmp_path)
     assert module.DIM == 6
+
+
+def test_integer_powers_are_spelled_out_and_correct(tmp_path):
+    """Python's float ** int calls pow() and numba multiplies: the generator
+    prints products (|n| <= 4) or float exponents, so both compute the same."""
+    q, p = sp.symbols("q p", real=True)
+    H = (
+        p**2 / 2
+        + q**3 / (1 + p**2) ** 2
+        + sp.cos(q) ** 4
+        + (q + p) ** 7 / 5040
+        - 1 / (2 + sp.sin(p)) ** 3
+        + q**-2 / 100
+        + (1 + q**2) ** sp.Rational(-3, 2)
+        + sp.exp(q / 9) ** -9
+    )
+    ham = hamrkq.Hamiltonian(H, q=[q], p=[p])
+    source = codegen.generate_source(ham)
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            exponent = node.right
+            if isinstance(exponent, ast.UnaryOp):
+                exponent = exponent.operand
+            # Only float literals or rational expressions like (3/2) remain.
+            assert not (isinstance(exponent, ast.Constant) and isinstance(exponent.value, int))
+    assert "math.cos(y[0])*math.cos(y[0])" not in source  # compound bases are hoisted
+    module = codegen.load_module(ham, tmp_path)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        y = rng.uniform(0.3, 1.5, 2) * rng.choice([-1, 1], 2)
+        out = np.empty(2)
+        module.rhs(0.0, y, np.empty(0), out)
+        np.testing.assert_allclose(out, ham.numeric.rhs(0.0, y, np.empty(0)), rtol=1e-13)
+        J = np.empty((2, 2))
+        module.jac(0.0, y, np.empty(0), J)
+        np.testing.assert_allclose(J, ham.numeric.jac(0.0, y, np.empty(0)), rtol=1e-12)
+        H = float(ham.numeric.energy(0.0, y, np.empty(0)))
+        assert math.isclose(module.energy(0.0, y, np.empty(0)), H, rel_tol=1e-13)
