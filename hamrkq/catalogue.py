@@ -8,6 +8,7 @@ parser of :mod:`hamrkq.expressions`.  The format is documented in
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from collections.abc import Callable, Mapping
@@ -20,7 +21,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import InputError, ProblemFileError, ProblemNotFoundError
+from .errors import InputError, InputTypeError, ProblemFileError, ProblemNotFoundError
 from .expressions import check_name, parse_expression
 from .hamiltonian import Hamiltonian
 
@@ -47,24 +48,17 @@ TOP_LEVEL_KEYS = frozenset(
     }
 )
 REQUIRED_KEYS = ("name", "coordinates", "momenta", "hamiltonian", "initial")
-INTEGRATION_KEYS = frozenset(
-    {
-        "t_span",
-        "method",
-        "atol",
-        "rtol",
-        "first_step",
-        "max_step",
-        "max_steps",
-        "step",
-        "quench",
-        "quench_threshold",
-        "safety",
-        "tolerance_rule",
-        "global_error_estimate",
-        "z_method",
-    }
-)
+#: What each ``[integration]`` setting must be.  Checked when the file is read,
+#: so that a bad value is reported with the file, line and key, not later by
+#: :func:`hamrkq.solve` without them.
+INTEGRATION_KINDS = {
+    **dict.fromkeys(("method", "quench", "tolerance_rule", "global_error_estimate"), "name"),
+    **dict.fromkeys(("z_method",), "name"),
+    **dict.fromkeys(("atol", "rtol"), "tolerance"),
+    **dict.fromkeys(("first_step", "max_step", "step", "quench_threshold", "safety"), "positive"),
+    "max_steps": "count",
+}
+INTEGRATION_KEYS = frozenset({"t_span", *INTEGRATION_KINDS})
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,16 +107,32 @@ class Problem:
         ham = self.hamiltonian
         params = ham.parameter_values(self.parameters)
         subs = dict(zip(ham.parameters, params, strict=True))
-        y0 = np.array([float(sp.N(e.subs(subs), 17)) for e in self.initial_exprs])
-        t_span = tuple(float(sp.N(e.subs(subs), 17)) for e in self.t_span_exprs)
-        if not np.all(np.isfinite(y0)):
-            raise ProblemFileError("initial values are not finite", path=self.path, key="initial")
+        n = ham.n
+        keys = [f"initial.{'qp'[i >= n]}[{i % n}]" for i in range(2 * n)]
+        y0 = np.array(
+            [self._value(e, subs, k) for e, k in zip(self.initial_exprs, keys, strict=True)]
+        )
+        t_span = tuple(self._value(e, subs, "integration.t_span") for e in self.t_span_exprs)
         self._values.update(y0=y0, t_span=t_span, params=params)
         y0.setflags(write=False)
         object.__setattr__(self, "integration", MappingProxyType(dict(self.integration)))
         object.__setattr__(self, "invariants", MappingProxyType(dict(self.invariants)))
         object.__setattr__(self, "expected", MappingProxyType(dict(self.expected)))
         object.__setattr__(self, "parameters", MappingProxyType(dict(self.parameters)))
+
+    def _value(self, expr: sp.Expr, subs: Mapping, key: str) -> float:
+        """A finite real number, or an error naming the key and the parameters
+        (``kepler`` with ``e = 1`` makes ``sqrt((1 + e)/(1 - e))`` infinite)."""
+        value = _finite_real(expr.subs(subs))
+        if value is None:
+            shown = ", ".join(f"{k} = {v:g}" for k, v in self.parameters.items())
+            raise ProblemFileError(
+                f"{expr} is not a finite real number"
+                + (f" for the parameters {shown}" if shown else ""),
+                path=self.path,
+                key=key,
+            )
+        return value
 
     @property
     def y0(self) -> np.ndarray:
@@ -174,7 +184,10 @@ class Problem:
         unknown = sorted(set(values) - {s.name for s in self.hamiltonian.parameters})
         if unknown:
             raise InputError(f"problem {self.name!r} has no parameter(s) {', '.join(unknown)}")
-        merged = {**self.parameters, **{k: float(v) for k, v in values.items()}}
+        ham = self.hamiltonian
+        # parameter_values names the parameter and the value of a non-number.
+        checked = ham.parameter_values({**self.parameters, **values})
+        merged = {s.name: float(v) for s, v in zip(ham.parameters, checked, strict=True)}
         return replace(self, parameters=merged, _values={})
 
     def __repr__(self) -> str:
@@ -217,6 +230,10 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
         The file is malformed; the message names the file, the line when known,
         and the key.
     """
+    if not isinstance(name_or_path, str | Path):
+        raise InputTypeError(
+            f"name_or_path must be a catalogue name or a path, got {name_or_path!r}"
+        )
     path = Path(name_or_path)
     text_name = str(name_or_path)
     if not (path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name):
@@ -228,7 +245,8 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
                 "and no such file"
             )
     elif not path.is_file():
-        raise ProblemNotFoundError(f"problem file {text_name!r} does not exist")
+        why = "is not a file" if path.exists() else "does not exist"
+        raise ProblemNotFoundError(f"problem file {text_name!r} {why}")
     problem = _parse_file(path)
     return problem.with_parameters(**parameters) if parameters else problem
 
@@ -250,6 +268,8 @@ def _parse_file(path: Path) -> Problem:
         match = re.search(r"at line (\d+)", str(exc))
         line = int(match.group(1)) if match else None
         raise ProblemFileError(f"TOML syntax error: {exc}", path=path, line=line) from None
+    except RecursionError:  # tomllib recurses once per nested array or table
+        raise ProblemFileError("TOML nested too deeply", path=path) from None
     return _FileReader(path, text, data).problem()
 
 
@@ -264,6 +284,7 @@ class _FileReader:
 
     def _line(self, key: str) -> int | None:
         """Best-effort line number of a dotted key (tomllib gives none)."""
+        key = re.sub(r"\[\d+\]$", "", key)  # "initial.q[0]": the line of "q = [...]"
         *section, last = key.split(".")
         table = ".".join(section)
         current = ""
@@ -325,7 +346,10 @@ class _FileReader:
         defaults = {}
         for pname, value in param_table.items():
             value_expr = self.expr(value, {}, f"parameters.{pname}")
-            defaults[pname] = float(sp.N(value_expr, 17))
+            defaults[pname] = _finite_real(value_expr)
+            if defaults[pname] is None:
+                key = f"parameters.{pname}"
+                raise self.error(f"{value_expr} is not a finite real number", key)
         H = self.expr(data["hamiltonian"], {**symbols, "t": t}, "hamiltonian")
         try:
             ham = Hamiltonian(
@@ -354,6 +378,9 @@ class _FileReader:
         extra = sorted(set(integration) - INTEGRATION_KEYS)
         if extra:
             raise self.error(f"unknown key(s): {', '.join(extra)}", f"integration.{extra[0]}")
+        for key, value in integration.items():
+            if key != "t_span":
+                self.setting(key, value)
         span = integration.pop("t_span", None)
         if not isinstance(span, list) or len(span) != 2:
             raise self.error("t_span must be a list of two values", "integration.t_span")
@@ -366,6 +393,9 @@ class _FileReader:
         references = data.get("references", [])
         if not isinstance(references, list) or not all(isinstance(r, str) for r in references):
             raise self.error("must be a list of strings", "references")
+        for key in ("title", "description"):
+            if not isinstance(data.get(key, ""), str):
+                raise self.error(f"must be a string, got {type(data[key]).__name__}", key)
         return Problem(
             name=name,
             title=str(data.get("title", name)),
@@ -381,6 +411,45 @@ class _FileReader:
             parameters=defaults,
             path=self.path,
         )
+
+    def setting(self, key: str, value: Any) -> None:
+        """Check one ``[integration]`` value against :data:`INTEGRATION_KINDS`
+        and, for names, against what :func:`hamrkq.solve` accepts."""
+        from .solve import GAMMA_MODES, METHODS, QUENCH_MODES, TOLERANCE_RULES, Z_METHODS
+
+        kind = INTEGRATION_KINDS[key]
+        where = f"integration.{key}"
+        if kind == "name":
+            valid = {
+                "method": METHODS,
+                "quench": QUENCH_MODES,
+                "tolerance_rule": TOLERANCE_RULES,
+                "global_error_estimate": GAMMA_MODES,
+                "z_method": Z_METHODS,
+            }[key]
+            if value not in valid:
+                listing = ", ".join(map(repr, valid))
+                raise self.error(f"{value!r} is not valid; valid values: {listing}", where)
+            return
+        if kind == "count":
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise self.error(f"must be a positive integer, got {value!r}", where)
+            return
+        items = value if kind == "tolerance" and isinstance(value, list) and value else [value]
+        for item in items:
+            if isinstance(item, bool) or not isinstance(item, int | float) or math.isnan(item):
+                ok = False
+            elif kind == "tolerance":
+                ok = math.isfinite(item) and (item > 0 or (key == "rtol" and item == 0))
+            else:
+                ok = item > 0 and (math.isfinite(item) or key == "max_step")
+            if not ok:
+                need = {"atol": "a positive finite number", "rtol": "a finite number >= 0"}
+                raise self.error(
+                    f"must be {need.get(key, 'a positive number')}"
+                    f"{' (or a list of them)' if kind == 'tolerance' else ''}, got {value!r}",
+                    where,
+                )
 
     def exact_spec(self, symbols: Mapping[str, sp.Symbol], n: int) -> dict | None:
         table = self.table("exact")
@@ -405,6 +474,18 @@ class _FileReader:
                 raise self.error(f"must be a list of {n} expressions", f"exact.{part}")
             exprs += [self.expr(v, symbols, f"exact.{part}[{i}]") for i, v in enumerate(values)]
         return {"expressions": tuple(exprs)}
+
+
+def _finite_real(expr: sp.Expr) -> float | None:
+    """The value of a closed-form expression as a float, or None when it is not
+    a finite real number (``1/(1 - e)`` at ``e = 1``, ``acos(2)``, ...)."""
+    try:
+        value = complex(sp.N(expr, 17))
+    except (TypeError, ValueError):  # free symbols, zoo
+        return None
+    if value.imag != 0 or not math.isfinite(value.real):
+        return None
+    return value.real
 
 
 def _exact_function(problem: Problem) -> Callable[[Any], np.ndarray]:
