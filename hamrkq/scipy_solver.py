@@ -1,0 +1,413 @@
+"""RKQ as a SciPy solver: ``solve_ivp(fun, t_span, y0, method=hamrkq.RK34Q8)``.
+
+:class:`RK34Q8` is a :class:`scipy.integrate.OdeSolver` whose steps are
+hamrkq's RKQ steps (J.S.C. Prentice, arXiv:1111.6996): RK3/RK4 local
+extrapolation, an RK8 track on the same mesh, and quenching of the reported
+solution to the RK8 value wherever they differ by more than the tolerance.
+The algorithm is not re-implemented here: each call of :meth:`step` runs
+:func:`hamrkq.rkq.advance` until it has accepted exactly one step.
+
+It works on any first-order system (nothing needs to be Hamiltonian), so
+``solve_ivp``'s ``t_eval``, ``dense_output``, ``events`` and ``args`` behave as
+with SciPy's own methods.  What SciPy's methods do not have is exposed on the
+solver object after every step (and to an ``on_step`` callback, since
+``solve_ivp`` does not hand its solver back):
+
+- ``solver.z``: the RK8 track at ``solver.t``;
+- ``solver.global_error``: ``y - z``, the estimated global error of ``y``
+  (the paper's sign, numerical minus exact; zero at a quenched node);
+- ``solver.gamma``: the estimated global error of the RK8 track itself
+  (``None`` when it is not propagated, e.g. without ``jac``);
+- ``solver.quenched``: whether the last step was quenched;
+- ``solver.stats``: accepted and rejected steps, quenches, nfev, njev.
+
+Tolerances mean what they mean in :func:`hamrkq.solve`, not what they mean in
+SciPy: per component ``delta_k = max(atol_k, rtol_k |y_k|)`` and a max-norm,
+and the defaults are the paper's ``atol=1e-6, rtol=0``.  Every node of ``y``
+is within ``delta`` of the RK8 track.
+
+Dense output is the cubic Hermite interpolant of the step's end values and
+derivatives (order 3: interpolation error ``O(h^4)``, at most
+``h^4 max|y''''| / 384``).  It is built from the reported values, so it is
+continuous across quenches, and costs no extra evaluation: ``f`` at the new
+node is the first stage of the next step.  Its order matches that of the RK3
+local error that sizes the steps; between nodes its error is therefore of the
+size of the tolerance rather than far below it (measured in
+``tests/test_scipy_solver.py``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from scipy.integrate import DenseOutput, OdeSolver
+
+from . import rkq
+from .errors import HamrkqWarning, InputError, OptionError
+from .result import Status
+from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+
+__all__ = ["RK34Q8", "HermiteDenseOutput"]
+
+EPS = float(np.finfo(float).eps)
+#: As in :func:`hamrkq.solve`: relative tolerances below 100 eps are raised.
+MIN_RTOL = 100 * EPS
+#: Step attempts per call of :func:`hamrkq.rkq.advance` before control comes
+#: back to Python (a Ctrl-C is seen between calls).
+BUDGET = 1000
+#: No limit on steps: SciPy's callers stop a solver themselves.
+NO_STEP_LIMIT = 1 << 62
+
+_QUENCH = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
+_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
+_GAMMA = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
+_STATUS_BY_CODE = {status.code: status for status in Status}
+_NO_PARAMS = np.zeros(0)
+
+
+class HermiteDenseOutput(DenseOutput):
+    """Cubic Hermite interpolant on one step from values and derivatives.
+
+    Parameters
+    ----------
+    t_old, t : float
+        Ends of the step.
+    y_old, y : ndarray, shape (n,)
+        Values at the ends.
+    f_old, f : ndarray, shape (n,)
+        Derivatives at the ends.
+    """
+
+    def __init__(self, t_old: float, t: float, y_old, y, f_old, f):
+        super().__init__(t_old, t)
+        self.h = t - t_old
+        self.y_old = y_old
+        self.y = y
+        self.f_old = f_old
+        self.f = f
+
+    def _call_impl(self, t):
+        s = (np.asarray(t, dtype=float) - self.t_old) / self.h
+        s2 = s * s
+        s3 = s2 * s
+        h00 = 2 * s3 - 3 * s2 + 1
+        h10 = s3 - 2 * s2 + s
+        h01 = 3 * s2 - 2 * s3
+        h11 = s3 - s2
+        if np.ndim(t) == 0:
+            return (
+                h00 * self.y_old + h01 * self.y + self.h * (h10 * self.f_old + h11 * self.f)
+            )
+        return (
+            np.outer(self.y_old, h00)
+            + np.outer(self.y, h01)
+            + self.h * (np.outer(self.f_old, h10) + np.outer(self.f, h11))
+        )
+
+
+def _tolerance(name: str, value: Any, n: int, *, positive: bool) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.ndim > 1 or (array.ndim == 1 and array.shape != (n,)):
+        raise InputError(f"{name} must be a scalar or have {n} entries, got shape {array.shape}")
+    bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
+    if np.any(bad):
+        need = "positive" if positive else "zero or positive"
+        raise InputError(f"{name} must be finite and {need}, got {value!r}")
+    return np.broadcast_to(array, (n,)).copy()
+
+
+def _choice(name: str, value: Any, valid: dict) -> int:
+    if not isinstance(value, str) or value not in valid:
+        listing = ", ".join(repr(v) for v in valid)
+        raise OptionError(f"{name}={value!r} is not valid; valid values: {listing}")
+    return valid[value]
+
+
+class RK34Q8(OdeSolver):
+    """Prentice's RKQ algorithm (RK3/RK4 local extrapolation, RK8 quench) for SciPy.
+
+    Use it as ``scipy.integrate.solve_ivp(fun, t_span, y0, method=RK34Q8,
+    jac=jac, atol=..., rtol=...)`` or step by step like any
+    :class:`~scipy.integrate.OdeSolver`.
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(t, y) -> array_like (n,)``.
+    t0 : float
+        Initial time.
+    y0 : array_like, shape (n,)
+        Initial state (real).
+    t_bound : float
+        End of the interval; the last step lands on it exactly.
+    max_step : float, default inf
+        Largest step size.
+    rtol : float or array_like, default 0
+        Relative tolerance, zero or positive (values below 100 eps are raised to
+        100 eps with a warning).
+    atol : float or array_like, default 1e-6
+        Absolute tolerance, positive.  Per component,
+        ``delta_k = max(atol_k, rtol_k |y_k|)``.
+    jac : callable, array_like or None
+        ``jac(t, y) -> (n, n)`` (or a constant matrix).  Used only to propagate
+        ``gamma``, the RK8 track's own error estimate (one Jacobian per RK8
+        stage for ``"tangent"``).
+    vectorized : bool
+        As in SciPy (``fun`` is then called with single columns).
+    first_step : float, optional
+        Initial step; default Hairer-Norsett-Wanner's heuristic for order 3.
+    quench : {"node", "redo"}, default "node"
+    quench_threshold : float, default 1
+    safety : float, default 0.9
+    tolerance_rule : {"componentwise", "prentice"}, default "componentwise"
+    global_error_estimate : {"tangent", "paper", "off"}, optional
+        Default ``"tangent"`` with ``jac``, ``"off"`` without.
+    z_method : {"dop853", "cooper_verner"}, default "dop853"
+    gamma_limit : float, default 0.05
+        The solver fails (``status == "failed"``) once the RK8 track's estimated
+        error plus rounding exceeds this fraction of the tolerance; ``inf``
+        disables the check.  See :func:`hamrkq.solve`.
+    on_step : callable, optional
+        ``on_step(solver)`` after every accepted step: the way to read
+        ``solver.global_error`` and friends through ``solve_ivp``.
+
+    Attributes
+    ----------
+    z, global_error, gamma, quenched, stats
+        See the module docstring.
+    order : int
+        3, the order of the error-controlled method (the RK4 value is
+        propagated).
+
+    References
+    ----------
+    J.S.C. Prentice, "Global Error Control in the Runge-Kutta Solution of a
+    Hamiltonian System using the RKQ Algorithm", arXiv:1111.6996 (2011).
+    """
+
+    order = 3
+
+    def __init__(
+        self,
+        fun: Callable,
+        t0: float,
+        y0: Any,
+        t_bound: float,
+        max_step: float = np.inf,
+        rtol: Any = 0.0,
+        atol: Any = 1e-6,
+        jac: Any = None,
+        vectorized: bool = False,
+        first_step: float | None = None,
+        quench: str = "node",
+        quench_threshold: float = 1.0,
+        safety: float = 0.9,
+        tolerance_rule: str = "componentwise",
+        global_error_estimate: str | None = None,
+        z_method: str = "dop853",
+        gamma_limit: float = 0.05,
+        on_step: Callable[[RK34Q8], None] | None = None,
+        **extraneous: Any,
+    ):
+        if extraneous:
+            warnings.warn(
+                "The following arguments have no effect for RK34Q8: "
+                + ", ".join(f"`{name}`" for name in extraneous),
+                HamrkqWarning,
+                stacklevel=2,
+            )
+        super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=False)
+        n = self.n
+        atol = _tolerance("atol", atol, n, positive=True)
+        rtol = _tolerance("rtol", rtol, n, positive=False)
+        if np.any((rtol > 0) & (rtol < MIN_RTOL)):
+            warnings.warn(
+                f"rtol is below 100 eps and is raised to {MIN_RTOL:.3g}",
+                HamrkqWarning,
+                stacklevel=2,
+            )
+            rtol = np.where((rtol > 0) & (rtol < MIN_RTOL), MIN_RTOL, rtol)
+        max_step = float(max_step)
+        if not max_step > 0:
+            raise InputError(f"max_step must be positive, got {max_step!r}")
+        for name, value in (("quench_threshold", quench_threshold), ("safety", safety)):
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"{name} must be a positive number, got {value!r}")
+        if safety > 1:
+            raise InputError(f"safety must be at most 1, got {safety!r}")
+        if not gamma_limit > 0:
+            raise InputError(f"gamma_limit must be positive, got {gamma_limit!r}")
+        if on_step is not None and not callable(on_step):
+            raise InputError(f"on_step must be callable, got {on_step!r}")
+        self._jac = self._wrap_jac(jac)
+        if global_error_estimate is None:
+            global_error_estimate = "off" if self._jac is None else "tangent"
+        gamma = _choice("global_error_estimate", global_error_estimate, _GAMMA)
+        if gamma != rkq.GAMMA_OFF and self._jac is None:
+            raise InputError(
+                f"global_error_estimate={global_error_estimate!r} needs jac, got None"
+            )
+        rule = _choice("tolerance_rule", tolerance_rule, _RULES)
+        if z_method not in ("dop853", "cooper_verner"):
+            raise OptionError(
+                f"z_method={z_method!r} is not valid; valid values: 'dop853', 'cooper_verner'"
+            )
+        self.on_step = on_step
+        self.global_error_estimate = global_error_estimate
+        self._ws = rkq.workspace(
+            float(t0), self.y.astype(float), float(t_bound), rk3=RK3_KUTTA, rk4=RK4_CLASSIC,
+            rk8=get_tableau(z_method), atol=atol, rtol=rtol,
+            quench=_choice("quench", quench, _QUENCH), rule=rule, gamma=gamma,
+            safety=float(safety), theta=float(quench_threshold), max_step=max_step,
+            max_steps=NO_STEP_LIMIT, gamma_limit=float(gamma_limit),
+        )  # fmt: skip
+        self._out = (np.empty(1), np.empty((1, n)), np.empty((1, n)), np.empty((1, n)),
+                     np.zeros(1, dtype=np.int8))  # fmt: skip
+        self._f = np.zeros(n)
+        self._y_old = self._f_old = None
+        self.quenched = False
+        self._start(t0, t_bound, first_step, atol, rtol, rule, max_step)
+
+    # -- set-up ------------------------------------------------------------------
+    def _wrap_jac(self, jac: Any) -> Callable | None:
+        """``jac`` as an in-place ``jac(t, y, params, out)`` that counts njev."""
+        if jac is None:
+            return None
+        n = self.n
+        if callable(jac):
+
+            def evaluate(t, y):
+                value = jac(t, y)
+                return value.toarray() if hasattr(value, "toarray") else value
+
+        else:
+            constant = jac.toarray() if hasattr(jac, "toarray") else np.asarray(jac, float)
+            if constant.shape != (n, n):
+                raise InputError(f"jac must have shape ({n}, {n}), got {constant.shape}")
+
+            def evaluate(t, y):
+                return constant
+
+        def inplace(t, y, params, out):
+            self.njev += 1
+            out[:, :] = evaluate(t, y)
+
+        return inplace
+
+    def _rhs(self, t, y, params, out):
+        out[:] = self.fun(t, y)
+
+    def _start(self, t0, t_bound, first_step, atol, rtol, rule, max_step) -> None:
+        ws = self._ws
+        X, istate, fstate = ws.X, ws.istate, ws.fstate
+        interval = abs(t_bound - t0)
+        if t_bound == t0:
+            return
+        self._rhs(t0, X[rkq.U], _NO_PARAMS, X[rkq.K1])
+        istate[rkq.IS_NFEV] += 1
+        self._f[:] = X[rkq.K1]
+        finite = bool(np.all(np.isfinite(self._f)))
+        # With a non-finite f(t0, y0) the first step recomputes it and fails
+        # with a message; otherwise f(t0, y0) is its first stage.
+        istate[rkq.IS_K1_VALID] = int(finite)
+        if first_step is not None:
+            h0 = float(first_step)
+            if not (h0 > 0 and h0 <= interval):
+                raise InputError(
+                    f"first_step must be positive and at most |t_bound - t0| = {interval!r}, "
+                    f"got {first_step!r}"
+                )
+        elif finite:
+            rel = int(np.any(rtol > 0))
+            h0 = rkq.initial_step(
+                self._rhs, t0, X[rkq.U], X[rkq.K1], t_bound, atol, ws.rtol, rel, rule, 3,
+                max_step, _NO_PARAMS, np.zeros((3, self.n)),
+            )  # fmt: skip
+            istate[rkq.IS_NFEV] += 1
+        else:
+            h0 = interval
+        self.first_step = h0
+        fstate[rkq.FS_H] = self.direction * h0
+
+    # -- stepping ------------------------------------------------------------------
+    def _step_impl(self) -> tuple[bool, str | None]:
+        ws = self._ws
+        istate = ws.istate
+        self._y_old = self.y.copy()
+        self._f_old = self._f.copy()
+        istate[rkq.IS_NOUT] = 0
+        # One output row: advance returns as soon as one step is accepted.
+        while True:
+            ret = rkq.advance(self._rhs, self._jac, _NO_PARAMS, *ws.advance_args(), *self._out,
+                              BUDGET)  # fmt: skip
+            if ret != rkq.RET_BUDGET:
+                break
+        status = int(istate[rkq.IS_STATUS])
+        if ret == rkq.RET_DONE and status != rkq.ST_SUCCESS:
+            return False, self._failure(_STATUS_BY_CODE[status])
+        out_t, out_y, _, _, out_q = self._out
+        self.t = float(out_t[0])
+        self.y = out_y[0].copy()
+        self.quenched = bool(out_q[0])
+        X = ws.X
+        self._rhs(self.t, self.y, _NO_PARAMS, X[rkq.K1])
+        istate[rkq.IS_NFEV] += 1
+        self._f = X[rkq.K1].copy()
+        # f at the new node is the next step's first stage, unless it is not
+        # finite: then the next step evaluates it again and reports the failure.
+        istate[rkq.IS_K1_VALID] = int(bool(np.all(np.isfinite(self._f))))
+        if self.on_step is not None:
+            self.on_step(self)
+        return True, None
+
+    def _failure(self, status: Status) -> str:
+        fstate = self._ws.fstate
+        t = float(fstate[rkq.FS_T])
+        if status is Status.STEP_SIZE_UNDERFLOW:
+            return (
+                f"RK34Q8: the step size {abs(fstate[rkq.FS_FAIL_H]):.3g} fell below the "
+                f"roundoff floor at t = {t!r}."
+            )
+        if status is Status.TOLERANCE_UNATTAINABLE:
+            return (
+                f"RK34Q8: at t = {t!r} the RK8 track's estimated error plus rounding reached "
+                f"{fstate[rkq.FS_RATIO]:.3g} x the tolerance (gamma_limit); loosen atol/rtol."
+            )
+        return f"RK34Q8: {status.description} (t = {t!r})"
+
+    def _dense_output_impl(self) -> HermiteDenseOutput:
+        return HermiteDenseOutput(self.t_old, self.t, self._y_old, self.y, self._f_old, self._f)
+
+    # -- what SciPy's methods do not have -------------------------------------------
+    @property
+    def z(self) -> np.ndarray:
+        """The RK8 track at ``self.t``."""
+        return self._ws.X[rkq.ZHI].copy()
+
+    @property
+    def global_error(self) -> np.ndarray:
+        """Estimated global error of ``y``: ``y - z`` (numerical minus exact)."""
+        return self.y - self._ws.X[rkq.ZHI]
+
+    @property
+    def gamma(self) -> np.ndarray | None:
+        """Estimated global error of the RK8 track (None when not propagated)."""
+        if self.global_error_estimate == "off":
+            return None
+        return self._ws.X[rkq.GAM].copy()
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """Accepted and rejected steps, quenches, f and Jacobian evaluations."""
+        istate = self._ws.istate
+        return {
+            "steps": int(istate[rkq.IS_STEPS]),
+            "rejected": int(istate[rkq.IS_REJECTED]),
+            "quenches": int(istate[rkq.IS_QUENCHES]),
+            "nfev": int(self.nfev),
+            "njev": int(self.njev),
+        }
