@@ -4,7 +4,8 @@
 value), fills in defaults from a catalogue :class:`~hamrkq.catalogue.Problem`,
 dispatches to a method through a small table (:data:`METHODS`) and packs the
 result into a :class:`~hamrkq.result.Solution`.  The numerics live elsewhere:
-the RKQ loop in :mod:`hamrkq.rkq`.
+the RKQ loop in :mod:`hamrkq.rkq`, the fixed-step symplectic baselines in
+:mod:`hamrkq.symplectic`, the SciPy baselines in :mod:`hamrkq.baselines`.
 """
 
 from __future__ import annotations
@@ -21,9 +22,12 @@ import numpy as np
 import sympy as sp
 
 from . import rkq
+from .baselines import PREFIX as SCIPY_PREFIX
+from .baselines import SCIPY_METHODS, solve_scipy
 from .errors import HamrkqWarning, InputError, InputTypeError, OptionError
 from .hamiltonian import Hamiltonian
 from .result import Solution, Status
+from .symplectic import FIXED_STEP_METHODS, solve_fixed
 from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
 
 __all__ = ["BACKENDS", "METHODS", "MethodSpec", "Task", "solve"]
@@ -66,13 +70,14 @@ class Task:
 class MethodSpec:
     """A method :func:`solve` can dispatch to.
 
-    ``run(task, backend) -> rkq.RunOutput``; ``rk8`` says whether the method
-    produces the RK8 track (``z``, ``gamma``, ``quenched``).
+    ``run(task, backend) -> rkq.RunOutput`` (or a finished
+    :class:`~hamrkq.result.Solution`, for the baselines); ``rk8`` says whether
+    the method produces the RK8 track (``z``, ``gamma``, ``quenched``).
     """
 
     name: str
     summary: str
-    run: Callable[[Task, str], rkq.RunOutput]
+    run: Callable[[Task, str], rkq.RunOutput | Solution]
     backends: tuple[str, ...]
     rk8: bool
 
@@ -108,6 +113,39 @@ def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
     )
 
 
+def _run_fixed(task: Task, backend: str) -> Solution:
+    o = task.options
+    return solve_fixed(
+        task.ham, task.y0, (task.t0, task.t_end), o["method"], o["step"], task.params,
+        keep_every=o["keep_every"], max_steps=o["max_steps"],
+    )  # fmt: skip
+
+
+#: Options of :func:`solve` that hamrkq's RK34Q8 takes in its SciPy form too.
+_RKQ_OPTIONS = ("quench", "quench_threshold", "safety", "tolerance_rule",
+                "global_error_estimate", "z_method", "gamma_limit")  # fmt: skip
+
+
+def _run_scipy(task: Task, backend: str) -> Solution:
+    o = task.options
+    name = o["method"][len(SCIPY_PREFIX) :]
+    return solve_scipy(
+        task.ham, task.y0, (task.t0, task.t_end), name, task.params, atol=task.atol,
+        rtol=task.rtol, first_step=o["first_step"], max_step=o["max_step"],
+        max_steps=o["max_steps"], keep_every=o["keep_every"], t_eval=o["t_eval"],
+        progress=task.progress,
+        options={k: o[k] for k in _RKQ_OPTIONS} if name == "RK34Q8" else None,
+    )  # fmt: skip
+
+
+_FIXED_SUMMARIES = {
+    "midpoint": "implicit midpoint rule, fixed step (symplectic, order 2)",
+    "gauss4": "2-stage Gauss-Legendre collocation, fixed step (symplectic, order 4)",
+    "gauss6": "3-stage Gauss-Legendre collocation, fixed step (symplectic, order 6)",
+    "verlet": "Stormer-Verlet, fixed step (symplectic, order 2; separable H only)",
+    "yoshida4": "Yoshida's triple jump of Verlet, fixed step (symplectic, order 4; separable H)",
+}
+
 #: Dispatch table: method name -> :class:`MethodSpec`.  Later methods
 #: ("midpoint", "gauss4", "scipy:DOP853", ...) and backends ("numba") are
 #: added here without touching :func:`solve`.
@@ -126,6 +164,20 @@ METHODS: dict[str, MethodSpec] = {
         ("python",),
         rk8=False,
     ),
+    **{
+        name: MethodSpec(name, _FIXED_SUMMARIES[name], _run_fixed, ("python",), rk8=False)
+        for name in FIXED_STEP_METHODS
+    },
+    **{
+        SCIPY_PREFIX + name: MethodSpec(
+            SCIPY_PREFIX + name,
+            f"SciPy solver {SCIPY_METHODS[name].__module__.split('._')[0]}.{name}",
+            _run_scipy,
+            ("python",),
+            rk8=name == "RK34Q8",
+        )
+        for name in SCIPY_METHODS
+    },
 }
 
 
@@ -147,6 +199,7 @@ def solve(
     z_method: str | None = None,
     first_step: float | None = None,
     max_step: float | None = None,
+    step: float | None = None,
     max_steps: int | None = None,
     gamma_limit: float | None = None,
     keep_every: int = 1,
@@ -168,10 +221,17 @@ def solve(
     t_span : (t0, t_end)
         Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
         t0`` returns the single initial node.
-    method : {"rk34q8", "rk34"}
+    method : str
         ``"rk34q8"`` (default): Prentice's RKQ.  ``"rk34"``: RK3/RK4 local
         extrapolation only (no RK8 track: ``z``, ``global_error``, ``gamma``
-        and ``quenched`` are None).
+        and ``quenched`` are None).  Fixed-step symplectic baselines
+        (:mod:`hamrkq.symplectic`, they need ``step``): ``"midpoint"``,
+        ``"gauss4"``, ``"gauss6"``, ``"verlet"`` and ``"yoshida4"`` (the last
+        two for separable H only).  SciPy baselines (:mod:`hamrkq.baselines`):
+        ``"scipy:RK23"``, ``"scipy:RK45"``, ``"scipy:DOP853"``,
+        ``"scipy:Radau"``, ``"scipy:BDF"``, ``"scipy:LSODA"`` (the symbolic
+        Jacobian goes to the last three) and ``"scipy:RK34Q8"`` (this RKQ
+        through SciPy's solver interface, :class:`hamrkq.RK34Q8`).
     atol : float or array of 2n floats, default 1e-6
         Absolute tolerance, positive.
     rtol : float or array of 2n floats, default 0
@@ -202,6 +262,10 @@ def solve(
         order 3 (as SciPy's ``select_initial_step``).
     max_step : float, default inf
         Largest step size.
+    step : float
+        The step size h of a fixed-step method (required there, and an error
+        for any other method).  The last step is shortened to land on
+        ``t_end``.
     max_steps : int, default 1 000 000
         Limit on step attempts (accepted plus rejected).
     gamma_limit : float, default 0.05
@@ -289,14 +353,15 @@ def solve(
         "t_eval": _t_eval(t_eval, t0, t_end),
         "first_step": None,
     }
-    step = pick("first_step", first_step, None)
-    if step is not None:
-        step = _positive("first_step", step)
-        if t_end != t0 and step > abs(t_end - t0):
+    first = pick("first_step", first_step, None)
+    if first is not None:
+        first = _positive("first_step", first)
+        if t_end != t0 and first > abs(t_end - t0):
             raise InputError(
-                f"first_step={step!r} exceeds the length of t_span ({abs(t_end - t0)!r})"
+                f"first_step={first!r} exceeds the length of t_span ({abs(t_end - t0)!r})"
             )
-        options["first_step"] = step
+        options["first_step"] = first
+    _fixed_step_options(options, pick("step", step, None), step, atol, rtol, first_step)
     if options["t_eval"] is not None and keep_every != 1:
         raise InputError(
             f"keep_every={keep_every!r} and t_eval cannot be combined: t_eval already "
@@ -310,10 +375,36 @@ def solve(
         out = spec.run(task, backend)
     if bar is not None and progress is True:
         sys.stderr.write("\n")  # leave the finished bar on its own line
+    if isinstance(out, Solution):  # the baselines build their own
+        return out
     return _solution(task, spec, out, backend)
 
 
 # -- validation ------------------------------------------------------------------
+
+
+def _fixed_step_options(options, value, given, atol, rtol, first_step) -> None:
+    """``step`` is required by the fixed-step methods and refused by the others;
+    tolerances, ``first_step`` and ``t_eval`` mean nothing to a fixed step."""
+    method = options["method"]
+    if method not in FIXED_STEP_METHODS:
+        if given is not None:
+            raise OptionError(
+                f"step={_show(given)} applies only to the fixed-step methods "
+                f"({', '.join(map(repr, FIXED_STEP_METHODS))}); method {method!r} chooses "
+                "its own steps (see first_step and max_step)"
+            )
+        return
+    if value is None:
+        raise InputError(f"method {method!r} is a fixed-step method: step (h) must be given")
+    options["step"] = _positive("step", value)
+    for name, other in (("atol", atol), ("rtol", rtol), ("first_step", first_step),
+                        ("t_eval", options["t_eval"])):  # fmt: skip
+        if other is not None:
+            raise OptionError(
+                f"{name} does not apply to the fixed-step method {method!r} (it has no "
+                "error control and no dense output); give step only"
+            )
 
 
 class _Defaults:
