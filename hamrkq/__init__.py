@@ -15,6 +15,7 @@ from .diagnostics import Diagnostics, diagnose
 from .expressions import parse_expression
 from .hamiltonian import Hamiltonian
 from .result import Solution, Status
+from .scipy_solver import RK34Q8
 from .solve import solve
 
 try:
@@ -23,6 +24,7 @@ except PackageNotFoundError:  # a source checkout that is not installed
     __version__ = "0.1.0"
 
 __all__ = [
+    "RK34Q8",
     "Diagnostics",
     "Hamiltonian",
     "Problem",
