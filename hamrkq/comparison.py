@@ -1,0 +1,418 @@
+"""The numerics behind ``hamrkq compare``: sweeps, true errors, matched settings.
+
+:func:`compare` runs every method on one problem over a range of settings
+(tolerances for the adaptive methods, step sizes for the fixed-step ones),
+measures every run against one independent reference, and picks for each
+method the run to put in the headline table:
+
+- ``match="error"`` (default): the cheapest run (fewest ``f`` evaluations)
+  whose max true global error is at most that of the *anchor*, RKQ
+  (``rk34q8``) at the problem's default tolerance;
+- ``match="cost"``: the run whose number of ``f`` evaluations is nearest
+  (in ratio) to the anchor's.
+
+Settings.  Adaptive methods get the problem's default ``atol``/``rtol`` times
+each factor of the sweep (SciPy reads them with its own norm, see
+:mod:`hamrkq.baselines`).  A fixed-step method gets ``h_ref`` times each
+factor, where ``h_ref`` spends as many ``f`` evaluations as the anchor run:
+``h_ref = span * (f per step) / nfev_anchor``, the cost per step measured on a
+short pilot run (Newton iterations vary with h and the problem).
+
+The true error of every run is measured against the same reference at its
+own nodes: the problem's exact solution where the catalogue has one, else
+:func:`hamrkq.reference.hamiltonian_reference` (a periodic-orbit reference for
+one degree of freedom, a tight DOP853 integration otherwise), evaluated once
+at the union of all node times.  Runs with many nodes are thinned to about
+:data:`MAX_NODES` kept nodes (``keep_every``), which does not change the
+integration.  The figures are drawn by :mod:`hamrkq.commands.compare`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .diagnostics import drift_summary
+from .errors import InputError, OptionError
+from .reference import hamiltonian_reference
+from .result import Solution
+from .solve import METHODS, solve
+from .symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
+
+__all__ = [
+    "DEFAULT_METHODS",
+    "MATCH_MODES",
+    "Comparison",
+    "Run",
+    "compare",
+    "default_methods",
+]
+
+#: Methods compared by default (splitting methods only for separable H).
+DEFAULT_METHODS = ("rk34q8", "rk34", "scipy:DOP853", "gauss4", "gauss6", "yoshida4")
+ANCHOR = "rk34q8"
+MATCH_MODES = ("error", "cost")
+#: Sweep factors: RKQ's tolerances are the problem's default times these ...
+TOL_FACTORS = (1e2, 1e1, 1.0, 1e-1, 1e-2)
+QUICK_TOL_FACTORS = (1e1, 1.0, 1e-1)
+#: ... the other adaptive methods reach further down: they control the local
+#: error only, so they need tighter tolerances for the same global error ...
+OTHER_TOL_FACTORS = (1e1, 1.0, 1e-1, 1e-2, 1e-3, 1e-4)
+QUICK_OTHER_TOL_FACTORS = (1.0, 1e-2, 1e-4)
+#: ... and steps are h_ref (matched cost) times these: RKQ spends about 40 f
+#: evaluations a step, so matched-error steps are usually several h_ref.
+STEP_FACTORS = (16.0, 8.0, 4.0, 2.0, 1.0, 0.5)
+QUICK_STEP_FACTORS = (8.0, 2.0, 0.5)
+#: Methods whose tolerance is a bound on the global error (RKQ in either form).
+_GLOBAL_CONTROL = ("rk34q8", "scipy:RK34Q8")
+#: Keep about this many nodes per run (errors are maxima over the kept nodes).
+MAX_NODES = 20000
+#: Pilot run of a fixed-step method: this many steps, to measure f per step.
+PILOT_STEPS = 20
+#: Order of the local error each adaptive method controls: estimates how the
+#: number of steps grows as the tolerance shrinks (only to choose keep_every).
+_CONTROLLED_ORDER = {"rk34q8": 3, "rk34": 3, "scipy:RK23": 2, "scipy:RK45": 4,
+                     "scipy:DOP853": 7, "scipy:RK34Q8": 3}  # fmt: skip
+
+
+def default_methods(problem: Any) -> list[str]:
+    """:data:`DEFAULT_METHODS`, without the splitting methods for a non-separable H."""
+    separable = problem.hamiltonian.is_separable
+    return [m for m in DEFAULT_METHODS if separable or m not in SPLITTING_SCHEMES]
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """One integration of the sweep and what was measured on it.
+
+    ``settings`` are the keywords given to :func:`hamrkq.solve` (tolerances or
+    ``step``); ``factor`` their multiple of the base setting.  The errors are
+    nan until :func:`compare` has the reference.
+    """
+
+    method: str
+    factor: float
+    settings: dict[str, Any]
+    solution: Solution
+    wall_time: float
+    max_error: float = math.nan
+    max_energy_error: float = math.nan
+    relative_energy_error: float = math.nan
+    drift: float = math.nan
+    drift_stderr: float = math.nan
+    selected: bool = False
+
+    @property
+    def success(self) -> bool:
+        return self.solution.success
+
+    @property
+    def nfev(self) -> int:
+        return self.solution.nfev
+
+    def describe(self) -> str:
+        """The settings in a few characters: ``"atol=1e-08 rtol=0"`` or ``"h=0.0125"``."""
+        parts = []
+        for key, value in self.settings.items():
+            array = np.ravel(value)
+            shown = f"{array[0]:.3g}" if np.all(array == array[0]) else f"{array.max():.3g}(max)"
+            parts.append(f"{'h' if key == 'step' else key}={shown}")
+        return " ".join(parts)
+
+    def row(self) -> dict[str, Any]:
+        """One table row, plain values."""
+        sol = self.solution
+        return {
+            "method": self.method,
+            "settings": self.describe(),
+            "factor": self.factor,
+            "selected": self.selected,
+            "steps": int(sol.stats.get("steps", 0)),
+            "nfev": self.nfev,
+            "wall_time_s": self.wall_time,
+            "max_true_error": self.max_error,
+            "max_abs_energy_error": self.max_energy_error,
+            "max_rel_energy_error": self.relative_energy_error,
+            "drift_slope": self.drift,
+            "drift_stderr": self.drift_stderr,
+            "status": sol.status.name,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """Every run of :func:`compare` and how they were chosen and measured."""
+
+    problem: str
+    t_span: tuple[float, float]
+    runs: tuple[Run, ...]
+    match: str
+    target: float  # the anchor's max true error (match="error") or nfev ("cost")
+    anchor: Run
+    reference: str
+    reference_accuracy: float
+    backend: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def selected(self) -> list[Run]:
+        """The headline run of each method, in the order the methods were given."""
+        return [run for run in self.runs if run.selected]
+
+    def rows(self) -> list[dict[str, Any]]:
+        return [run.row() for run in self.runs]
+
+    def matched_by(self) -> str:
+        """One sentence: what the headline rows have in common."""
+        if self.match == "error":
+            return (
+                f"matched error: for each method the cheapest run (fewest f evaluations) "
+                f"whose max true error is at most {self.target:.3g}, that of rk34q8 at the "
+                "problem's default tolerance"
+            )
+        return (
+            f"matched cost: for each method the run whose f evaluations are nearest to "
+            f"{self.target:.0f}, those of rk34q8 at the problem's default tolerance"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "problem": self.problem,
+            "t_span": list(self.t_span),
+            "match": self.match,
+            "matched_by": self.matched_by(),
+            "target": self.target,
+            "reference": self.reference,
+            "reference_accuracy": self.reference_accuracy,
+            "backend": self.backend,
+            "notes": list(self.notes),
+            "runs": self.rows(),
+        }
+
+
+# -- running -------------------------------------------------------------------------
+def _keep_every(estimated_steps: float) -> int:
+    return max(1, int(estimated_steps // MAX_NODES))
+
+
+def _timed(problem, method, t_span, settings, keep_every, backend) -> tuple[Solution, float]:
+    extra = {"backend": backend} if METHODS[method].backends != ("python",) else {}
+    started = time.perf_counter()
+    sol = solve(problem, method=method, t_span=t_span, keep_every=keep_every,
+                **settings, **extra)  # fmt: skip
+    return sol, time.perf_counter() - started
+
+
+def _tolerances(problem: Any, factor: float) -> dict[str, Any]:
+    integration = problem.integration
+    atol = np.asarray(integration.get("atol", 1e-6), dtype=float) * factor
+    rtol = np.asarray(integration.get("rtol", 0.0), dtype=float) * factor
+    return {"atol": atol.tolist() if atol.ndim else float(atol),
+            "rtol": rtol.tolist() if rtol.ndim else float(rtol)}  # fmt: skip
+
+
+def _cost_per_step(problem, method, t_span, h) -> float:
+    """f evaluations per step of a fixed-step method, from a short pilot run."""
+    t0, t_end = t_span
+    length = math.copysign(min(abs(t_end - t0), PILOT_STEPS * h), t_end - t0)
+    pilot = solve_fixed(problem.hamiltonian, problem.y0, (t0, t0 + length), method, h,
+                        problem.parameter_array)  # fmt: skip
+    steps = max(pilot.stats["steps"], 1)
+    return max(pilot.nfev / steps, 1.0)
+
+
+def compare(
+    problem: Any,
+    methods: Sequence[str] | None = None,
+    *,
+    t_end: float | None = None,
+    quick: bool = False,
+    match: str = "error",
+    tol_factors: Sequence[float] | None = None,
+    step_factors: Sequence[float] | None = None,
+    backend: str = "python",
+    log: Callable[[str], None] | None = None,
+) -> Comparison:
+    """Run every method over its sweep and measure each run against one reference.
+
+    Parameters
+    ----------
+    problem : Problem
+        A catalogue problem (its defaults set the base tolerance and interval).
+    methods : sequence of str, optional
+        Names accepted by :func:`hamrkq.solve`; default :func:`default_methods`.
+        The anchor ``rk34q8`` is always run (added first if missing).
+    t_end : float, optional
+        End of the interval; default the problem's.
+    quick : bool
+        Three settings per method instead of five.
+    match : {"error", "cost"}
+        How the headline run of each method is chosen (module docstring).
+    tol_factors, step_factors : sequence of float, optional
+        Override the sweeps (multiples of the default tolerance for every
+        adaptive method, of ``h_ref`` for the fixed-step ones).
+    backend : str
+        Passed to :func:`hamrkq.solve` for methods that have backends.
+    log : callable, optional
+        ``log(text)`` after each run (progress for the command line).
+
+    Returns
+    -------
+    Comparison
+    """
+    if match not in MATCH_MODES:
+        raise OptionError(f"match={match!r} is not valid; valid values: 'error', 'cost'")
+    methods = list(default_methods(problem) if methods is None else methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise OptionError(
+            f"unknown method(s) {', '.join(map(repr, unknown))}; valid: {', '.join(METHODS)}"
+        )
+    if not problem.hamiltonian.is_separable:
+        refused = [m for m in methods if m in SPLITTING_SCHEMES]
+        if refused:
+            raise OptionError(
+                f"{', '.join(map(repr, refused))} need a separable H = T(p) + V(q); "
+                f"problem {problem.name!r} is not separable"
+            )
+    methods = [ANCHOR, *[m for m in dict.fromkeys(methods) if m != ANCHOR]]
+    t0 = problem.t_span[0]
+    t_span = (t0, problem.t_span[1] if t_end is None else float(t_end))
+    span = abs(t_span[1] - t_span[0])
+    if span == 0:
+        raise InputError(f"the interval t_span={t_span} is empty: choose t_end != t0")
+    own_factors = tuple(tol_factors or (QUICK_TOL_FACTORS if quick else TOL_FACTORS))
+    other_factors = tuple(
+        tol_factors or (QUICK_OTHER_TOL_FACTORS if quick else OTHER_TOL_FACTORS)
+    )
+    step_factors = tuple(step_factors or (QUICK_STEP_FACTORS if quick else STEP_FACTORS))
+    if any(not (f > 0 and math.isfinite(f)) for f in (*own_factors, *other_factors,
+                                                       *step_factors)):  # fmt: skip
+        raise InputError("sweep factors must be positive finite numbers")
+    note = log or (lambda text: None)
+    notes: list[str] = []
+
+    anchor_sol, anchor_time = _timed(problem, ANCHOR, t_span, _tolerances(problem, 1.0), 1,
+                                     backend)  # fmt: skip
+    anchor = Run(ANCHOR, 1.0, _tolerances(problem, 1.0), anchor_sol, anchor_time)
+    note(f"{ANCHOR} {anchor.describe()}: {anchor.nfev} f evaluations, {anchor_time:.2f} s")
+    anchor_steps = max(anchor_sol.stats["steps"], 1)
+    runs: list[Run] = []
+    for method in methods:
+        if method in FIXED_STEP_METHODS:
+            guess = span * 2.0 / max(anchor.nfev, 1)
+            per_step = _cost_per_step(problem, method, t_span, guess)
+            h_ref = min(span * per_step / max(anchor.nfev, 1), span / 4)
+            sweep = [(f, {"step": h_ref * f}, span / (h_ref * f)) for f in step_factors]
+        else:
+            order = _CONTROLLED_ORDER.get(method, 4)
+            factors = own_factors if method in _GLOBAL_CONTROL else other_factors
+            sweep = [
+                (f, _tolerances(problem, f), anchor_steps * f ** (-1.0 / (order + 1)))
+                for f in factors
+            ]
+        for factor, settings, estimated in sweep:
+            if method == ANCHOR and factor == 1.0:
+                runs.append(anchor)
+                continue
+            sol, wall = _timed(problem, method, t_span, settings, _keep_every(estimated),
+                               backend)  # fmt: skip
+            run = Run(method, factor, settings, sol, wall)
+            runs.append(run)
+            note(f"{method} {run.describe()}: {sol.status.name}, {sol.nfev} f evaluations, "
+                 f"{wall:.2f} s")  # fmt: skip
+    if anchor not in runs:
+        runs.insert(0, anchor)
+
+    states, description, accuracy = _reference(problem, runs)
+    measured = [_measure(run, states) for run in runs]
+    anchor = next(r for r in measured if r.method == ANCHOR and r.factor == 1.0)
+    if not anchor.success:
+        notes.append(f"the anchor run {ANCHOR} did not succeed: {anchor.solution.message}")
+    target = anchor.max_error if match == "error" else float(anchor.nfev)
+    measured = _select(measured, methods, match, target, notes)
+    if accuracy > 0.01 * min((r.max_error for r in measured if r.max_error > 0), default=1):
+        notes.append(
+            f"the reference is accurate to ~{accuracy:.1e}, not far below the smallest "
+            "error measured: the smallest errors are uncertain by that much"
+        )
+    if problem.hamiltonian.time_dependent:
+        notes.append("H depends on t: the energy error measures nothing here")
+    anchor = next(r for r in measured if r.method == ANCHOR and r.factor == 1.0)
+    return Comparison(
+        problem=problem.name,
+        t_span=t_span,
+        runs=tuple(measured),
+        match=match,
+        target=target,
+        anchor=anchor,
+        reference=description,
+        reference_accuracy=accuracy,
+        backend=backend,
+        notes=tuple(notes),
+    )
+
+
+# -- measuring -------------------------------------------------------------------------
+def _reference(problem: Any, runs: list[Run]) -> tuple[dict[str, np.ndarray], str, float]:
+    """Reference states at every node time of every run, keyed by time."""
+    times = np.unique(np.concatenate([run.solution.t for run in runs]))
+    if problem.exact is not None:
+        states = np.asarray(problem.exact(times), dtype=float).reshape(times.size, -1)
+        scale = float(np.max(np.abs(states)))
+        description, accuracy = "exact solution", 4 * np.finfo(float).eps * scale
+    else:
+        ref = hamiltonian_reference(problem, problem.y0, times, t0=problem.t_span[0])
+        states, description, accuracy = ref.y, ref.method, ref.estimated_error
+    return {"times": times, "states": states}, description, float(accuracy)
+
+
+def _measure(run: Run, reference: dict[str, np.ndarray]) -> Run:
+    sol = run.solution
+    if len(sol) < 2:
+        return run
+    index = np.searchsorted(reference["times"], sol.t)
+    error = sol.y - reference["states"][index]
+    energy = drift_summary("energy", sol.t, sol.energy)
+    finite = np.isfinite(error).all()
+    return Run(
+        run.method, run.factor, run.settings, sol, run.wall_time,
+        max_error=float(np.max(np.abs(error))) if finite else math.inf,
+        max_energy_error=energy.max_abs,
+        relative_energy_error=energy.relative_max,
+        drift=energy.drift,
+        drift_stderr=energy.drift_stderr,
+    )  # fmt: skip
+
+
+def _select(runs: list[Run], methods: list[str], match: str, target: float,
+            notes: list[str]) -> list[Run]:  # fmt: skip
+    chosen: set[int] = set()
+    for method in methods:
+        own = [(i, r) for i, r in enumerate(runs) if r.method == method and r.success]
+        if not own:
+            notes.append(f"{method}: no run of the sweep succeeded")
+            continue
+        if match == "error":
+            good = [(i, r) for i, r in own if r.max_error <= target]
+            if good:
+                i, _ = min(good, key=lambda item: item[1].nfev)
+            else:
+                i, best = min(own, key=lambda item: item[1].max_error)
+                notes.append(
+                    f"{method}: no run of the sweep reached the target error {target:.3g}; "
+                    f"the most accurate one ({best.max_error:.3g}) is shown"
+                )
+        else:
+            i, _ = min(own, key=lambda item: abs(math.log(max(item[1].nfev, 1) / target)))
+        chosen.add(i)
+    out = []
+    for i, run in enumerate(runs):
+        if i in chosen:
+            run = Run(**{**run.__dict__, "selected": True})
+        out.append(run)
+    return out
