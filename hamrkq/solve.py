@@ -370,14 +370,15 @@ def solve(
     bar = _progress(progress)
     task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, bar)
     # A failure is reported by the status; NumPy's RuntimeWarnings from the
-    # rejected trial steps that found it (sqrt(-1), overflow) would only be noise.
+    # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
+    # singular initial node, would only be noise.
     with np.errstate(all="ignore"):
         out = spec.run(task, backend)
-    if bar is not None and progress is True:
-        sys.stderr.write("\n")  # leave the finished bar on its own line
-    if isinstance(out, Solution):  # the baselines build their own
-        return out
-    return _solution(task, spec, out, backend)
+        if bar is not None and progress is True:
+            sys.stderr.write("\n")  # leave the finished bar on its own line
+        if isinstance(out, Solution):  # the baselines build their own
+            return out
+        return _solution(task, spec, out, backend)
 
 
 # -- validation ------------------------------------------------------------------
