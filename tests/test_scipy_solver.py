@@ -1,0 +1,219 @@
+"""hamrkq.RK34Q8 as a SciPy OdeSolver: solve_ivp round trips, dense output, events,
+the global error on the solver, and identity with hamrkq.solve's RKQ."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import hamrkq
+from hamrkq import RK34Q8
+from hamrkq.errors import HamrkqWarning, InputError, OptionError
+from hamrkq.scipy_solver import HermiteDenseOutput
+
+
+def harmonic(t, y):
+    return np.array([y[1], -y[0]])
+
+
+def harmonic_jac(t, y):
+    return np.array([[0.0, 1.0], [-1.0, 0.0]])
+
+
+def harmonic_exact(t):
+    return np.array([np.sin(t), np.cos(t)])
+
+
+@pytest.fixture(scope="module")
+def kepler():
+    problem = hamrkq.load_problem("kepler")
+    num, params = problem.hamiltonian.numeric, problem.parameter_array
+    return (
+        problem,
+        lambda t, y: num.rhs(t, y, params),
+        lambda t, y: num.jac(t, y, params),
+    )
+
+
+@pytest.mark.parametrize("atol", [1e-6, 1e-8, 1e-10])
+def test_round_trip_nodes_and_dense_output_within_tolerance(atol):
+    sol = solve_ivp(harmonic, (0.0, 30.0), [0.0, 1.0], method=RK34Q8, atol=atol,
+                    dense_output=True)  # fmt: skip
+    assert sol.success and sol.status == 0
+    assert sol.t[0] == 0.0 and sol.t[-1] == 30.0
+    # Every node is within atol of the RK8 track, whose own error is ~1e-14 here.
+    node_error = np.abs(sol.y - harmonic_exact(sol.t)).max()
+    assert node_error <= 1.01 * atol
+    # Cubic Hermite between nodes: measured 1.001-1.003 x atol.
+    tt = np.linspace(0.0, 30.0, 30001)
+    dense_error = np.abs(sol.sol(tt) - harmonic_exact(tt)).max()
+    assert dense_error <= 1.1 * atol
+    assert dense_error >= 0.5 * atol  # the tolerance is used, not wasted
+
+
+def test_events_located_on_the_dense_output():
+    def crossing(t, y):  # q = 1/2 on the way up: t = pi/6 + 2 pi k
+        return y[0] - 0.5
+
+    crossing.direction = 1.0
+
+    def stop(t, y):  # p = -1/2 for the third time
+        return y[1] + 0.5
+
+    stop.terminal = 3
+    sol = solve_ivp(harmonic, (0.0, 50.0), [0.0, 1.0], method=RK34Q8, atol=1e-9,
+                    events=[crossing, stop])  # fmt: skip
+    assert sol.status == 1  # a terminal event
+    # p = cos t = -1/2 at 2pi/3, 4pi/3, 8pi/3: the run stops at 8pi/3, after two
+    # upward crossings of q = 1/2 (pi/6 and pi/6 + 2pi).
+    stops = np.array([2 * np.pi / 3, 4 * np.pi / 3, 8 * np.pi / 3])
+    expected = np.pi / 6 + 2 * np.pi * np.arange(2)
+    assert sol.t_events[0] == pytest.approx(expected, abs=5e-9)
+    assert sol.t_events[1] == pytest.approx(stops, abs=5e-9)
+    assert sol.t[-1] == pytest.approx(stops[-1], abs=5e-9)
+    assert sol.y_events[0][:, 0] == pytest.approx(0.5, abs=2e-9)
+
+
+def test_t_eval_and_args_pass_through():
+    def oscillator(t, y, omega):
+        return np.array([y[1], -(omega**2) * y[0]])
+
+    t_eval = np.linspace(0.0, 10.0, 11)
+    sol = solve_ivp(oscillator, (0.0, 10.0), [0.0, 2.0], method=RK34Q8, args=(2.0,),
+                    t_eval=t_eval, atol=1e-9)  # fmt: skip
+    assert np.array_equal(sol.t, t_eval)
+    assert sol.y[0] == pytest.approx(np.sin(2 * t_eval), abs=1.1e-9)
+
+
+def test_backward_integration():
+    sol = solve_ivp(harmonic, (0.0, -30.0), [0.0, 1.0], method=RK34Q8, atol=1e-8)
+    assert sol.success and sol.t[-1] == -30.0
+    assert np.all(np.diff(sol.t) < 0)
+    assert np.abs(sol.y - harmonic_exact(sol.t)).max() <= 1.01e-8
+
+
+def test_max_step_and_first_step_are_honoured():
+    sol = solve_ivp(harmonic, (0.0, 10.0), [0.0, 1.0], method=RK34Q8, max_step=0.05,
+                    first_step=1e-3)  # fmt: skip
+    steps = np.diff(sol.t)
+    assert steps[0] == pytest.approx(1e-3)
+    assert steps.max() <= 0.05 * (1 + 1e-12)
+
+
+def test_same_nodes_as_hamrkq_solve(kepler):
+    """The SciPy form runs the same loop (rkq.advance): identical nodes, bit for bit."""
+    problem, fun, jac = kepler
+    t_span = (0.0, 2 * np.pi)
+    ref = hamrkq.solve(problem, t_span=t_span, atol=1e-8, rtol=0.0)
+    track = []
+    sol = solve_ivp(fun, t_span, problem.y0, method=RK34Q8, jac=jac, atol=1e-8,
+                    on_step=lambda s: track.append((s.z, s.gamma, s.quenched)))  # fmt: skip
+    assert np.array_equal(sol.t, ref.t)
+    assert np.array_equal(sol.y.T, ref.y)
+    assert np.array_equal(np.array([z for z, _, _ in track]), ref.z[1:])
+    assert np.array_equal(np.array([g for _, g, _ in track]), ref.gamma[1:])
+    assert [q for _, _, q in track] == list(ref.quenched[1:])
+    # One more evaluation: f at the last node, for the last step's dense output.
+    assert sol.nfev == ref.nfev + 1
+    assert sol.njev == ref.stats["njev"]
+
+
+def test_global_error_on_the_solver_bounds_and_matches_the_truth(kepler):
+    problem, fun, jac = kepler
+    solver = RK34Q8(fun, 0.0, problem.y0, 2 * np.pi, jac=jac, atol=1e-8)
+    rows = []
+    while solver.status == "running":
+        solver.step()
+        rows.append((solver.t, solver.y.copy(), solver.z, solver.global_error, solver.gamma))
+    assert solver.status == "finished"
+    t = np.array([r[0] for r in rows])
+    y, z, G, gamma = (np.array([r[k] for r in rows]) for k in (1, 2, 3, 4))
+    exact = problem.exact(t)
+    assert np.array_equal(G, y - z)
+    assert np.abs(G).max() <= 1e-8  # the paper's promise, at every node
+    assert np.abs(G).max() > 0.5e-8
+    # The RK8 track is far more accurate, and Gamma says so: true 6.8e-15, Gamma 9.9e-15.
+    z_error = np.abs(z - exact).max()
+    assert z_error < 1e-13
+    assert np.abs(gamma).max() == pytest.approx(z_error, rel=1.0)
+    # So G is the true error of y to ~1e-13.
+    assert np.abs((y - exact) - G).max() < 1e-13
+    stats = solver.stats
+    assert stats["steps"] == len(rows) and stats["quenches"] >= 1
+    assert stats["nfev"] == solver.nfev
+
+
+def test_without_jac_gamma_is_off_but_the_quench_works():
+    solver = RK34Q8(harmonic, 0.0, [0.0, 1.0], 20.0, atol=1e-7)
+    while solver.status == "running":
+        solver.step()
+        assert np.abs(solver.global_error).max() <= 1e-7
+    assert solver.gamma is None and solver.njev == 0
+
+
+def test_constant_jacobian_matrix():
+    solver = RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, jac=harmonic_jac(0, None))
+    solver.step()
+    assert solver.gamma is not None and solver.njev > 0
+
+
+def test_hermite_interpolant_has_error_order_four():
+    """Cubic Hermite: error O(h^4) (order 3), fitted slope within +-0.3 of 4."""
+    hs = np.array([0.4, 0.2, 0.1, 0.05])
+    errors = []
+    for h in hs:
+        t0, t1 = 0.3, 0.3 + h
+        interp = HermiteDenseOutput(t0, t1, np.array([np.sin(t0)]), np.array([np.sin(t1)]),
+                                    np.array([np.cos(t0)]), np.array([np.cos(t1)]))  # fmt: skip
+        tt = np.linspace(t0, t1, 101)
+        errors.append(np.abs(interp(tt)[0] - np.sin(tt)).max())
+        assert interp(t0)[0] == pytest.approx(np.sin(t0), abs=1e-16)
+    slope = np.polyfit(np.log(hs), np.log(errors), 1)[0]
+    assert abs(slope - 4.0) < 0.3, slope
+
+
+def test_failure_is_a_solver_status_with_a_message():
+    # y' = y^2, y(0) = 1 blows up at t = 1.
+    sol = solve_ivp(lambda t, y: y**2, (0.0, 2.0), [1.0], method=RK34Q8)
+    assert sol.status == -1 and not sol.success
+    assert "RK34Q8" in sol.message and "t = 0.99" in sol.message
+    assert 0.99 < sol.t[-1] < 1.0
+
+
+def test_non_finite_initial_derivative_fails_on_the_first_step():
+    with np.errstate(divide="ignore"):
+        sol = solve_ivp(lambda t, y: y / 0.0 if t == 0 else y, (0.0, 1.0), [1.0],
+                        method=RK34Q8)  # fmt: skip
+    assert sol.status == -1 and "non-finite" in sol.message
+
+
+def test_validation_names_the_parameter():
+    with pytest.raises(InputError, match="atol"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, atol=-1.0)
+    with pytest.raises(InputError, match="rtol must be a scalar or have 2 entries"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, rtol=[1e-6, 1e-6, 1e-6])
+    with pytest.raises(InputError, match="needs jac"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, global_error_estimate="tangent")
+    with pytest.raises(OptionError, match="quench"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, quench="sometimes")
+    with pytest.raises(InputError, match="first_step"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, first_step=2.0)
+    with pytest.raises(InputError, match="jac must have shape"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, jac=np.eye(3))
+    with pytest.warns(HamrkqWarning, match="no effect"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, min_step=1e-3)
+    with pytest.warns(HamrkqWarning, match="raised"):
+        RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, rtol=1e-17)
+
+
+def test_relative_tolerance_and_paper_gamma():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = solve_ivp(harmonic, (0.0, 10.0), [0.0, 10.0], method=RK34Q8, jac=harmonic_jac,
+                        atol=1e-12, rtol=1e-8, global_error_estimate="paper")  # fmt: skip
+    exact = 10 * harmonic_exact(sol.t)
+    delta = np.maximum(1e-12, 1e-8 * np.abs(sol.y))
+    assert np.all(np.abs(sol.y - exact) <= 1.05 * delta + 1e-12)
