@@ -51,6 +51,8 @@ SCIPY_METHODS: Mapping[str, type[OdeSolver]] = MappingProxyType(
 )
 #: Solvers that take ``jac``; they get the symbolic Jacobian.
 USES_JACOBIAN = frozenset({"Radau", "BDF", "LSODA", "RK34Q8"})
+#: Solvers whose ``rtol`` must be a scalar.
+SCALAR_RTOL = frozenset({"Radau", "BDF"})
 _EPS = float(np.finfo(float).eps)
 #: SciPy raises smaller relative tolerances to this, with a warning.
 SCIPY_MIN_RTOL = 100 * _EPS
@@ -171,6 +173,14 @@ def solve_scipy(
     }
     if method == "RK34Q8":
         kwargs["rtol"] = np.asarray(rtol, dtype=float)  # hamrkq's own rule, rtol 0 allowed
+    rtols = np.ravel(kwargs["rtol"])
+    if rtols.size and np.all(rtols == rtols[0]):
+        kwargs["rtol"] = float(rtols[0])  # Radau and BDF take a scalar only
+    elif method in SCALAR_RTOL:
+        raise OptionError(
+            f"scipy:{method} takes one relative tolerance for all components, got "
+            f"rtol={rtols.tolist()}"
+        )
     if first_step is not None:
         kwargs["first_step"] = first_step
     if method in USES_JACOBIAN:
