@@ -274,7 +274,7 @@ def summary_rows(
         ("f evaluations", str(stats.get("nfev", 0))),
     ]
     if wall_time is not None:
-        rows.append(("wall time", f"{wall_time:.2f} s"))
+        rows.append(("wall time (solve)", f"{wall_time:.2f} s"))
     if diag is None:
         return rows
     if diag.estimated is not None:

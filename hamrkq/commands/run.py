@@ -71,6 +71,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--rtol", type=float, metavar="R", help="relative tolerance")
     p.add_argument("--t-end", type=float, metavar="T", help="end of the interval")
     p.add_argument(
+        "--step", type=float, metavar="H", help="step size of a fixed-step method "
+        "(midpoint, gauss4, verlet, ...)"
+    )  # fmt: skip
+    p.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUE",
         help="override a parameter of the problem (a number; repeatable)",
     )  # fmt: skip
@@ -127,7 +131,7 @@ def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
     """Keywords for :func:`hamrkq.solve`: only what the command line set, so that
     everything else keeps the problem's (or solve's) default."""
     kwargs: dict[str, Any] = {}
-    for name in ("method", "atol", "rtol", "max_steps", "backend"):
+    for name in ("method", "atol", "rtol", "step", "max_steps", "backend"):
         value = getattr(args, name)
         if value is not None:
             kwargs[name] = value
