@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from .codegen import CodegenError, check_supported
 from .errors import HamiltonianError, InputError, InputTypeError, UndeclaredSymbolError
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
@@ -73,7 +74,10 @@ def _as_number(value: Any, what: str) -> float:
         value = number.real
     elif isinstance(value, bool) or not isinstance(value, numbers.Real | np.floating):
         raise InputTypeError(f"{what} must be a real number, not {type(value).__name__}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:
+        raise InputError(f"{what} must be finite, got a number too large for a float") from None
     if not math.isfinite(value):
         raise InputError(f"{what} must be finite, got {value}")
     return value
@@ -104,7 +108,12 @@ class Hamiltonian:
     HamiltonianError
         Listing every problem found at once: q and p of different lengths,
         duplicated symbols, a non-scalar H, undeclared free symbols
-        (:class:`~hamrkq.errors.UndeclaredSymbolError`), bad parameter values.
+        (:class:`~hamrkq.errors.UndeclaredSymbolError`), bad parameter values,
+        and anything the numerical backends cannot evaluate: H may use
+        finite real numbers, ``pi``, ``E``, ``+ * **`` and the elementary
+        functions (trigonometric, hyperbolic and their inverses, ``exp``,
+        ``log``, ``Abs``, ``sign``), not undefined functions, integrals,
+        ``I`` or infinities.
 
     Examples
     --------
@@ -149,6 +158,13 @@ class Hamiltonian:
         undeclared = {str(s) for s in free if s not in set(declared)}
         if undeclared:
             raise UndeclaredSymbolError(undeclared, problems)
+        if H is not None:
+            # Only what every numerical backend can evaluate: elementary
+            # functions, finite real numbers, the declared symbols.
+            try:
+                check_supported([H], set(declared))
+            except CodegenError as exc:
+                problems.append(str(exc).replace("cannot generate scalar code for", "H uses"))
         if problems:
             raise HamiltonianError(problems)
         object.__setattr__(self, "_H", H)

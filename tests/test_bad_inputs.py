@@ -173,9 +173,8 @@ GAPS = [
 ]  # fmt: skip
 
 
-@pytest.mark.xfail(strict=True, reason="hamiltonian.py does not refuse this yet (reported)")
 @pytest.mark.parametrize("call", GAPS)
-def test_known_gaps_in_hamiltonian_validation(call):
+def test_unsupported_hamiltonians_and_huge_values_are_refused(call):
     with pytest.raises(InputError):
         call()
 
