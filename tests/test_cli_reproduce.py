@@ -164,3 +164,23 @@ def test_full_reproduction_of_the_paper(tmp_path):
     gamma = q8["rk8_estimated_global_error_max"]
     assert 1e-11 < true_rk8 < 1e-8 and 0.1 < gamma / true_rk8 < 10
     assert 40_000 < summary["runs"]["RK34Q8"]["nodes"] < 120_000
+
+
+def test_interrupt_keeps_the_run_so_far_and_exits_1(tmp_path, monkeypatch):
+    from hamrkq.commands import reproduce as reproduce_module
+    from hamrkq.report import ProgressBar
+
+    class Interrupting(ProgressBar):
+        def __call__(self, fraction: float, t: float) -> None:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(reproduce_module, "ProgressBar", Interrupting)
+    out = tmp_path / "interrupted"
+    status, _ = _reproduce(out)
+    assert status == 1
+    assert {p.name for p in out.iterdir()} == {"solution_rk34q8.npz", "summary.json"}
+    summary = json.loads((out / "summary.json").read_text())
+    run = summary["runs"]["RK34Q8"]
+    assert summary["interrupted"] == "RK34Q8"
+    assert run["status"] == "INTERRUPTED" and run["partial"] is True
+    assert 1 < run["nodes"] < 62000 and run["t_final"] < 4000

@@ -33,6 +33,7 @@ from hamrkq.diagnostics import diagnose, error_summary, tolerance
 from hamrkq.errors import InputError
 from hamrkq.reference import hamiltonian_reference
 from hamrkq.report import OutputDir, ProgressBar, format_table, summary_dict
+from hamrkq.result import Status
 
 __all__ = ["EXPERIMENTS", "register", "reproduce_command"]
 
@@ -96,6 +97,17 @@ def _prentice2011(args: argparse.Namespace, out: OutputDir) -> int:
             sol = runs[label] = _solve(problem, method, settings, bar)
         times[f"solve_{method}"] = time.perf_counter() - clock
         out.solution(f"solution_{method}.npz", sol)
+        if sol.status is Status.INTERRUPTED:
+            # Ctrl-C: keep what was computed, run nothing more.
+            out.json("summary.json", {
+                "experiment": "prentice2011",
+                "settings": {**settings, "out": str(out.path)},
+                "interrupted": label,
+                "runs": {k: summary_dict(v, None, problem=problem) for k, v in runs.items()},
+                "files": [*out.written, "summary.json"],
+            })  # fmt: skip
+            print(f"{label}: {sol.message}\nwrote {out.path}/: {', '.join(out.written)}")
+            return 1
         clock = time.perf_counter()
         # One independent reference per run, at its own nodes; diagnose() with
         # reference="independent" computes exactly this, so the numbers agree

@@ -236,7 +236,7 @@ def run_command(args: argparse.Namespace) -> int:
 
     print(f"{problem.name}: {problem.title}")
     print(format_table(summary_rows(sol, diag, wall_time=solve_time)))
-    if not sol.success:
+    if not sol.success and diag is None:  # otherwise the diagnostics' notes carry it
         print(f"message: {sol.message}")
     for note in [*(diag.notes if diag is not None else ()), *notes]:
         print(f"note: {note}")
