@@ -41,7 +41,7 @@ from .diagnostics import drift_summary
 from .errors import InputError, OptionError
 from .reference import hamiltonian_reference
 from .result import Solution
-from .solve import METHODS, solve
+from .solve import DEFAULT_MAX_STEPS, METHODS, solve
 from .symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
 
 __all__ = [
@@ -201,7 +201,10 @@ def _keep_every(estimated_steps: float) -> int:
 
 def _timed(problem, method, t_span, settings, keep_every, backend) -> tuple[Solution, float]:
     # The backend is RKQ's (its loop compiles); solve refuses one it does not have.
-    extra = {"backend": backend} if method in ("rk34q8", "rk34") else {}
+    extra: dict[str, Any] = {"backend": backend} if method in ("rk34q8", "rk34") else {}
+    if "step" in settings:  # solve's default step limit must not cut a fixed-step sweep short
+        span = abs(t_span[1] - t_span[0])
+        extra["max_steps"] = max(DEFAULT_MAX_STEPS, math.ceil(span / settings["step"]) + 2)
     started = time.perf_counter()
     sol = solve(problem, method=method, t_span=t_span, keep_every=keep_every,
                 **settings, **extra)  # fmt: skip
