@@ -11,6 +11,14 @@ method the run to put in the headline table:
 - ``match="cost"``: the run whose number of ``f`` evaluations is nearest
   (in ratio) to the anchor's.
 
+With ``match="error"`` the sweep is then refined, in up to two rounds: a
+method whose sweep does not reach the target gets a run at a setting
+extrapolated from its two most accurate runs (error and cost as power laws of
+the setting), and one whose cheapest sufficient run is more than three times
+too accurate gets a run interpolated between it and the next cheaper run;
+none is run when it is predicted to cost more than ten times the anchor (the
+notes say so).
+
 Settings.  Adaptive methods get the problem's default ``atol``/``rtol`` times
 each factor of the sweep (SciPy reads them with its own norm, see
 :mod:`hamrkq.baselines`).  A fixed-step method gets ``h_ref`` times each
@@ -70,6 +78,13 @@ STEP_FACTORS = (16.0, 8.0, 4.0, 2.0, 1.0, 0.5)
 QUICK_STEP_FACTORS = (8.0, 2.0, 0.5)
 #: Methods whose tolerance is a bound on the global error (RKQ in either form).
 _GLOBAL_CONTROL = ("rk34q8", "scipy:RK34Q8")
+#: With match="error", a method whose sweep misses the target error gets up to
+#: this many extra runs at an extrapolated setting (see ``_extension``) ...
+EXTEND_ROUNDS = 2
+#: ... unless the run is predicted to cost more than this many times the anchor.
+EXTEND_COST_CAP = 10.0
+#: An extrapolation to a coarser setting goes at most this far at once.
+MAX_COARSENING = 4.0
 #: Keep about this many nodes per run (errors are maxima over the kept nodes).
 MAX_NODES = 20000
 #: Pilot run of a fixed-step method: this many steps, to measure f per step.
@@ -305,39 +320,51 @@ def compare(
     anchor = Run(ANCHOR, 1.0, _tolerances(problem, 1.0), anchor_sol, anchor_time)
     note(f"{ANCHOR} {anchor.describe()}: {anchor.nfev} f evaluations, {anchor_time:.2f} s")
     anchor_steps = max(anchor_sol.stats["steps"], 1)
-    runs: list[Run] = []
+    h_ref: dict[str, float] = {}
+
+    def run(method: str, factor: float) -> Run:
+        if method in FIXED_STEP_METHODS:
+            settings = {"step": h_ref[method] * factor}
+            estimated = span / settings["step"]
+        else:
+            settings = _tolerances(problem, factor)
+            order = _CONTROLLED_ORDER.get(method, 4)
+            estimated = anchor_steps * factor ** (-1.0 / (order + 1))
+        sol, wall = _timed(problem, method, t_span, settings, _keep_every(estimated), backend)
+        out = Run(method, factor, settings, sol, wall)
+        note(f"{method} {out.describe()}: {sol.status.name}, {sol.nfev} f evaluations, "
+             f"{wall:.2f} s")  # fmt: skip
+        return out
+
+    runs: list[Run] = [anchor]
     for method in methods:
         if method in FIXED_STEP_METHODS:
-            guess = span * 2.0 / max(anchor.nfev, 1)
-            per_step = _cost_per_step(problem, method, t_span, guess)
-            h_ref = min(span * per_step / max(anchor.nfev, 1), span / 4)
-            sweep = [(f, {"step": h_ref * f}, span / (h_ref * f)) for f in step_factors]
+            per_step = _cost_per_step(problem, method, t_span, span * 2.0 / max(anchor.nfev, 1))
+            h_ref[method] = min(span * per_step / max(anchor.nfev, 1), span / 4)
+            factors = step_factors
         else:
-            order = _CONTROLLED_ORDER.get(method, 4)
             factors = own_factors if method in _GLOBAL_CONTROL else other_factors
-            sweep = [
-                (f, _tolerances(problem, f), anchor_steps * f ** (-1.0 / (order + 1)))
-                for f in factors
-            ]
-        for factor, settings, estimated in sweep:
-            if method == ANCHOR and factor == 1.0:
-                runs.append(anchor)
-                continue
-            sol, wall = _timed(problem, method, t_span, settings, _keep_every(estimated),
-                               backend)  # fmt: skip
-            run = Run(method, factor, settings, sol, wall)
-            runs.append(run)
-            note(f"{method} {run.describe()}: {sol.status.name}, {sol.nfev} f evaluations, "
-                 f"{wall:.2f} s")  # fmt: skip
-    if anchor not in runs:
-        runs.insert(0, anchor)
+        runs += [run(method, f) for f in factors if not (method == ANCHOR and f == 1.0)]
 
     states, description, accuracy = _reference(problem, runs)
-    measured = [_measure(run, states) for run in runs]
-    anchor = next(r for r in measured if r.method == ANCHOR and r.factor == 1.0)
+    measured = [_measure(r, states) for r in runs]
+    anchor = measured[0]
     if not anchor.success:
         notes.append(f"the anchor run {ANCHOR} did not succeed: {anchor.solution.message}")
     target = anchor.max_error if match == "error" else float(anchor.nfev)
+    for _ in range(EXTEND_ROUNDS if match == "error" else 0):
+        extra = []
+        for method in methods:
+            factor = _extension(method, measured, target, EXTEND_COST_CAP * anchor.nfev, notes)
+            if factor is not None:
+                extra.append(run(method, factor))
+        if not extra:
+            break
+        more, _, more_accuracy = _reference(problem, extra)
+        accuracy = max(accuracy, more_accuracy)
+        measured += [_measure(r, more) for r in extra]
+    order = {m: i for i, m in enumerate(methods)}
+    measured.sort(key=lambda r: (order[r.method], -r.factor))
     measured = _select(measured, methods, match, target, notes)
     if accuracy > 0.01 * min((r.max_error for r in measured if r.max_error > 0), default=1):
         notes.append(
@@ -391,6 +418,67 @@ def _measure(run: Run, reference: dict[str, np.ndarray]) -> Run:
         drift=energy.drift,
         drift_stderr=energy.drift_stderr,
     )  # fmt: skip
+
+
+def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
+               notes: list[str]) -> float | None:  # fmt: skip
+    """The next setting (factor) for a method, so that matched error is matched closely.
+
+    ``log error`` and ``log nfev`` are taken as straight lines in ``log factor``
+    through two runs: the two most accurate when no run has reached the
+    target (aiming at 0.7 target), or, when the cheapest run that reached it
+    is more than three times too accurate, that run and the dearest one that
+    missed (aiming at 0.8 target, between the two; or beyond the cheapest run,
+    at most :data:`MAX_COARSENING` times its setting, when no run missed).  None
+    when there is
+    nothing to do, the error does not fall with the factor, or the run would
+    cost more than ``cost_cap`` (then a note says so).
+    """
+    if method in _GLOBAL_CONTROL or not target > 0:
+        return None
+    own = [r for r in runs if r.method == method and r.success
+           and 0 < r.max_error < math.inf and r.nfev > 0]  # fmt: skip
+    reached = [r for r in own if r.max_error <= target]
+    bracket = False
+    if reached:
+        best = min(reached, key=lambda r: r.nfev)
+        if best.max_error >= 0.3 * target:
+            return None
+        missed = [r for r in own if r.max_error > target and r.nfev < best.nfev]
+        dearer = sorted((r for r in own if r.nfev > best.nfev), key=lambda r: r.nfev)
+        if missed:  # interpolate between the two
+            second, bracket = max(missed, key=lambda r: r.nfev), True
+        elif dearer:  # even the cheapest run is too accurate: extrapolate to coarser
+            second = dearer[0]
+        else:
+            return None
+        aim = 0.8 * target
+    else:
+        if len(own) < 2:
+            return None
+        best, second = sorted(own, key=lambda r: r.max_error)[:2]
+        aim = 0.7 * target
+    span = math.log(second.factor / best.factor)
+    if span == 0:
+        return None
+    slope = math.log(second.max_error / best.max_error) / span
+    if slope < 0.2:  # the error no longer falls with the setting (rounding, instability)
+        return None
+    factor = best.factor * (aim / best.max_error) ** (1.0 / slope)
+    low, high = sorted((best.factor, second.factor))
+    if bracket and not low < factor < high:
+        return None
+    if reached and not bracket:
+        factor = min(factor, MAX_COARSENING * best.factor)  # stay near the measured runs
+    cost_slope = math.log(second.nfev / best.nfev) / span
+    cost = best.nfev * (factor / best.factor) ** cost_slope
+    if cost > cost_cap:
+        notes.append(
+            f"{method}: reaching the target error would take about {cost:.2g} f evaluations "
+            f"(over the cap of {cost_cap:.2g}, {EXTEND_COST_CAP:g} x the anchor's); not run"
+        )
+        return None
+    return factor
 
 
 def _select(runs: list[Run], methods: list[str], match: str, target: float,

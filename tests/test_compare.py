@@ -54,7 +54,7 @@ def test_tables_agree_and_hold_every_column(kepler_compare):
     assert len(rows) == len(data["runs"])
     # rk34q8 (anchor) and rk34 x 3, DOP853 x 3, gauss4 x 3, gauss6 x 3, yoshida4 x 3
     methods = [r["method"] for r in data["runs"]]
-    assert methods.count("rk34q8") == 3 and len(methods) == 18
+    assert methods.count("rk34q8") == 3 and len(methods) >= 18  # + refinements
     assert set(methods) == set(default_methods(hamrkq.load_problem("kepler")))
     for key in ("method", "settings", "steps", "nfev", "wall_time_s", "max_true_error",
                 "max_abs_energy_error", "drift_slope", "status", "selected"):  # fmt: skip
@@ -106,6 +106,21 @@ def test_matched_error_picks_the_cheapest_run_within_the_target(kepler_compare):
         else:
             assert chosen["max_true_error"] == min(r["max_true_error"] for r in own)
             assert any(method in note for note in data["notes"])
+
+
+def test_refinement_brings_every_headline_error_near_the_target(kepler_compare):
+    """Interpolated or extrapolated settings: every method's headline run is within
+    [0.3, 1] x the anchor's error (measured 0.57-0.80 x), not orders of magnitude
+    more accurate than it needs to be."""
+    _, _, _, out = kepler_compare
+    data = json.loads((out / FILES["json"]).read_text())
+    target = data["target"]
+    chosen = [r for r in data["runs"] if r["selected"] and r["method"] != "rk34q8"]
+    assert len(chosen) == 5
+    for run in chosen:
+        assert 0.3 * target <= run["max_true_error"] <= target, run
+    # the refinements are extra rows beyond the three settings per method
+    assert len(data["runs"]) > 18
 
 
 def test_matched_cost_and_the_step_sweep():
