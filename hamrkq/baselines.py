@@ -275,9 +275,7 @@ def _drive(solver, nodes, times, keep_every, max_steps, progress, t0, t_end):
         while solver.status == "running":
             if max_steps is not None and steps >= max_steps:
                 status = Status.MAX_STEPS
-                message = (
-                    f"The step limit max_steps = {max_steps} was reached at t = {good[0]!r}."
-                )
+                message = f"The step limit max_steps = {max_steps} was reached at t = {good[0]!r}."
                 break
             before = solver.nfev
             text = solver.step()

@@ -305,9 +305,7 @@ def compare(
     if span == 0:
         raise InputError(f"the interval t_span={t_span} is empty: choose t_end != t0")
     own_factors = tuple(tol_factors or (QUICK_TOL_FACTORS if quick else TOL_FACTORS))
-    other_factors = tuple(
-        tol_factors or (QUICK_OTHER_TOL_FACTORS if quick else OTHER_TOL_FACTORS)
-    )
+    other_factors = tuple(tol_factors or (QUICK_OTHER_TOL_FACTORS if quick else OTHER_TOL_FACTORS))
     step_factors = tuple(step_factors or (QUICK_STEP_FACTORS if quick else STEP_FACTORS))
     if any(not (f > 0 and math.isfinite(f)) for f in (*own_factors, *other_factors,
                                                        *step_factors)):  # fmt: skip

@@ -99,9 +99,7 @@ class HermiteDenseOutput(DenseOutput):
         h01 = 3 * s2 - 2 * s3
         h11 = s3 - s2
         if np.ndim(t) == 0:
-            return (
-                h00 * self.y_old + h01 * self.y + self.h * (h10 * self.f_old + h11 * self.f)
-            )
+            return h00 * self.y_old + h01 * self.y + self.h * (h10 * self.f_old + h11 * self.f)
         return (
             np.outer(self.y_old, h00)
             + np.outer(self.y, h01)

@@ -95,8 +95,13 @@ def register(subparsers: Any) -> None:
                    help="tolerance sweep, as multiples of the problem's default")  # fmt: skip
     p.add_argument("--step-factors", type=float, nargs="+", metavar="F",
                    help="step sweep, as multiples of h_ref (matched cost)")  # fmt: skip
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter of the problem (a number; repeatable)")
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a parameter of the problem (a number; repeatable)",
+    )
     p.add_argument("--backend", default="python", help="backend for RKQ (default python)")
     p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-compare/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
