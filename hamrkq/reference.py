@@ -147,12 +147,14 @@ def _vector_field(rhs: Rhs, params: Any, dim: int) -> Callable[[float, np.ndarra
 def _scales(samples: np.ndarray) -> np.ndarray:
     """Per-component magnitude for a scale-aware atol.
 
-    A component that stays exactly zero borrows the largest scale, so that
-    its atol is not zero (which would ask for relative accuracy of nothing).
+    A component that stays zero, or at rounding level (within 100 ulps of
+    the largest component, e.g. one that is zero by symmetry but picks up
+    rounding noise), borrows the largest scale: a pure relative tolerance on
+    rounding noise would ask DOP853 for steps that never end.
     """
     scale = np.max(np.abs(samples), axis=0)
     top = float(scale.max())
-    return np.where(scale > 0, scale, top if top > 0 else 1.0)
+    return np.where(scale > 100 * _EPS * top, scale, top if top > 0 else 1.0)
 
 
 # -- periodic orbits ---------------------------------------------------------

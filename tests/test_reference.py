@@ -216,3 +216,22 @@ def test_reference_is_frozen_and_describes_itself():
         ref.y[0, 0] = 1.0
     assert "DOP853" in ref.describe() and "accurate to ~" in ref.describe()
     assert isinstance(ref.details["nfev"], int)
+
+
+def test_components_at_rounding_level_do_not_stall_the_reference():
+    """Toda from a symmetric start: q2 and p2 stay zero up to rounding noise.
+
+    A scale-aware atol built from that noise (~1e-17) asked DOP853 to resolve
+    rounding and never finished; such components now borrow the largest scale.
+    """
+    import hamrkq
+    from hamrkq.reference import hamiltonian_reference
+
+    problem = hamrkq.load_problem("toda")
+    t = np.linspace(0.0, 50.0, 201)
+    ref = hamiltonian_reference(problem, problem.y0, t)
+    assert ref.estimated_error < 1e-9
+    ham, params = problem.hamiltonian, problem.parameter_array
+    energy = ham.numeric.energy(t, ref.y, params)
+    assert np.max(np.abs(energy - energy[0])) < 1e-10
+    np.testing.assert_allclose(ref.y[:, [1, 4]], 0.0, atol=1e-12)  # symmetry kept
