@@ -93,6 +93,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("hamrkq: interrupted", file=sys.stderr)
         return EXIT_FAILED
+    except OSError as exc:
+        # Writing results failed (disk full, permissions changed mid-run).
+        print(f"hamrkq: error: cannot write output: {exc}", file=sys.stderr)
+        return EXIT_FAILED
 
 
 def _cmd_list(args: argparse.Namespace) -> int:

@@ -131,6 +131,24 @@ class OutputDir:
                 f"output directory {str(self.path)!r} exists and is not empty; "
                 "pass --force to write into it, or choose another --out"
             )
+        self._check_writable()
+
+    def _check_writable(self) -> None:
+        """Refuse an --out that cannot be written, before any long run.
+
+        Probes the nearest existing ancestor by creating and removing a
+        temporary directory (permission bits alone say nothing to root, nor
+        about read-only or virtual file systems); nothing is left behind.
+        """
+        ancestor = self.path.absolute()
+        while not ancestor.exists():
+            ancestor = ancestor.parent
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix=".hamrkq-probe-", dir=ancestor))
+        except OSError as exc:
+            raise InputError(
+                f"--out {str(self.path)!r} cannot be written ({exc.strerror or exc})"
+            ) from None
 
     def _prepare(self) -> None:
         if self._ready:
