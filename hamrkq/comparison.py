@@ -156,6 +156,7 @@ class Run:
             "drift_slope": self.drift,
             "drift_stderr": self.drift_stderr,
             "status": sol.status.name,
+            "t_final": float(sol.t[-1]) if len(sol) else math.nan,
         }
 
 

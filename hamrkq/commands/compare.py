@@ -121,7 +121,10 @@ def _table(rows: list[dict[str, Any]]) -> list[str]:
     lines = ["| " + " | ".join(header for _, header, _ in COLUMNS) + " |",
              "|" + "---|" * len(COLUMNS)]  # fmt: skip
     for row in rows:
-        lines.append("| " + " | ".join(_cell(row[k], f) for k, _, f in COLUMNS) + " |")
+        cells = [_cell(row[k], f) for k, _, f in COLUMNS]
+        if row["status"] != "SUCCESS":  # where it stopped
+            cells[-1] += f" at t = {_cell(row['t_final'], '.6g')}"
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
