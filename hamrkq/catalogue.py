@@ -236,7 +236,10 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
         )
     path = Path(name_or_path)
     text_name = str(name_or_path)
-    if not (path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name):
+    # A bare name is a catalogue entry unless a *file* of that name exists
+    # (a directory called "kepler" in the working directory must not hide it).
+    looks_like_path = path.suffix == ".toml" or "/" in text_name or "\\" in text_name
+    if not (looks_like_path or path.is_file()):
         path = catalogue_dir() / f"{text_name}.toml"
         if not path.is_file():
             names = ", ".join(list_problems())

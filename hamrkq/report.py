@@ -51,7 +51,16 @@ VERSIONED = ("hamrkq", "numpy", "scipy", "sympy", "matplotlib", "numba")
 #: Files that hamrkq's commands write, as glob patterns: with ``force`` these
 #: (and only these) are removed first, so that no stale figure from an earlier
 #: run sits beside the new results.  A user's own files are never touched.
-OWN_FILES = ("summary.json", "comparison.md", "solution*.npz", "figure[0-9]_*.png")
+OWN_FILES = (
+    "summary.json",
+    "comparison.md",
+    "comparison.csv",
+    "comparison.json",
+    "solution*.npz",
+    "figure[0-9]_*.png",
+    "work_precision.png",
+    "energy_error.png",
+)
 
 
 # -- files -------------------------------------------------------------------
