@@ -109,8 +109,9 @@ def test_sigint_writes_partial_results_marked_partial_and_exits_1(tmp_path):
     saved = Solution.load(out / "solution.npz")
     assert saved.status is Status.INTERRUPTED and saved.partial and not saved.success
     assert summary["nodes"] == len(saved) > 1000
-    # It stopped after the node the bar showed, long before t = 4000.
-    assert t_bar <= saved.t[-1] < 2000
+    # It stopped after the node the bar showed (printed rounded to 3 decimals),
+    # long before t = 4000.
+    assert t_bar - 5e-4 <= saved.t[-1] < 2000
     assert np.all(np.diff(saved.t) > 0) and np.all(np.isfinite(saved.y))
     assert saved.message.startswith("Interrupted (KeyboardInterrupt) near t = ")
 
