@@ -58,8 +58,12 @@ def _fmt(value: Any, digits: int = 3) -> str:
 
 def _case_table(key: str, case: dict[str, Any]) -> list[str]:
     t0, t1 = case["t_span"]
+    scale = case.get("tol_scale", 1.0)
     lines = [
         f"### {key}, t in [{t0:g}, {t1:g}]",
+        "",
+        f"Reference: {case['reference']} (estimated error {case['reference_error']:.1e})."
+        + (f"  Tolerances: {scale:g} x the catalogue's." if scale != 1.0 else ""),
         "",
         "| integrator | tolerance | max true error | nodes | steps | f evals | time (s) "
         "| ratio | peak MB |",
@@ -188,13 +192,13 @@ def _memory(results: dict[str, Any]) -> list[str]:
         f"Interpreter with hamrkq imported and the compiled code loaded: "
         f"{mem['interpreter_mb']:.0f} MB.",
         "",
-        "| prentice2011 run | nodes kept | steps | MB above that |",
-        "|---|---|---|---|",
+        "| prentice2011 run (`gamma_limit=inf`) | nodes kept | steps | reached t | MB above |",
+        "|---|---|---|---|---|",
     ]
     for label, info in mem["runs"].items():
         lines.append(
             f"| {label} | {info.get('nodes', '-')} | {info.get('steps', '-')} "
-            f"| {info['above_interpreter_mb']:.3g} |"
+            f"| {_fmt(info.get('t_last'), 6)} | {info['above_interpreter_mb']:.3g} |"
         )
     lines.append("")
     return lines
