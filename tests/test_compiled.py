@@ -36,6 +36,9 @@ needs_sequential_sums = pytest.mark.xfail(
     not SEQUENTIAL, reason="rkq sums stages with np.dot (BLAS order)", strict=False
 )
 CATALOGUE = hamrkq.list_problems()
+#: Systems whose generated functions take numba several seconds to compile.
+BIG = {"outer_solar_system", "pleiades"}
+CASES = [pytest.param(n, marks=pytest.mark.slow) if n in BIG else n for n in CATALOGUE]
 METHODS = {"rk34q8": DOP853_RK8, "rk34": None}
 
 
@@ -83,8 +86,16 @@ def _assert_parity(a, b):
         assert np.array_equal(a.quenched, b.quenched)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def compiled_loop():
+    """Compile (or load) the loop once, up front (about 8 s when the cache is
+    cold), rather than inside whichever test happens to run first."""
+    problem = hamrkq.load_problem("harmonic")
+    _compiled(problem, 0.0, 0.1, DOP853_RK8, atol=np.full(2, 1e-6), rtol=np.zeros(2))
+
+
 @needs_sequential_sums
-@pytest.mark.parametrize("name", CATALOGUE)
+@pytest.mark.parametrize("name", CASES)
 @pytest.mark.parametrize("method", sorted(METHODS))
 def test_parity_with_the_interpreted_loop(name, method):
     problem = hamrkq.load_problem(name)
@@ -330,7 +341,7 @@ SOLVE_MODULE = importlib.import_module("hamrkq.solve")
     reason="hamrkq.solve has no backend='numba' yet (the hook in docs/performance.md)",
 )
 @needs_sequential_sums
-@pytest.mark.parametrize("name", CATALOGUE)
+@pytest.mark.parametrize("name", CASES)
 def test_solve_gives_the_same_solution_on_both_backends(name):
     problem = hamrkq.load_problem(name)
     t0, t1 = problem.t_span
