@@ -12,6 +12,7 @@ generated source.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -73,15 +74,34 @@ class NumericHamiltonian:
 
     def __init__(self, ham: Hamiltonian):
         self.dim = ham.dim
+        self._ham = ham
         self._rhs = _lambdify(ham, list(ham.rhs))
         self._jac = _lambdify(ham, ham.jacobian.tolist())
         self._energy = vectorized(ham, [ham.H])
         self._gradient = vectorized(ham, list(ham.gradient))
         self._rhs_many = vectorized(ham, list(ham.rhs))
 
+    @cached_property
+    def _scalar(self):
+        """The scalar functions of :mod:`hamrkq.codegen`, which the compiled
+        backend compiles: evaluating f and J with them here too gives every
+        integrator (and both backends) the same bits.  None when they cannot
+        be generated or cached; then the lambdified functions serve."""
+        from .codegen import CodegenError, load_module
+
+        try:
+            return load_module(self._ham)
+        except (CodegenError, OSError):
+            return None
+
     def rhs(self, t: float, y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """dy/dt at one state, shape (2n,)."""
-        return np.array(self._rhs(t, y, params), dtype=float)
+        scalar = self._scalar
+        if scalar is None:
+            return np.array(self._rhs(t, y, params), dtype=float)
+        out = np.empty(self.dim)
+        scalar.rhs(t, y, params, out)
+        return out
 
     def rhs_many(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """dy/dt at the rows of ``Y``, shape (N, 2n)."""
@@ -89,7 +109,12 @@ class NumericHamiltonian:
 
     def jac(self, t: float, y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """Jacobian of the right-hand side at one state, shape (2n, 2n)."""
-        return np.array(self._jac(t, y, params), dtype=float).reshape(self.dim, self.dim)
+        scalar = self._scalar
+        if scalar is None:
+            return np.array(self._jac(t, y, params), dtype=float).reshape(self.dim, self.dim)
+        out = np.empty((self.dim, self.dim))
+        scalar.jac(t, y, params, out)
+        return out
 
     def energy(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """H at the rows of ``Y`` (shape (N,)), or at one state (a float array of shape ())."""

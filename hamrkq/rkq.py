@@ -134,12 +134,25 @@ def _finite(x):
     return math.isfinite(x.sum())
 
 
+def _stage_sum(a, K, out):
+    """out = sum_l a[l] K[l], added in the order l = 0, 1, ...: NumPy reduces
+    over the outer axis of a C array row by row (``np.dot`` adds in BLAS's
+    order instead), so the compiled backend's element loops, which add in the
+    same order, give the same bits (hamrkq.compiled.PRIMITIVES)."""
+    np.add.reduce(np.multiply(a[:, None], K, order="C"), axis=0, out=out)
+
+
+def _matvec(M, v, out):
+    """out = M @ v, each row added in the order k = 0, 1, ... (see _stage_sum)."""
+    np.add.reduce(np.multiply(M.T, v[:, None], order="C"), axis=0, out=out)
+
+
 def _combine(base, lo, h, A, j, K, out):
     """out = base + (lo + h * sum_{l<j} A[j, l] K[l])  (lo: low-order part)."""
     if j == 0:
         np.add(base, lo, out)
     else:
-        np.dot(A[j, :j], K[:j], out)
+        _stage_sum(A[j, :j], K[:j], out)
         np.multiply(out, h, out)
         np.add(out, lo, out)
         np.add(out, base, out)
@@ -150,14 +163,14 @@ def _plain(base, h, A, j, K, out):
     if j == 0:
         out[:] = base
     else:
-        np.dot(A[j, :j], K[:j], out)
+        _stage_sum(A[j, :j], K[:j], out)
         np.multiply(out, h, out)
         np.add(out, base, out)
 
 
 def _increment(h, b, K, out):
     """out = h * sum_j b[j] K[j]."""
-    np.dot(b, K, out)
+    _stage_sum(b, K, out)
     np.multiply(out, h, out)
 
 
@@ -219,7 +232,7 @@ def _rk8_tangent(rhs, jac, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, JM, gam
         rhs(tj, yt, params, K[j])
         _plain(gam, h, A, j, dK, dy)
         jac(tj, yt, params, JM)
-        np.dot(JM, dy, dK[j])
+        _matvec(JM, dy, dK[j])
     _increment(h, b, K, out)
     _increment(h, b, dK, dout)
     np.add(dout, gam, dout)
@@ -529,7 +542,7 @@ def _rk8_gamma(rhs, jac, t, h, A8, b8, c8, params, K8, X, JM, gmode, rich, istat
         np.add(zhi, zlo, X[YT])
         jac(t, X[YT], params, JM)
         istate[IS_NJEV] += 1
-        np.dot(JM, gam, X[GNEW])
+        _matvec(JM, gam, X[GNEW])
         np.multiply(X[GNEW], h, X[GNEW])
         np.add(X[GNEW], gam, X[GNEW])
         np.add(X[GNEW], d, X[GNEW])

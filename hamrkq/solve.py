@@ -48,7 +48,9 @@ QUENCH_MODES = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
 TOLERANCE_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
 GAMMA_MODES = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
 Z_METHODS = ("dop853", "cooper_verner")
-BACKENDS = ("python",)
+#: Where the RK loop runs: "numba" (compiled, :mod:`hamrkq.compiled`),
+#: "python" (interpreted), or "auto" (numba when it can be used).
+BACKENDS = ("auto", "numba", "python")
 
 
 @dataclass(frozen=True)
@@ -85,14 +87,7 @@ class MethodSpec:
 def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
     o = task.options
     rk8 = get_tableau(o["z_method"]) if o["method"] == "rk34q8" else None
-    numeric = task.ham.numeric
-    return rkq.run(
-        numeric.rhs,
-        numeric.jac,
-        task.params,
-        task.t0,
-        task.y0,
-        task.t_end,
+    options = dict(
         rk3=RK3_KUTTA,
         rk4=RK4_CLASSIC,
         rk8=rk8,
@@ -111,6 +106,27 @@ def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
         first_step=o["first_step"],
         progress=task.progress,
     )
+    if backend == "numba":
+        from . import compiled
+
+        return compiled.run(task.ham, task.params, task.t0, task.y0, task.t_end, **options)
+    numeric = task.ham.numeric
+    return rkq.run(numeric.rhs, numeric.jac, task.params, task.t0, task.y0, task.t_end, **options)
+
+
+def _resolve_backend(backend: Any, ham: Hamiltonian, spec: MethodSpec) -> str:
+    """``"auto"`` -> ``"numba"`` when the method has a compiled runner and
+    numba can be used (else ``"python"``, with one HamrkqWarning when numba
+    was expected but cannot be used)."""
+    if not isinstance(backend, str) or backend not in BACKENDS:
+        raise OptionError(
+            f"backend={_show(backend)} is not valid; valid: {', '.join(map(repr, BACKENDS))}"
+        )
+    if backend == "python" or "numba" not in spec.backends:
+        return "python" if backend == "auto" else backend
+    from . import compiled
+
+    return compiled.resolve_backend(backend, ham)
 
 
 def _run_fixed(task: Task, backend: str) -> Solution:
@@ -154,14 +170,14 @@ METHODS: dict[str, MethodSpec] = {
         "rk34q8",
         "RKQ: RK3/RK4 local extrapolation with an RK8 track and quenching (Prentice)",
         _run_rk,
-        ("python",),
+        ("python", "numba"),
         rk8=True,
     ),
     "rk34": MethodSpec(
         "rk34",
         "RK3/RK4 local extrapolation only (the paper's comparison)",
         _run_rk,
-        ("python",),
+        ("python", "numba"),
         rk8=False,
     ),
     **{
@@ -204,7 +220,7 @@ def solve(
     gamma_limit: float | None = None,
     keep_every: int = 1,
     t_eval: Any = None,
-    backend: str = "python",
+    backend: str = "auto",
     progress: bool | Callable[[float, float], None] | None = None,
 ) -> Solution:
     """Integrate Hamilton's equations with RKQ (or RK34) and return the nodes.
@@ -277,8 +293,13 @@ def solve(
     t_eval : array, optional
         Keep only these times (inside ``t_span``, strictly monotonic in the
         direction of integration); steps are clipped to land on them.
-    backend : {"python"}
-        Where the step loop runs.
+    backend : {"auto", "numba", "python"}, default "auto"
+        Where the step loop of ``rk34q8``/``rk34`` runs: ``"numba"``
+        compiles it with the generated functions (cached on disk, see
+        :mod:`hamrkq.compiled`); ``"python"`` interprets it; ``"auto"`` uses
+        numba when it can (``HAMRKQ_DISABLE_NUMBA=1`` turns it off) and
+        otherwise Python with one :class:`~hamrkq.errors.HamrkqWarning`.
+        Both give the same nodes and values, bit for bit.
     progress : bool or callable, optional
         True: a progress bar on stderr when it is a terminal.  A callable is
         called as ``progress(fraction, t)`` every few thousand steps.
@@ -307,6 +328,7 @@ def solve(
     pick = _Defaults(defaults)
     method = _choice("method", pick("method", method, "rk34q8"), METHODS)
     spec = METHODS[method]
+    backend = _resolve_backend(backend, ham, spec)
     if backend not in spec.backends:
         known = BACKENDS if backend not in BACKENDS else spec.backends
         raise OptionError(
@@ -570,7 +592,14 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
     )
     stats = dict(out.stats)
     status = _STATUS_BY_CODE[out.status]
-    energy = task.ham.numeric.energy(out.t, out.y, task.params) if out.t.size else out.t
+    if not out.t.size:
+        energy = out.t
+    elif backend == "numba":
+        from . import compiled
+
+        energy = compiled.energy(task.ham, out.t, out.y, task.params)
+    else:
+        energy = task.ham.numeric.energy(out.t, out.y, task.params)
     options: dict[str, Any] = {
         "method": o["method"],
         "backend": backend,

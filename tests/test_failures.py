@@ -150,7 +150,7 @@ def test_kepler_e_0_999999_stops_when_the_tolerance_cannot_be_vouched_for():
     problem = hamrkq.load_problem("kepler", e=0.999999)
     sol = solve_quietly(problem, t_span=(0, 2 * math.pi + 0.5))
     assert sol.status is Status.TOLERANCE_UNATTAINABLE
-    assert 2.0 < sol.t[-1] < math.pi  # before the second pericentre
+    assert 2.0 < sol.t[-1] < 2 * math.pi  # before the second pericentre
     assert f"t = {float(sol.t[-1])!r}" in sol.message and "gamma_limit = 0.05" in sol.message
     atol = problem.integration["atol"]
     assert np.abs(sol.global_error).max() <= atol
@@ -192,7 +192,8 @@ def test_interrupt_in_the_middle_of_a_step_drops_only_that_step(monkeypatch):
     # side, halfway through a step.  The nodes kept are those of the steps
     # already complete, bit for bit.
     ham = hamrkq.Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
-    full = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8)
+    # The interpreted loop: only there does Python run inside a step.
+    full = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python")
     numeric = ham.numeric
     original = numeric.rhs
     calls = []
@@ -204,7 +205,7 @@ def test_interrupt_in_the_middle_of_a_step_drops_only_that_step(monkeypatch):
         return original(t, y, params)
 
     monkeypatch.setattr(numeric, "rhs", rhs)
-    sol = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8)
+    sol = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python")
     assert sol.status is Status.INTERRUPTED and sol.partial
     assert len(sol) == 101  # the initial node and the 100 complete steps
     np.testing.assert_array_equal(sol.t, full.t[:101])

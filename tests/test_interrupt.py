@@ -124,6 +124,6 @@ def test_sigint_writes_partial_results_marked_partial_and_exits_1(tmp_path):
 
     # The summary table and the message reached stdout; the files are listed.
     assert "INTERRUPTED (partial results)" in child.stdout
-    assert "message: Interrupted (KeyboardInterrupt)" in child.stdout
+    assert "Interrupted (KeyboardInterrupt)" in child.stdout
     assert {"solution.npz", "summary.json"} <= set(summary["files"])
     assert not list(out.glob(".*.tmp"))  # no temporary file left behind

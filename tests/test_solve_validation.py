@@ -41,7 +41,7 @@ def call(**changes):
         ({"tolerance_rule": "mixed"}, OptionError, "'componentwise', 'prentice'"),
         ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'off'"),
         ({"z_method": "rk4"}, OptionError, "z_method='rk4'.*'dop853', 'cooper_verner'"),
-        ({"backend": "numba"}, OptionError, "backend='numba'.*'python'"),
+        ({"backend": "cuda"}, OptionError, "backend='cuda'.*'auto', 'numba', 'python'"),
         ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),
         ({"safety": 1.5}, InputError, "safety must be at most 1.0, got 1.5"),
         ({"quench_threshold": -1}, InputError, "quench_threshold.*-1"),
