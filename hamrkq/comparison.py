@@ -254,7 +254,7 @@ def compare(
     match: str = "error",
     tol_factors: Sequence[float] | None = None,
     step_factors: Sequence[float] | None = None,
-    backend: str = "python",
+    backend: str = "auto",
     log: Callable[[str], None] | None = None,
 ) -> Comparison:
     """Run every method over its sweep and measure each run against one reference.

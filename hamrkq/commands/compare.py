@@ -102,7 +102,9 @@ def register(subparsers: Any) -> None:
         metavar="NAME=VALUE",
         help="override a parameter of the problem (a number; repeatable)",
     )
-    p.add_argument("--backend", default="python", help="backend for RKQ (default python)")
+    p.add_argument(
+        "--backend", default="auto", help="backend for RKQ (default auto: compiled when possible)"
+    )
     p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-compare/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--no-plots", action="store_true", help="do not draw the figures")
