@@ -27,14 +27,10 @@ pytestmark = pytest.mark.skipif(
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Bit-for-bit agreement needs rkq's sums over stages in a fixed order
+#: Bit-for-bit agreement rests on rkq's sums over stages in a fixed order
 #: (rkq._stage_sum, rkq._matvec), which the compiled twins reproduce; with
-#: np.dot (BLAS's order) the backends agree only to rounding, which the step
-#: controller amplifies to ~1e-11 in the nodes.
-SEQUENTIAL = hasattr(rkq, "_stage_sum") and hasattr(rkq, "_matvec")
-needs_sequential_sums = pytest.mark.xfail(
-    not SEQUENTIAL, reason="rkq sums stages with np.dot (BLAS order)", strict=False
-)
+#: np.dot (BLAS's order) the backends agreed only to rounding, which the step
+#: controller amplified to ~1e-11 in the nodes.
 CATALOGUE = hamrkq.list_problems()
 #: Systems whose generated functions take numba several seconds to compile.
 BIG = {"outer_solar_system", "pleiades"}
@@ -94,7 +90,6 @@ def compiled_loop():
     _compiled(problem, 0.0, 0.1, DOP853_RK8, atol=np.full(2, 1e-6), rtol=np.zeros(2))
 
 
-@needs_sequential_sums
 @pytest.mark.parametrize("name", CASES)
 @pytest.mark.parametrize("method", sorted(METHODS))
 def test_parity_with_the_interpreted_loop(name, method):
@@ -106,7 +101,6 @@ def test_parity_with_the_interpreted_loop(name, method):
     _assert_parity(a, b)
 
 
-@needs_sequential_sums
 @pytest.mark.parametrize(
     "options",
     [
@@ -126,7 +120,6 @@ def test_parity_for_the_options(options):
     _assert_parity(a, b)
 
 
-@needs_sequential_sums
 def test_parity_backward_and_from_nonzero_t0():
     problem = hamrkq.load_problem("kepler", e=0.9)
     options = {"atol": np.full(4, 1e-9), "rtol": np.zeros(4)}
@@ -142,8 +135,6 @@ def test_parity_backward_and_from_nonzero_t0():
 def test_every_primitive_exists_in_rkq():
     """A primitive renamed in rkq would silently lose its fast twin."""
     missing = [name for name in compiled.PRIMITIVES if not hasattr(rkq, name)]
-    if not SEQUENTIAL:
-        missing = [name for name in missing if name != "_matvec"]
     assert not missing
 
 
@@ -159,7 +150,6 @@ def _random_case(rng, dim, stages):
     return A, K
 
 
-@needs_sequential_sums
 def test_stage_sums_match_rkq_bit_for_bit(kernel):
     rng = np.random.default_rng(7)
     for _ in range(200):
@@ -340,7 +330,6 @@ SOLVE_MODULE = importlib.import_module("hamrkq.solve")
     "numba" not in getattr(SOLVE_MODULE, "BACKENDS", ()),
     reason="hamrkq.solve has no backend='numba' yet (the hook in docs/performance.md)",
 )
-@needs_sequential_sums
 @pytest.mark.parametrize("name", CASES)
 def test_solve_gives_the_same_solution_on_both_backends(name):
     problem = hamrkq.load_problem(name)
