@@ -50,6 +50,7 @@ from . import rkq
 from .errors import HamrkqWarning, InputError, OptionError
 from .result import Status
 from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+from .validation import choice, tolerance
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
@@ -105,24 +106,6 @@ class HermiteDenseOutput(DenseOutput):
             + np.outer(self.y, h01)
             + self.h * (np.outer(self.f_old, h10) + np.outer(self.f, h11))
         )
-
-
-def _tolerance(name: str, value: Any, n: int, *, positive: bool) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
-    if array.ndim > 1 or (array.ndim == 1 and array.shape != (n,)):
-        raise InputError(f"{name} must be a scalar or have {n} entries, got shape {array.shape}")
-    bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
-    if np.any(bad):
-        need = "positive" if positive else "zero or positive"
-        raise InputError(f"{name} must be finite and {need}, got {value!r}")
-    return np.broadcast_to(array, (n,)).copy()
-
-
-def _choice(name: str, value: Any, valid: dict) -> int:
-    if not isinstance(value, str) or value not in valid:
-        listing = ", ".join(repr(v) for v in valid)
-        raise OptionError(f"{name}={value!r} is not valid; valid values: {listing}")
-    return valid[value]
 
 
 class RK34Q8(OdeSolver):
@@ -220,8 +203,8 @@ class RK34Q8(OdeSolver):
             )
         super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=False)
         n = self.n
-        atol = _tolerance("atol", atol, n, positive=True)
-        rtol = _tolerance("rtol", rtol, n, positive=False)
+        atol = tolerance("atol", atol, n, positive=True)
+        rtol = tolerance("rtol", rtol, n, positive=False)
         if np.any((rtol > 0) & (rtol < MIN_RTOL)):
             warnings.warn(
                 f"rtol is below 100 eps and is raised to {MIN_RTOL:.3g}",
@@ -244,12 +227,12 @@ class RK34Q8(OdeSolver):
         self._jac = self._wrap_jac(jac)
         if global_error_estimate is None:
             global_error_estimate = "off" if self._jac is None else "tangent"
-        gamma = _choice("global_error_estimate", global_error_estimate, _GAMMA)
+        gamma = _GAMMA[choice("global_error_estimate", global_error_estimate, _GAMMA)]
         if gamma != rkq.GAMMA_OFF and self._jac is None:
             raise InputError(
                 f"global_error_estimate={global_error_estimate!r} needs jac, got None"
             )
-        rule = _choice("tolerance_rule", tolerance_rule, _RULES)
+        rule = _RULES[choice("tolerance_rule", tolerance_rule, _RULES)]
         if z_method not in ("dop853", "cooper_verner"):
             raise OptionError(
                 f"z_method={z_method!r} is not valid; valid values: 'dop853', 'cooper_verner'"
@@ -259,7 +242,7 @@ class RK34Q8(OdeSolver):
         self._ws = rkq.workspace(
             float(t0), self.y.astype(float), float(t_bound), rk3=RK3_KUTTA, rk4=RK4_CLASSIC,
             rk8=get_tableau(z_method), atol=atol, rtol=rtol,
-            quench=_choice("quench", quench, _QUENCH), rule=rule, gamma=gamma,
+            quench=_QUENCH[choice("quench", quench, _QUENCH)], rule=rule, gamma=gamma,
             safety=float(safety), theta=float(quench_threshold), max_step=max_step,
             max_steps=NO_STEP_LIMIT, gamma_limit=float(gamma_limit),
         )  # fmt: skip

@@ -11,7 +11,6 @@ the RKQ loop in :mod:`hamrkq.rkq`, the fixed-step symplectic baselines in
 from __future__ import annotations
 
 import math
-import numbers
 import sys
 import warnings
 from collections.abc import Callable, Mapping
@@ -29,6 +28,13 @@ from .hamiltonian import Hamiltonian
 from .result import Solution, Status
 from .symplectic import FIXED_STEP_METHODS, solve_fixed
 from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+from .validation import choice as _choice
+from .validation import count as _count
+from .validation import positive as _positive
+from .validation import real as _real
+from .validation import show as _show
+from .validation import span as _span
+from .validation import tolerance as _tolerance
 
 __all__ = ["BACKENDS", "METHODS", "MethodSpec", "Task", "solve"]
 
@@ -474,72 +480,6 @@ def _system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
         "system_or_problem must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
         f"got {type(obj).__name__}"
     )
-
-
-def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _real(name: str, value: Any) -> float:
-    """A float from a real number or a SymPy number (never from a string)."""
-    if isinstance(value, str | bytes):
-        raise InputTypeError(f"{name} must be a number, not the string {value!r}")
-    if isinstance(value, sp.Basic):
-        if value.free_symbols:
-            raise InputError(f"{name}={value} has free symbols")
-        value = complex(sp.N(value, 17))
-        if value.imag != 0:
-            raise InputError(f"{name}={value} is not real")
-        value = value.real
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise InputTypeError(f"{name} must be a real number, got {_show(value)}")
-    return float(value)
-
-
-def _span(t_span: Any) -> tuple[float, float]:
-    if isinstance(t_span, str | bytes) or not hasattr(t_span, "__len__") or len(t_span) != 2:
-        raise InputError(f"t_span must be two numbers (t0, t_end), got {_show(t_span)}")
-    t0, t_end = (_real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
-    if not (math.isfinite(t0) and math.isfinite(t_end)):
-        raise InputError(f"t_span must be finite, got {_show(t_span)}")
-    return t0, t_end
-
-
-def _tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
-    if isinstance(value, str | bytes):
-        raise InputTypeError(f"{name} must be a number or {dim} numbers, got {value!r}")
-    items = np.ravel(np.asarray(value, dtype=object)) if np.ndim(value) else [value]
-    if np.ndim(value) > 1 or len(items) not in (1, dim):
-        raise InputError(f"{name} must be a scalar or have {dim} entries, got {_show(value)}")
-    array = np.array([_real(name, v) for v in items], dtype=float)
-    bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
-    if np.any(bad):
-        need = "positive" if positive else "zero or positive"
-        raise InputError(f"{name} must be finite and {need}, got {_show(value)}")
-    return np.broadcast_to(array, (dim,)).copy()
-
-
-def _choice(name: str, value: Any, valid: Any) -> str:
-    if not isinstance(value, str) or value not in valid:
-        listing = ", ".join(repr(v) for v in valid)
-        raise OptionError(f"{name}={_show(value)} is not valid; valid values: {listing}")
-    return value
-
-
-def _positive(name: str, value: Any, *, inf: bool = False, upper: float | None = None) -> float:
-    number = _real(name, value)
-    if not (number > 0) or (math.isinf(number) and not inf) or math.isnan(number):
-        raise InputError(f"{name} must be a positive number, got {_show(value)}")
-    if upper is not None and number > upper:
-        raise InputError(f"{name} must be at most {upper}, got {_show(value)}")
-    return number
-
-
-def _count(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise InputError(f"{name} must be a positive integer, got {_show(value)}")
-    return int(value)
 
 
 def _t_eval(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:

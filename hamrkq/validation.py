@@ -1,0 +1,90 @@
+"""Small validators shared by the public entry points.
+
+Each checks one argument and raises an error from :mod:`hamrkq.errors` whose
+message names the parameter and shows the offending value.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .errors import InputError, InputTypeError, OptionError
+
+__all__ = ["choice", "count", "positive", "real", "show", "span", "tolerance"]
+
+
+def show(value: Any) -> str:
+    """``repr(value)``, cut to 80 characters for error messages."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def real(name: str, value: Any) -> float:
+    """A float from a real number or a SymPy number (never from a string)."""
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{name} must be a number, not the string {value!r}")
+    if isinstance(value, sp.Basic):
+        if value.free_symbols:
+            raise InputError(f"{name}={value} has free symbols")
+        value = complex(sp.N(value, 17))
+        if value.imag != 0:
+            raise InputError(f"{name}={value} is not real")
+        value = value.real
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputTypeError(f"{name} must be a real number, got {show(value)}")
+    return float(value)
+
+
+def span(t_span: Any) -> tuple[float, float]:
+    """``t_span`` as two finite floats ``(t0, t_end)``."""
+    if isinstance(t_span, str | bytes) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+        raise InputError(f"t_span must be two numbers (t0, t_end), got {show(t_span)}")
+    t0, t_end = (real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
+    if not (math.isfinite(t0) and math.isfinite(t_end)):
+        raise InputError(f"t_span must be finite, got {show(t_span)}")
+    return t0, t_end
+
+
+def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
+    """A tolerance as an array of ``dim`` finite values (> 0, or >= 0 if not ``positive``)."""
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{name} must be a number or {dim} numbers, got {value!r}")
+    items = np.ravel(np.asarray(value, dtype=object)) if np.ndim(value) else [value]
+    if np.ndim(value) > 1 or len(items) not in (1, dim):
+        raise InputError(f"{name} must be a scalar or have {dim} entries, got {show(value)}")
+    array = np.array([real(name, v) for v in items], dtype=float)
+    bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
+    if np.any(bad):
+        need = "positive" if positive else "zero or positive"
+        raise InputError(f"{name} must be finite and {need}, got {show(value)}")
+    return np.broadcast_to(array, (dim,)).copy()
+
+
+def choice(name: str, value: Any, valid: Any) -> str:
+    """``value`` if it is one of ``valid``, else an OptionError listing them."""
+    if not isinstance(value, str) or value not in valid:
+        listing = ", ".join(repr(v) for v in valid)
+        raise OptionError(f"{name}={show(value)} is not valid; valid values: {listing}")
+    return value
+
+
+def positive(name: str, value: Any, *, inf: bool = False, upper: float | None = None) -> float:
+    """A positive float (infinity only if ``inf``; at most ``upper`` if given)."""
+    number = real(name, value)
+    if not (number > 0) or (math.isinf(number) and not inf) or math.isnan(number):
+        raise InputError(f"{name} must be a positive number, got {show(value)}")
+    if upper is not None and number > upper:
+        raise InputError(f"{name} must be at most {upper}, got {show(value)}")
+    return number
+
+
+def count(name: str, value: Any) -> int:
+    """A positive integer."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {show(value)}")
+    return int(value)
