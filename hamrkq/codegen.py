@@ -7,6 +7,7 @@ into the text of a small Python module of plain scalar functions::
     rhs(t, y, params, out)        # out[:] = dy/dt
     jac(t, y, params, out)        # out[:, :] = d rhs / dy
     jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
+    rhs_jvp(t, y, params, v, out, dout)  # rhs and J @ v at one point, fused
     energy(t, y, params) -> float # H
     energy_rows(t, Y, params, out) # out[i] = H(t[i], Y[i])
 
@@ -62,7 +63,7 @@ __all__ = [
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 3
+CODEGEN_VERSION = 4
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
 #: Prefix of generated module names (``sys.modules`` keys and file stems).
@@ -246,6 +247,31 @@ def _hoist_power_bases(replacements, reduced, temps):
     return ordered, outputs
 
 
+def _body(
+    exprs: Sequence[sp.Expr],
+    targets: Sequence[str],
+    names: dict[sp.Symbol, str],
+    temp_prefix: str = "c",
+) -> tuple[list[str], list[str]]:
+    """CSE of ``exprs``: the lines assigning the temporaries (named
+    ``<temp_prefix>0, 1, ...``) and those assigning each target."""
+    temps = sp.numbered_symbols("_c")
+    replacements, reduced = sp.cse(list(exprs), symbols=temps, order="none")
+    replacements, reduced = _hoist_power_bases(replacements, reduced, temps)
+    names = dict(names)
+    for k, (symbol, _) in enumerate(replacements):
+        names[symbol] = f"{temp_prefix}{k}"
+    printer = _ScalarPrinter(names)
+    temporaries = [
+        f"    {names[symbol]} = {printer.doprint(value)}" for symbol, value in replacements
+    ]
+    outputs = [
+        f"    {target} = {printer.doprint(value)}"
+        for target, value in zip(targets, reduced, strict=True)
+    ]
+    return temporaries, outputs
+
+
 def _block(
     name: str,
     signature: str,
@@ -257,26 +283,44 @@ def _block(
     returns: bool = False,
 ) -> list[str]:
     """Lines of one function: CSE temporaries, then one assignment per target."""
-    temps = sp.numbered_symbols("_c")
-    replacements, reduced = sp.cse(list(exprs), symbols=temps, order="none")
-    replacements, reduced = _hoist_power_bases(replacements, reduced, temps)
-    names = dict(names)
-    for k, (symbol, _) in enumerate(replacements):
-        names[symbol] = f"c{k}"
-    printer = _ScalarPrinter(names)
-    lines = [f"def {name}({signature}):", f'    """{doc}"""', *prologue]
-    for symbol, value in replacements:
-        lines.append(f"    {names[symbol]} = {printer.doprint(value)}")
+    temporaries, outputs = _body(exprs, ["return"] if returns else targets, names)
     if returns:
-        lines.append(f"    return {printer.doprint(reduced[0])}")
-    else:
-        for target, value in zip(targets, reduced, strict=True):
-            lines.append(f"    {target} = {printer.doprint(value)}")
-    return lines
+        outputs = [line.replace("return = ", "return ", 1) for line in outputs]
+    return [f"def {name}({signature}):", f'    """{doc}"""', *prologue, *temporaries, *outputs]
+
+
+def _rhs_jvp_block(rhs, jac, nonzero, dim: int, names: dict[sp.Symbol, str]) -> list[str]:
+    """``rhs_jvp(t, y, params, v, out, dout)``: f into ``out`` and J v into ``dout``.
+
+    The bodies of ``rhs`` and ``jac`` are repeated verbatim (their own CSE, so
+    f and every entry of J are the same expressions, evaluated in the same
+    order, as in those functions), and each row of J v is added in the order
+    k = 0, 1, ..., from 0.0, zero entries included: exactly what ``rhs``, then
+    ``jac`` and the loop's matrix-vector product compute, bit for bit.  One
+    call instead of two, and the compiler evaluates the sines and cosines
+    that f and J share once (they are the same pure expressions).
+    """
+    # Everything is read before anything is written: with no stores in
+    # between, the compiler may share the loads and the calls of f and J
+    # (it cannot assume that out, dout, y and v do not overlap).
+    f_temps, f_out = _body(rhs, [f"r{i}" for i in range(dim)], names, "f")
+    entry = {(i, j): f"j{i}_{j}" for i, j in nonzero}
+    j_temps, j_out = _body([jac[i, j] for i, j in nonzero], list(entry.values()), names, "g")
+    rows = []
+    for i in range(dim):
+        terms = [f"{entry.get((i, k), '0.0')}*v[{k}]" for k in range(dim)]
+        rows.append(f"    d{i} = " + "(" * dim + "0.0 + " + ") + ".join(terms) + ")")
+    stores = [f"    out[{i}] = r{i}" for i in range(dim)]
+    stores += [f"    dout[{i}] = d{i}" for i in range(dim)]
+    return [
+        "def rhs_jvp(t, y, params, v, out, dout):",
+        '    """out[:] = dy/dt and dout[:] = Jacobian of rhs at y, times v."""',
+        *f_temps, *f_out, *j_temps, *j_out, *rows, *stores,
+    ]  # fmt: skip
 
 
 def generate_source(ham: Hamiltonian) -> str:
-    """The text of a module defining ``rhs``, ``jac``, ``jvp`` and ``energy``.
+    """The text of a module defining ``rhs``, ``jac``, ``jvp``, ``rhs_jvp`` and ``energy``.
 
     Parameters
     ----------
@@ -349,6 +393,8 @@ def generate_source(ham: Hamiltonian) -> str:
         [f"out[{i}]" for i in range(dim)],
         names,
     )
+    lines += ["", ""]
+    lines += _rhs_jvp_block(rhs, jac, nonzero, dim, names)
     lines += ["", ""]
     lines += _block("energy", "t, y, params", "H at one state.", [ham.H], [], names, returns=True)
     lines += [

@@ -84,6 +84,7 @@ _STATS = {"compiled": 0, "loaded": 0, "compile_seconds": 0.0, "load_seconds": 0.
 _LOCK = threading.RLock()
 _SYSTEMS: dict[str, CompiledSystem] = {}
 _KERNEL: dict[str, Any] = {}
+_TANGENTS: dict[Any, Any] = {}  # compiled jac -> compiled rhs_jvp of the same system
 
 
 class BackendUnavailable(HamrkqError, RuntimeError):
@@ -181,13 +182,16 @@ def _types():
     vec, mat = nt.float64[::1], nt.float64[:, ::1]
     rhs = nt.void(nt.float64, vec, vec, vec)
     jac = nt.void(nt.float64, vec, vec, mat)
+    rhs_jvp = nt.void(nt.float64, vec, vec, vec, vec, vec)
     return {
         "rhs": rhs,
         "jac": jac,
+        "rhs_jvp": rhs_jvp,
         "energy": nt.float64(nt.float64, vec, vec),
         "energy_rows": nt.void(vec, mat, vec, vec),
         "rhs_type": nt.FunctionType(rhs),
         "jac_type": nt.FunctionType(jac),
+        "rhs_jvp_type": nt.FunctionType(rhs_jvp),
     }
 
 
@@ -222,10 +226,12 @@ def _jit(function: Callable, signature=None, **options):
 
 
 class CompiledSystem:
-    """The compiled ``rhs``, ``jac``, ``energy`` and ``energy_rows`` of one
-    Hamiltonian (numba dispatchers with fixed signatures).
+    """The compiled ``rhs``, ``jac``, ``rhs_jvp``, ``energy`` and ``energy_rows``
+    of one Hamiltonian (numba dispatchers with fixed signatures).
 
     ``rhs(t, y, params, out)``, ``jac(t, y, params, out)``,
+    ``rhs_jvp(t, y, params, v, out, dout)`` (f and J v at one point, the
+    loop's tangent propagation),
     ``energy(t, y, params) -> float`` and ``energy_rows(t, Y, params, out)``
     (``out[i] = H(t[i], Y[i])``).  ``path`` is the generated source file.
     """
@@ -238,11 +244,15 @@ class CompiledSystem:
         namespace: dict[str, Any] = {"math": math, "__name__": module.__name__}
         sig = _types()
         # energy first: energy_rows calls it through the namespace.
-        for name in ("rhs", "jac", "energy", "energy_rows"):
+        for name in ("rhs", "jac", "rhs_jvp", "energy", "energy_rows"):
             plain = types.FunctionType(getattr(module, name).__code__, namespace, name)
             namespace[name] = _jit(plain, sig[name])
         self.rhs = namespace["rhs"]
         self.jac = namespace["jac"]
+        self.rhs_jvp = namespace["rhs_jvp"]
+        # The loop is handed (rhs, jac) by rkq.run; it finds the fused
+        # function of the same system through its jac.
+        _TANGENTS[self.jac] = self.rhs_jvp
         self.energy = namespace["energy"]
         self.energy_rows = namespace["energy_rows"]
 
@@ -417,7 +427,8 @@ def _callees(function: types.FunctionType, namespace: dict[str, Any]) -> set[str
 
 def _kernel():
     """The compiled ``advance`` (memoised): rkq's source copied into the cache,
-    its loop functions and the primitives' twins compiled in that module."""
+    its loop (``_advance``, which takes the fused ``rhs_jvp`` besides ``rhs``
+    and ``jac``) and the primitives' twins compiled in that module."""
     with _LOCK:
         if "advance" in _KERNEL:
             return _KERNEL["advance"]
@@ -430,18 +441,19 @@ def _kernel():
         for name, twin in PRIMITIVES.items():
             if name in namespace:
                 namespace[name] = namespace[twin.__name__]
-        for name in [*sorted(_callees(namespace["advance"], namespace)), "advance"]:
+        for name in [*sorted(_callees(namespace["_advance"], namespace)), "_advance"]:
             namespace[name] = _jit(namespace[name])
-        _KERNEL["advance"] = _Advance(namespace["advance"])
+        _KERNEL["advance"] = _Advance(namespace["_advance"])
         _KERNEL["namespace"] = namespace
         return _KERNEL["advance"]
 
 
 class _Advance:
-    """Calls the compiled ``advance``, compiling (or loading from the disk
-    cache) the signature of its arguments first, with ``rhs`` and ``jac``
-    typed as function pointers rather than as the particular functions, so
-    that one compiled loop serves every system."""
+    """Calls the compiled ``_advance`` as ``advance(rhs, jac, *args)``, adding
+    the system's fused ``rhs_jvp`` (found through ``jac``) and compiling (or
+    loading from the disk cache) the signature of its arguments first, with
+    the functions typed as function pointers rather than as the particular
+    functions, so that one compiled loop serves every system."""
 
     def __init__(self, dispatcher):
         self.dispatcher = dispatcher
@@ -459,13 +471,14 @@ class _Advance:
         if seen not in self.seen:
             self._prepare(args)
             self.seen.add(seen)
-        return self.dispatcher(rhs, jac, *args)
+        return self.dispatcher(rhs, jac, _TANGENTS[jac], *args)
 
     def _prepare(self, args) -> None:
         import numba
 
         sig = _types()
-        key = (sig["rhs_type"], sig["jac_type"], *(numba.typeof(a) for a in args))
+        key = (sig["rhs_type"], sig["jac_type"], sig["rhs_jvp_type"],
+               *(numba.typeof(a) for a in args))  # fmt: skip
         if key not in self.dispatcher.signatures:
             dispatcher = self.dispatcher
             with warnings.catch_warnings():

@@ -222,17 +222,31 @@ def _rk_increment(rhs, t, hi, lo, h, A, b, c, params, K, yt, out, first_done):
     return nfev
 
 
-def _rk8_tangent(rhs, jac, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, JM, gam, out, dout):
+def _tangent(rhs, jac, JM):
+    """``tangent(t, y, params, v, out, dout)``: ``rhs`` into ``out`` and
+    J(t, y) v into ``dout``, from ``jac`` and :func:`_matvec` (``JM`` is the
+    scratch Jacobian).  The compiled backend passes instead a generated
+    function that computes the same bits in one call
+    (``rhs_jvp`` of :mod:`hamrkq.codegen`)."""
+
+    def tangent(t, y, params, v, out, dout):
+        rhs(t, y, params, out)
+        jac(t, y, params, JM)
+        _matvec(JM, v, dout)
+
+    return tangent
+
+
+def _rk8_tangent(tangent, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, gam, out, dout):
     """One RK8 step (increment into ``out``) and, alongside, its exact
     linearisation applied to ``gam`` (into ``dout``): dY_j = gam + h sum a dK,
-    dK_j = J(t + c_j h, Y_j) dY_j.  Returns the Jacobian evaluations made."""
+    dK_j = J(t + c_j h, Y_j) dY_j, with ``tangent`` (see :func:`_tangent`)
+    giving K_j and dK_j in one call.  Returns the Jacobian(-vector product)
+    evaluations made."""
     for j in range(b.shape[0]):
         _combine(hi, lo, h, A, j, K, yt)
-        tj = t + c[j] * h
-        rhs(tj, yt, params, K[j])
         _plain(gam, h, A, j, dK, dy)
-        jac(tj, yt, params, JM)
-        _matvec(JM, dy, dK[j])
+        tangent(t + c[j] * h, yt, params, dy, K[j], dK[j])
     _increment(h, b, K, out)
     _increment(h, b, dK, dout)
     np.add(dout, gam, dout)
@@ -305,6 +319,20 @@ def advance(
     Call again with the same state (and ``IS_NOUT`` reset for a fresh buffer)
     to continue.  See the module docstring for the conventions.
     """
+    return _advance(
+        rhs, jac, _tangent(rhs, jac, JM), params, A3, b3, c3, A4, b4, c4, A8, b8, c8,
+        t_eval, atol, rtol, iopt, fopt, fstate, istate, X, K4, K3, K8, dK8, JM,
+        out_t, out_y, out_z, out_gamma, out_q, budget,
+    )  # fmt: skip
+
+
+def _advance(
+    rhs, jac, tangent, params, A3, b3, c3, A4, b4, c4, A8, b8, c8, t_eval, atol, rtol,
+    iopt, fopt, fstate, istate, X, K4, K3, K8, dK8, JM,
+    out_t, out_y, out_z, out_gamma, out_q, budget,
+):  # fmt: skip
+    """:func:`advance` with the fused ``tangent(t, y, params, v, out, dout)``
+    (see :func:`_tangent`); this is the function the compiled backend compiles."""
     quench_mode = iopt[IO_QUENCH]
     rule = iopt[IO_RULE]
     gmode = iopt[IO_GAMMA]
@@ -409,8 +437,8 @@ def advance(
             if not (istate[IS_CACHED] and fstate[FS_CACHE_H] == h):
                 if gmode == GAMMA_TANGENT:
                     istate[IS_NJEV] += _rk8_tangent(
-                        rhs, jac, t, zhi, zlo, h, A8, b8, c8, params, K8, dK8, X[YT],
-                        X[DY], JM, gam, X[INCH], X[DINC],
+                        tangent, t, zhi, zlo, h, A8, b8, c8, params, K8, dK8, X[YT],
+                        X[DY], gam, X[INCH], X[DINC],
                     )  # fmt: skip
                     istate[IS_NFEV] += s8
                 else:
