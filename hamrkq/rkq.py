@@ -357,6 +357,11 @@ def _advance(
     zhi = X[ZHI]
     zlo = X[ZLO]
     gam = X[GAM]
+    # Views of the scratch rows, made once per call: under numba each view
+    # made inside the loop costs two atomic reference-count updates.
+    k1, yt, inc4, inc3, w4 = X[K1], X[YT], X[INC4], X[INC3], X[W4]
+    tmp, tmp2, dlt, dy, inch, dinc = X[TMP], X[TMP2], X[DEL], X[DY], X[INCH], X[DINC]
+    nhi, nlo, gnew, noise, rho2 = X[NHI], X[NLO], X[GNEW], X[NOISE], X[RHO2]
     attempts = 0
     while True:
         if istate[IS_NOUT] >= cap:
@@ -389,35 +394,35 @@ def _advance(
 
         # 1. Local extrapolation: RK3 and RK4 from u, sharing their first stages.
         if not istate[IS_K1_VALID]:
-            rhs(t, u, params, X[K1])
+            rhs(t, u, params, k1)
             istate[IS_NFEV] += 1
-            if not _finite(X[K1]):
+            if not _finite(k1):
                 fstate[FS_FAIL_H] = h
                 return _stop(ST_NON_FINITE, X, fstate, istate, out_t, out_y, out_z,
                              out_gamma, out_q, rk8, use_teval)  # fmt: skip
             istate[IS_K1_VALID] = 1
-        K4[0] = X[K1]
+        K4[0] = k1
         for j in range(1, s4):
-            _plain(u, h, A4, j, K4, X[YT])
-            rhs(t + c4[j] * h, X[YT], params, K4[j])
+            _plain(u, h, A4, j, K4, yt)
+            rhs(t + c4[j] * h, yt, params, K4[j])
         for j in range(shared):
             K3[j] = K4[j]
         for j in range(shared, s3):
-            _plain(u, h, A3, j, K3, X[YT])
-            rhs(t + c3[j] * h, X[YT], params, K3[j])
+            _plain(u, h, A3, j, K3, yt)
+            rhs(t + c3[j] * h, yt, params, K3[j])
         istate[IS_NFEV] += s4 - 1 + s3 - shared
-        _increment(h, b4, K4, X[INC4])
-        _increment(h, b3, K3, X[INC3])
-        np.add(u, X[INC4], X[W4])
-        np.subtract(X[INC3], X[INC4], X[TMP2])  # e = w3 - w4, from the increments
-        if not (_finite(X[TMP2]) and _finite(X[W4])):
+        _increment(h, b4, K4, inc4)
+        _increment(h, b3, K3, inc3)
+        np.add(u, inc4, w4)
+        np.subtract(inc3, inc4, tmp2)  # e = w3 - w4, from the increments
+        if not (_finite(tmp2) and _finite(w4)):
             fstate[FS_H] = h * MIN_FACTOR
             istate[IS_REJECTED] += 1
             istate[IS_PREV_REJECTED] = 1
             istate[IS_LAST_NONFINITE] = 1
             continue
-        _delta(atol, rtol, u, X[W4], rel, rule, X[DEL], X[TMP])
-        err = _wnorm(X[TMP2], X[DEL], X[TMP])
+        _delta(atol, rtol, u, w4, rel, rule, dlt, tmp)
+        err = _wnorm(tmp2, dlt, tmp)
         if err > 1.0:
             fstate[FS_H] = h * max(MIN_FACTOR, safety * err**-0.25)
             istate[IS_REJECTED] += 1
@@ -437,16 +442,16 @@ def _advance(
             if not (istate[IS_CACHED] and fstate[FS_CACHE_H] == h):
                 if gmode == GAMMA_TANGENT:
                     istate[IS_NJEV] += _rk8_tangent(
-                        tangent, t, zhi, zlo, h, A8, b8, c8, params, K8, dK8, X[YT],
-                        X[DY], gam, X[INCH], X[DINC],
+                        tangent, t, zhi, zlo, h, A8, b8, c8, params, K8, dK8, yt,
+                        dy, gam, inch, dinc,
                     )  # fmt: skip
                     istate[IS_NFEV] += s8
                 else:
                     istate[IS_NFEV] += _rk_increment(
-                        rhs, t, zhi, zlo, h, A8, b8, c8, params, K8, X[YT], X[INCH], False
+                        rhs, t, zhi, zlo, h, A8, b8, c8, params, K8, yt, inch, False
                     )
-                _two_sum(zhi, zlo, X[INCH], X[NHI], X[NLO], X[TMP], X[TMP2])
-                if not _finite(X[NHI]):
+                _two_sum(zhi, zlo, inch, nhi, nlo, tmp, tmp2)
+                if not _finite(nhi):
                     fstate[FS_H] = h * MIN_FACTOR
                     istate[IS_REJECTED] += 1
                     istate[IS_PREV_REJECTED] = 1
@@ -456,9 +461,9 @@ def _advance(
                 istate[IS_CACHED] = 1
                 fstate[FS_CACHE_H] = h
             # 3.-4. Global error of the candidate at the new node; quench.
-            np.subtract(X[W4], X[NHI], X[TMP2])
-            _delta(atol, rtol, X[W4], X[W4], rel, rule, X[DEL], X[TMP])
-            gnorm = _wnorm(X[TMP2], X[DEL], X[TMP])
+            np.subtract(w4, nhi, tmp2)
+            _delta(atol, rtol, w4, w4, rel, rule, dlt, tmp)
+            gnorm = _wnorm(tmp2, dlt, tmp)
             if gnorm > theta:
                 if quench_mode == QUENCH_REDO and not istate[IS_REDO]:
                     # Restart the same step from the RK8 value at t_i.
@@ -468,21 +473,21 @@ def _advance(
                     istate[IS_K1_VALID] = 0
                     fstate[FS_H] = h_free
                     continue
-                u[:] = X[NHI]
+                u[:] = nhi
                 quenched = 1
                 istate[IS_QUENCHES] += 1
             else:
-                u[:] = X[W4]
+                u[:] = w4
                 quenched = istate[IS_REDO]
-            zhi[:] = X[NHI]
-            zlo[:] = X[NLO]
-            gam[:] = X[GNEW]
-            np.multiply(X[NOISE], X[NOISE], X[TMP])
-            np.add(X[RHO2], X[TMP], X[RHO2])
+            zhi[:] = nhi
+            zlo[:] = nlo
+            gam[:] = gnew
+            np.multiply(noise, noise, tmp)
+            np.add(rho2, tmp, rho2)
             istate[IS_ROUNDOFF_STEPS] += istate[IS_CACHE_ROUNDOFF]
             istate[IS_CACHED] = 0
         else:
-            u[:] = X[W4]
+            u[:] = w4
         istate[IS_REDO] = 0
 
         # 5. The new node: time by compensated summation, or exactly the target.
@@ -534,61 +539,63 @@ def _rk8_gamma(rhs, jac, t, h, A8, b8, c8, params, K8, X, JM, gmode, rich, istat
     zlo = X[ZLO]
     gam = X[GAM]
     scale = ROUNDOFF_ULPS * EPS
+    yt, inca, incb, mhi, mlo = X[YT], X[INCA], X[INCB], X[MHI], X[MLO]
+    tmp, tmp2, inch, dinc, gnew, noise = X[TMP], X[TMP2], X[INCH], X[DINC], X[GNEW], X[NOISE]
     if gmode == GAMMA_OFF:
-        np.abs(X[INCH], X[NOISE])
-        np.multiply(X[NOISE], scale, X[NOISE])
-        X[GNEW][:] = 0.0
+        np.abs(inch, noise)
+        np.multiply(noise, scale, noise)
+        gnew[:] = 0.0
         istate[IS_CACHE_ROUNDOFF] = 0
         return
     # Richardson: two half steps from z_i (K8[0] = f(t, z_i) is the full step's).
     half = 0.5 * h
     istate[IS_NFEV] += _rk_increment(
-        rhs, t, zhi, zlo, half, A8, b8, c8, params, K8, X[YT], X[INCA], True
+        rhs, t, zhi, zlo, half, A8, b8, c8, params, K8, yt, inca, True
     )
-    _two_sum(zhi, zlo, X[INCA], X[MHI], X[MLO], X[TMP], X[TMP2])
+    _two_sum(zhi, zlo, inca, mhi, mlo, tmp, tmp2)
     istate[IS_NFEV] += _rk_increment(
-        rhs, t + half, X[MHI], X[MLO], half, A8, b8, c8, params, K8, X[YT], X[INCB], False
+        rhs, t + half, mhi, mlo, half, A8, b8, c8, params, K8, yt, incb, False
     )
-    d = X[TMP]
-    np.subtract(X[INCH], X[INCA], d)
-    np.subtract(d, X[INCB], d)  # y_h - y_{h/2,h/2}, free of the rounding of |z|
-    noise = X[NOISE]
-    np.abs(X[INCH], noise)
-    np.abs(X[INCA], X[TMP2])
-    np.add(noise, X[TMP2], noise)
-    np.abs(X[INCB], X[TMP2])
-    np.add(noise, X[TMP2], noise)
+    d = tmp
+    np.subtract(inch, inca, d)
+    np.subtract(d, incb, d)  # y_h - y_{h/2,h/2}, free of the rounding of |z|
+    np.abs(inch, noise)
+    np.abs(inca, tmp2)
+    np.add(noise, tmp2, noise)
+    np.abs(incb, tmp2)
+    np.add(noise, tmp2, noise)
     np.multiply(noise, scale, noise)
-    np.abs(d, X[TMP2])
-    np.subtract(X[TMP2], noise, X[TMP2])
-    istate[IS_CACHE_ROUNDOFF] = 1 if X[TMP2].max() <= 0.0 else 0
+    np.abs(d, tmp2)
+    np.subtract(tmp2, noise, tmp2)
+    istate[IS_CACHE_ROUNDOFF] = 1 if tmp2.max() <= 0.0 else 0
     np.multiply(d, rich, d)  # the local error of the h step, numerical minus exact
     if gmode == GAMMA_TANGENT:
-        np.add(d, X[DINC], X[GNEW])
+        np.add(d, dinc, gnew)
     else:
         # The paper's propagation: (I + h J(t_i, z_i)) Gamma_i.
-        np.add(zhi, zlo, X[YT])
-        jac(t, X[YT], params, JM)
+        np.add(zhi, zlo, yt)
+        jac(t, yt, params, JM)
         istate[IS_NJEV] += 1
-        _matvec(JM, gam, X[GNEW])
-        np.multiply(X[GNEW], h, X[GNEW])
-        np.add(X[GNEW], gam, X[GNEW])
-        np.add(X[GNEW], d, X[GNEW])
+        _matvec(JM, gam, gnew)
+        np.multiply(gnew, h, gnew)
+        np.add(gnew, gam, gnew)
+        np.add(gnew, d, gnew)
 
 
 def _attainability(X, atol, rtol, rel, rule):
     """max_k (|Gamma_k| + rho_k + eps |z_k|) / delta_k at the current node:
     the RK8 track's estimated error, its accumulated rounding, and the
     rounding of the stored value, against the tolerance."""
-    np.sqrt(X[RHO2], X[TMP])
-    np.abs(X[ZHI], X[TMP2])
-    np.multiply(X[TMP2], EPS, X[TMP2])
-    np.add(X[TMP], X[TMP2], X[TMP])
-    np.abs(X[GAM], X[TMP2])
-    np.add(X[TMP], X[TMP2], X[TMP])
-    _delta(atol, rtol, X[U], X[U], rel, rule, X[DEL], X[TMP2])
-    np.divide(X[TMP], X[DEL], X[TMP])
-    return X[TMP].max()
+    tmp, tmp2 = X[TMP], X[TMP2]
+    np.sqrt(X[RHO2], tmp)
+    np.abs(X[ZHI], tmp2)
+    np.multiply(tmp2, EPS, tmp2)
+    np.add(tmp, tmp2, tmp)
+    np.abs(X[GAM], tmp2)
+    np.add(tmp, tmp2, tmp)
+    _delta(atol, rtol, X[U], X[U], rel, rule, X[DEL], tmp2)
+    np.divide(tmp, X[DEL], tmp)
+    return tmp.max()
 
 
 # -- the Python driver ---------------------------------------------------------
