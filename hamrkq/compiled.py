@@ -324,6 +324,22 @@ def _plain_loops(base, h, A, j, K, out):
         out[i] = _stage_sum(A, j, K, i) * h + base[i] if j else base[i]
 
 
+def _max_loops(x):
+    top = -math.inf
+    for i in range(x.shape[0]):
+        value = x[i]
+        if value != value:  # NaN wins, like ndarray.max
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+def _copy_loops(src, out):
+    for i in range(out.shape[0]):
+        out[i] = src[i]
+
+
 def _matvec_loops(M, v, out):
     for i in range(out.shape[0]):
         acc = 0.0
@@ -378,6 +394,8 @@ def _wnorm_loops(e, delta, tmp):
 
 #: rkq primitive -> its element-loop twin, swapped in when compiling.
 PRIMITIVES: dict[str, Callable] = {
+    "_copy": _copy_loops,
+    "_max": _max_loops,
     "_combine": _combine_loops,
     "_plain": _plain_loops,
     "_increment": _increment_loops,
@@ -442,7 +460,11 @@ def _kernel():
             if name in namespace:
                 namespace[name] = namespace[twin.__name__]
         for name in [*sorted(_callees(namespace["_advance"], namespace)), "_advance"]:
-            namespace[name] = _jit(namespace[name])
+            # Without numba's runtime (NRT): the loop allocates nothing, and
+            # with the runtime every array view and every array argument
+            # costs atomic reference-count updates (measured: about a third
+            # of the run time).  A stray allocation fails to compile.
+            namespace[name] = _jit(namespace[name], _nrt=False)
         _KERNEL["advance"] = _Advance(namespace["_advance"])
         _KERNEL["namespace"] = namespace
         return _KERNEL["advance"]

@@ -147,6 +147,19 @@ def _matvec(M, v, out):
     np.add.reduce(np.multiply(M.T, v[:, None], order="C"), axis=0, out=out)
 
 
+def _max(x):
+    """x.max() (NaN if any element is NaN)."""
+    return x.max()
+
+
+def _copy(src, out):
+    """out[:] = src.  (A function, so that the compiled backend can swap in an
+    element loop: numba's slice assignment allocates a temporary when it
+    cannot rule out overlap, and the compiled loop runs without numba's
+    allocator.)"""
+    out[:] = src
+
+
 def _combine(base, lo, h, A, j, K, out):
     """out = base + (lo + h * sum_{l<j} A[j, l] K[l])  (lo: low-order part)."""
     if j == 0:
@@ -205,7 +218,7 @@ def _wnorm(e, delta, tmp):
     """Weighted max norm max_k |e_k| / delta_k."""
     np.abs(e, tmp)
     np.divide(tmp, delta, tmp)
-    return tmp.max()
+    return _max(tmp)
 
 
 def _rk_increment(rhs, t, hi, lo, h, A, b, c, params, K, yt, out, first_done):
@@ -256,10 +269,10 @@ def _rk8_tangent(tangent, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, gam, out
 def _write(X, t, quenched, istate, out_t, out_y, out_z, out_gamma, out_q, rk8):
     n = istate[IS_NOUT]
     out_t[n] = t
-    out_y[n] = X[U]
+    _copy(X[U], out_y[n])
     if rk8:
-        out_z[n] = X[ZHI]
-        out_gamma[n] = X[GAM]
+        _copy(X[ZHI], out_z[n])
+        _copy(X[GAM], out_gamma[n])
         out_q[n] = quenched
     # Count the node only once it is complete: an interrupt never leaves half a row.
     istate[IS_NOUT] = n + 1
@@ -401,12 +414,12 @@ def _advance(
                 return _stop(ST_NON_FINITE, X, fstate, istate, out_t, out_y, out_z,
                              out_gamma, out_q, rk8, use_teval)  # fmt: skip
             istate[IS_K1_VALID] = 1
-        K4[0] = k1
+        _copy(k1, K4[0])
         for j in range(1, s4):
             _plain(u, h, A4, j, K4, yt)
             rhs(t + c4[j] * h, yt, params, K4[j])
         for j in range(shared):
-            K3[j] = K4[j]
+            _copy(K4[j], K3[j])
         for j in range(shared, s3):
             _plain(u, h, A3, j, K3, yt)
             rhs(t + c3[j] * h, yt, params, K3[j])
@@ -467,27 +480,27 @@ def _advance(
             if gnorm > theta:
                 if quench_mode == QUENCH_REDO and not istate[IS_REDO]:
                     # Restart the same step from the RK8 value at t_i.
-                    u[:] = zhi
+                    _copy(zhi, u)
                     istate[IS_REDO] = 1
                     istate[IS_QUENCHES] += 1
                     istate[IS_K1_VALID] = 0
                     fstate[FS_H] = h_free
                     continue
-                u[:] = nhi
+                _copy(nhi, u)
                 quenched = 1
                 istate[IS_QUENCHES] += 1
             else:
-                u[:] = w4
+                _copy(w4, u)
                 quenched = istate[IS_REDO]
-            zhi[:] = nhi
-            zlo[:] = nlo
-            gam[:] = gnew
+            _copy(nhi, zhi)
+            _copy(nlo, zlo)
+            _copy(gnew, gam)
             np.multiply(noise, noise, tmp)
             np.add(rho2, tmp, rho2)
             istate[IS_ROUNDOFF_STEPS] += istate[IS_CACHE_ROUNDOFF]
             istate[IS_CACHED] = 0
         else:
-            u[:] = w4
+            _copy(w4, u)
         istate[IS_REDO] = 0
 
         # 5. The new node: time by compensated summation, or exactly the target.
@@ -567,7 +580,7 @@ def _rk8_gamma(rhs, jac, t, h, A8, b8, c8, params, K8, X, JM, gmode, rich, istat
     np.multiply(noise, scale, noise)
     np.abs(d, tmp2)
     np.subtract(tmp2, noise, tmp2)
-    istate[IS_CACHE_ROUNDOFF] = 1 if tmp2.max() <= 0.0 else 0
+    istate[IS_CACHE_ROUNDOFF] = 1 if _max(tmp2) <= 0.0 else 0
     np.multiply(d, rich, d)  # the local error of the h step, numerical minus exact
     if gmode == GAMMA_TANGENT:
         np.add(d, dinc, gnew)
@@ -595,7 +608,7 @@ def _attainability(X, atol, rtol, rel, rule):
     np.add(tmp, tmp2, tmp)
     _delta(atol, rtol, X[U], X[U], rel, rule, X[DEL], tmp2)
     np.divide(tmp, X[DEL], tmp)
-    return tmp.max()
+    return _max(tmp)
 
 
 # -- the Python driver ---------------------------------------------------------

@@ -204,6 +204,25 @@ def test_two_sum_delta_and_norm_match_rkq_bit_for_bit(kernel):
                 assert got == expected or (np.isnan(got) and np.isnan(expected))
 
 
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
+def test_copy_and_max_match_rkq_bit_for_bit(kernel):
+    """The compiled loop runs without numba's runtime, so slice copies and
+    ndarray.max (which would need it) are element loops: same values, and
+    NaN wins the maximum as in NumPy."""
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        dim = int(rng.integers(1, 40))
+        x = rng.standard_normal(dim) * 10.0 ** rng.integers(-300, 300)
+        if rng.random() < 0.4:
+            x[rng.integers(dim)] = rng.choice([np.nan, np.inf, -np.inf, -0.0])
+        expected, got = np.full(dim, 5.0), np.full(dim, 7.0)
+        rkq._copy(x, expected)
+        kernel["_copy"](x, got)
+        assert got.tobytes() == expected.tobytes() == x.tobytes()
+        want, have = rkq._max(x), kernel["_max"](x)
+        assert have == want or (np.isnan(have) and np.isnan(want))
+
+
 # -- parameters, cache, counters ---------------------------------------------------
 
 
