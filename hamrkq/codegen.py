@@ -63,7 +63,7 @@ __all__ = [
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 4
+CODEGEN_VERSION = 5
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
 #: Prefix of generated module names (``sys.modules`` keys and file stems).
@@ -282,11 +282,23 @@ def _block(
     prologue: Sequence[str] = (),
     returns: bool = False,
 ) -> list[str]:
-    """Lines of one function: CSE temporaries, then one assignment per target."""
-    temporaries, outputs = _body(exprs, ["return"] if returns else targets, names)
+    """Lines of one function: CSE temporaries, then one assignment per target.
+
+    The targets (array items) are assigned last, from local values: with no
+    store between the loads, the compiler may share the loads of ``y`` and
+    the calls on them (a sine and a cosine of the same angle become one
+    ``sincos``), which it cannot when a store to ``out`` might change ``y``.
+    The ``prologue`` (zeroing the output) runs after the computation too.
+    """
     if returns:
+        temporaries, outputs = _body(exprs, ["return"], names)
         outputs = [line.replace("return = ", "return ", 1) for line in outputs]
-    return [f"def {name}({signature}):", f'    """{doc}"""', *prologue, *temporaries, *outputs]
+        stores: list[str] = []
+    else:
+        values = [f"r{k}" for k in range(len(targets))]
+        temporaries, outputs = _body(exprs, values, names)
+        stores = [*prologue, *(f"    {t} = {v}" for t, v in zip(targets, values, strict=True))]
+    return [f"def {name}({signature}):", f'    """{doc}"""', *temporaries, *outputs, *stores]
 
 
 def _rhs_jvp_block(rhs, jac, nonzero, dim: int, names: dict[sp.Symbol, str]) -> list[str]:
