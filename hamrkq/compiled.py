@@ -85,6 +85,7 @@ _LOCK = threading.RLock()
 _SYSTEMS: dict[str, CompiledSystem] = {}
 _KERNEL: dict[str, Any] = {}
 _TANGENTS: dict[Any, Any] = {}  # compiled jac -> compiled rhs_jvp of the same system
+_POINTERS: dict[tuple, tuple] = {}  # (rhs, jac) -> the loop's three function pointers
 
 
 class BackendUnavailable(HamrkqError, RuntimeError):
@@ -470,6 +471,36 @@ def _kernel():
         return _KERNEL["advance"]
 
 
+def _pointers(rhs, jac) -> tuple:
+    """``rhs``, ``jac`` and the system's ``rhs_jvp`` as function pointers
+    whose addresses are looked up once (memoised): numba would otherwise
+    look up a dispatcher's address on every call of the loop, which costs
+    about a tenth of a millisecond each time."""
+    from numba.core.types import WrapperAddressProtocol
+    from numba.experimental.function_type import _get_wrapper_address
+
+    class Pointer(WrapperAddressProtocol):
+        def __init__(self, function, signature):
+            self._function = function  # keeps the machine code alive
+            self._signature = signature
+            self._address = _get_wrapper_address(function, signature)
+
+        def __wrapper_address__(self):
+            return self._address
+
+        def signature(self):
+            return self._signature
+
+    sig = _types()
+    pointers = (
+        Pointer(rhs, sig["rhs"]),
+        Pointer(jac, sig["jac"]),
+        Pointer(_TANGENTS[jac], sig["rhs_jvp"]),
+    )
+    _POINTERS[(rhs, jac)] = pointers
+    return pointers
+
+
 class _Advance:
     """Calls the compiled ``_advance`` as ``advance(rhs, jac, *args)``, adding
     the system's fused ``rhs_jvp`` (found through ``jac``) and compiling (or
@@ -493,7 +524,10 @@ class _Advance:
         if seen not in self.seen:
             self._prepare(args)
             self.seen.add(seen)
-        return self.dispatcher(rhs, jac, _TANGENTS[jac], *args)
+        pointers = _POINTERS.get((rhs, jac))
+        if pointers is None:
+            pointers = _pointers(rhs, jac)
+        return self.dispatcher(*pointers, *args)
 
     def _prepare(self, args) -> None:
         import numba
