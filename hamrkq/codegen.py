@@ -7,7 +7,7 @@ into the text of a small Python module of plain scalar functions::
     rhs(t, y, params, out)        # out[:] = dy/dt
     jac(t, y, params, out)        # out[:, :] = d rhs / dy
     jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
-    rhs_jvp(t, y, params, v, out, dout)  # rhs and J @ v at one point, fused
+    rhs_jvp(t, y, params, v, out, dout, JM)  # rhs and J @ v at one point
     energy(t, y, params) -> float # H
     energy_rows(t, Y, params, out) # out[i] = H(t[i], Y[i])
 
@@ -63,9 +63,13 @@ __all__ = [
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 5
+CODEGEN_VERSION = 6
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
+#: Largest dimension for which rhs_jvp repeats the bodies of rhs and jac
+#: (fused); above it rhs_jvp calls them (numba's compile time grows with the
+#: length of a function: outer_solar_system's fused rhs_jvp took 13 s more).
+MAX_FUSED_DIM = 12
 #: Prefix of generated module names (``sys.modules`` keys and file stems).
 MODULE_PREFIX = "hamrkq_gen_"
 
@@ -302,7 +306,11 @@ def _block(
 
 
 def _rhs_jvp_block(rhs, jac, nonzero, dim: int, names: dict[sp.Symbol, str]) -> list[str]:
-    """``rhs_jvp(t, y, params, v, out, dout)``: f into ``out`` and J v into ``dout``.
+    """``rhs_jvp(t, y, params, v, out, dout, JM)``: f into ``out`` and J v
+    into ``dout`` (``JM`` is a scratch Jacobian).
+
+    Above :data:`MAX_FUSED_DIM` it calls ``rhs``, ``jac`` (into ``JM``) and
+    adds the rows of ``JM v`` in order, which is quick to compile.  Up to it:
 
     The bodies of ``rhs`` and ``jac`` are repeated verbatim (their own CSE, so
     f and every entry of J are the same expressions, evaluated in the same
@@ -312,6 +320,18 @@ def _rhs_jvp_block(rhs, jac, nonzero, dim: int, names: dict[sp.Symbol, str]) -> 
     call instead of two, and the compiler evaluates the sines and cosines
     that f and J share once (they are the same pure expressions).
     """
+    if dim > MAX_FUSED_DIM:
+        return [
+            "def rhs_jvp(t, y, params, v, out, dout, JM):",
+            '    """out[:] = dy/dt and dout[:] = Jacobian of rhs at y, times v."""',
+            "    rhs(t, y, params, out)",
+            "    jac(t, y, params, JM)",
+            "    for i in range(JM.shape[0]):",
+            "        acc = 0.0",
+            "        for k in range(JM.shape[1]):",
+            "            acc += JM[i, k] * v[k]",
+            "        dout[i] = acc",
+        ]
     # Everything is read before anything is written: with no stores in
     # between, the compiler may share the loads and the calls of f and J
     # (it cannot assume that out, dout, y and v do not overlap).
@@ -325,7 +345,7 @@ def _rhs_jvp_block(rhs, jac, nonzero, dim: int, names: dict[sp.Symbol, str]) -> 
     stores = [f"    out[{i}] = r{i}" for i in range(dim)]
     stores += [f"    dout[{i}] = d{i}" for i in range(dim)]
     return [
-        "def rhs_jvp(t, y, params, v, out, dout):",
+        "def rhs_jvp(t, y, params, v, out, dout, JM):",
         '    """out[:] = dy/dt and dout[:] = Jacobian of rhs at y, times v."""',
         *f_temps, *f_out, *j_temps, *j_out, *rows, *stores,
     ]  # fmt: skip

@@ -183,7 +183,7 @@ def _types():
     vec, mat = nt.float64[::1], nt.float64[:, ::1]
     rhs = nt.void(nt.float64, vec, vec, vec)
     jac = nt.void(nt.float64, vec, vec, mat)
-    rhs_jvp = nt.void(nt.float64, vec, vec, vec, vec, vec)
+    rhs_jvp = nt.void(nt.float64, vec, vec, vec, vec, vec, mat)
     return {
         "rhs": rhs,
         "jac": jac,
@@ -231,7 +231,7 @@ class CompiledSystem:
     of one Hamiltonian (numba dispatchers with fixed signatures).
 
     ``rhs(t, y, params, out)``, ``jac(t, y, params, out)``,
-    ``rhs_jvp(t, y, params, v, out, dout)`` (f and J v at one point, the
+    ``rhs_jvp(t, y, params, v, out, dout, JM)`` (f and J v at one point, the
     loop's tangent propagation),
     ``energy(t, y, params) -> float`` and ``energy_rows(t, Y, params, out)``
     (``out[i] = H(t[i], Y[i])``).  ``path`` is the generated source file.

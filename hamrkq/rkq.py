@@ -235,14 +235,14 @@ def _rk_increment(rhs, t, hi, lo, h, A, b, c, params, K, yt, out, first_done):
     return nfev
 
 
-def _tangent(rhs, jac, JM):
-    """``tangent(t, y, params, v, out, dout)``: ``rhs`` into ``out`` and
-    J(t, y) v into ``dout``, from ``jac`` and :func:`_matvec` (``JM`` is the
-    scratch Jacobian).  The compiled backend passes instead a generated
-    function that computes the same bits in one call
-    (``rhs_jvp`` of :mod:`hamrkq.codegen`)."""
+def _tangent(rhs, jac):
+    """``tangent(t, y, params, v, out, dout, JM)``: ``rhs`` into ``out`` and
+    J(t, y) v into ``dout``, from ``jac`` (into the scratch ``JM``) and
+    :func:`_matvec`.  The compiled backend passes instead a generated
+    function that computes the same bits (``rhs_jvp`` of
+    :mod:`hamrkq.codegen`, in one call for small systems)."""
 
-    def tangent(t, y, params, v, out, dout):
+    def tangent(t, y, params, v, out, dout, JM):
         rhs(t, y, params, out)
         jac(t, y, params, JM)
         _matvec(JM, v, dout)
@@ -250,7 +250,7 @@ def _tangent(rhs, jac, JM):
     return tangent
 
 
-def _rk8_tangent(tangent, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, gam, out, dout):
+def _rk8_tangent(tangent, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, JM, gam, out, dout):
     """One RK8 step (increment into ``out``) and, alongside, its exact
     linearisation applied to ``gam`` (into ``dout``): dY_j = gam + h sum a dK,
     dK_j = J(t + c_j h, Y_j) dY_j, with ``tangent`` (see :func:`_tangent`)
@@ -259,7 +259,7 @@ def _rk8_tangent(tangent, t, hi, lo, h, A, b, c, params, K, dK, yt, dy, gam, out
     for j in range(b.shape[0]):
         _combine(hi, lo, h, A, j, K, yt)
         _plain(gam, h, A, j, dK, dy)
-        tangent(t + c[j] * h, yt, params, dy, K[j], dK[j])
+        tangent(t + c[j] * h, yt, params, dy, K[j], dK[j], JM)
     _increment(h, b, K, out)
     _increment(h, b, dK, dout)
     np.add(dout, gam, dout)
@@ -333,7 +333,7 @@ def advance(
     to continue.  See the module docstring for the conventions.
     """
     return _advance(
-        rhs, jac, _tangent(rhs, jac, JM), params, A3, b3, c3, A4, b4, c4, A8, b8, c8,
+        rhs, jac, _tangent(rhs, jac), params, A3, b3, c3, A4, b4, c4, A8, b8, c8,
         t_eval, atol, rtol, iopt, fopt, fstate, istate, X, K4, K3, K8, dK8, JM,
         out_t, out_y, out_z, out_gamma, out_q, budget,
     )  # fmt: skip
@@ -456,7 +456,7 @@ def _advance(
                 if gmode == GAMMA_TANGENT:
                     istate[IS_NJEV] += _rk8_tangent(
                         tangent, t, zhi, zlo, h, A8, b8, c8, params, K8, dK8, yt,
-                        dy, gam, inch, dinc,
+                        dy, JM, gam, inch, dinc,
                     )  # fmt: skip
                     istate[IS_NFEV] += s8
                 else:

@@ -87,7 +87,7 @@ def test_fused_rhs_jvp_is_rhs_then_jac_then_matvec_bit_for_bit(generated, name):
             rkq._matvec(J, v, by_numpy)
             compiled._matvec_loops(J, v, by_loops)
             fused_f, fused_jv = np.full(dim, np.nan), np.full(dim, np.nan)
-            module.rhs_jvp(t, y, params, v, fused_f, fused_jv)
+            module.rhs_jvp(t, y, params, v, fused_f, fused_jv, np.full((dim, dim), np.nan))
             assert f.tobytes() == fused_f.tobytes()
             assert by_loops.tobytes() == fused_jv.tobytes()
             np.testing.assert_array_equal(by_numpy, fused_jv)
@@ -165,7 +165,8 @@ def test_user_names_never_reach_the_source(tmp_path):
     # Only the names the generator itself uses appear as identifiers.
     tree = ast.parse(source)
     identifiers = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
-    allowed = {"math", "t", "y", "params", "out", "dout", "v", "Y", "i", "range", "energy"}
+    allowed = {"math", "t", "y", "params", "out", "dout", "JM", "v", "Y", "i", "k", "acc", "range",
+               "energy"}  # fmt: skip
     # Numbered temporaries: c0 (CSE), f0/g0 (rhs_jvp's two CSEs), r0/d0 (its
     # outputs), j0_1 (its Jacobian entries).
     temporaries = {n for n in identifiers if re.fullmatch(r"[cfgrd][0-9]+|j[0-9]+_[0-9]+", n)}

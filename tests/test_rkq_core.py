@@ -69,10 +69,10 @@ def test_tangent_propagation_is_the_linearisation_of_the_rk8_step():
     h = 0.3
     K, dK = np.zeros((12, 2)), np.zeros((12, 2))
     inc, dinc = np.zeros(2), np.zeros(2)
-    tangent = rkq._tangent(inplace(pendulum_f), inplace(pendulum_j), np.zeros((2, 2)))
+    tangent = rkq._tangent(inplace(pendulum_f), inplace(pendulum_j))
     njev = rkq._rk8_tangent(tangent, 0.0, y, np.zeros(2), h, DOP853_RK8.A, DOP853_RK8.b,
-                            DOP853_RK8.c, None, K, dK, np.zeros(2), np.zeros(2), v, inc,
-                            dinc)  # fmt: skip
+                            DOP853_RK8.c, None, K, dK, np.zeros(2), np.zeros(2),
+                            np.zeros((2, 2)), v, inc, dinc)  # fmt: skip
     eps = 1e-5
     central = (rk8_step(pendulum_f, y + eps * v, h) - rk8_step(pendulum_f, y - eps * v, h)) / (
         2 * eps
