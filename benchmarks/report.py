@@ -36,7 +36,7 @@ How to read it:
   interpreted `ham.numeric.rhs`, the kind of `f` a SciPy user writes.
   `rk34` (local extrapolation only, the paper's comparison) runs at hamrkq's
   tolerance and shows what the global-error control buys.
-- **References.**  prentice2011: `hamrkq.reference.periodic_reference` (one
+- **References.**  prentice2011: `hamrkq.analysis.reference.periodic_reference` (one
   period at SciPy's tightest tolerance, Newton on the period); kepler: the exact
   solution (Kepler's equation); outer_solar_system: a DOP853 run at rtol 1e-13
   (`integrate_reference`, with its check run), compared on 2001 equally spaced

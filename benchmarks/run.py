@@ -49,7 +49,7 @@ import report  # noqa: E402
 
 import hamrkq  # noqa: E402
 from hamrkq import compiled  # noqa: E402
-from hamrkq.reference import hamiltonian_reference, integrate_reference  # noqa: E402
+from hamrkq.analysis.reference import hamiltonian_reference, integrate_reference  # noqa: E402
 
 
 @dataclass
@@ -281,7 +281,7 @@ SOLVE_SCRIPT = """
 import json, time
 t0 = time.perf_counter()
 import hamrkq
-from hamrkq import compiled
+from hamrkq.backends import compiled
 imported = time.perf_counter() - t0
 problem = hamrkq.load_problem({name!r}, **{params!r})
 t1 = time.perf_counter()
@@ -293,7 +293,7 @@ print(json.dumps({{"import": imported, "solve": time.perf_counter() - t1,
 DERIVE_SCRIPT = """
 import json, time
 import hamrkq
-from hamrkq import codegen
+from hamrkq.backends import codegen
 t0 = time.perf_counter()
 problem = hamrkq.load_problem("outer_solar_system")
 t1 = time.perf_counter()

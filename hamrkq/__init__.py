@@ -9,14 +9,15 @@ stepwise control of the *global* error (J.S.C. Prentice, arXiv:1111.6996).
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
+from hamrkq.analysis.diagnostics import Diagnostics, diagnose
+from hamrkq.catalogue.problems import Problem, list_problems, load_problem
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.scipy_solver import RK34Q8
+from hamrkq.solve import solve
+from hamrkq.symbolic.expressions import parse_expression
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
 from . import errors
-from .catalogue import Problem, list_problems, load_problem
-from .diagnostics import Diagnostics, diagnose
-from .expressions import parse_expression
-from .hamiltonian import Hamiltonian
-from .result import Solution, Status
-from .scipy_solver import RK34Q8
-from .solve import solve
 
 try:
     __version__ = _version("hamrkq")

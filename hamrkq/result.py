@@ -135,9 +135,7 @@ class Solution:
         set_(self, "options", MappingProxyType(dict(self.options)))
         set_(self, "names", tuple(self.names))
         if self.y.ndim != 2 or self.y.shape != (self.t.size, 2 * self.n):
-            raise ValueError(
-                f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})"
-            )
+            raise ValueError(f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})")
 
     # -- views -------------------------------------------------------------
     @property
@@ -186,9 +184,7 @@ class Solution:
         if path.suffix != ".npz":
             path = path.with_suffix(path.suffix + ".npz")
         arrays = {
-            name: getattr(self, name)
-            for name in _ARRAY_FIELDS
-            if getattr(self, name) is not None
+            name: getattr(self, name) for name in _ARRAY_FIELDS if getattr(self, name) is not None
         }
         meta = {
             "format_version": FILE_FORMAT_VERSION,

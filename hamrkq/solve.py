@@ -1,11 +1,11 @@
 """`solve`: the one public entry for integrating a Hamiltonian system.
 
 :func:`solve` validates its input (every message names the parameter and the
-value), fills in defaults from a catalogue :class:`~hamrkq.catalogue.Problem`,
+value), fills in defaults from a catalogue :class:`~hamrkq.catalogue.problems.Problem`,
 dispatches to a method through a small table (:data:`METHODS`) and packs the
 result into a :class:`~hamrkq.result.Solution`.  The numerics live elsewhere:
-the RKQ loop in :mod:`hamrkq.rkq`, the fixed-step symplectic baselines in
-:mod:`hamrkq.symplectic`, the SciPy baselines in :mod:`hamrkq.baselines`.
+the RKQ loop in :mod:`hamrkq.rkq.kernel`, the fixed-step symplectic baselines in
+:mod:`hamrkq.fixed_step.symplectic`, the SciPy baselines in :mod:`hamrkq.baselines.scipy_ivp`.
 """
 
 from __future__ import annotations
@@ -20,21 +20,21 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from . import rkq
-from .baselines import PREFIX as SCIPY_PREFIX
-from .baselines import SCIPY_METHODS, solve_scipy
-from .errors import HamrkqWarning, InputError, InputTypeError, OptionError
-from .hamiltonian import Hamiltonian
-from .result import Solution, Status
-from .symplectic import FIXED_STEP_METHODS, solve_fixed
-from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
-from .validation import choice as _choice
-from .validation import count as _count
-from .validation import positive as _positive
-from .validation import real as _real
-from .validation import show as _show
-from .validation import span as _span
-from .validation import tolerance as _tolerance
+from hamrkq._validate import choice as _choice
+from hamrkq._validate import count as _count
+from hamrkq._validate import positive as _positive
+from hamrkq._validate import real as _real
+from hamrkq._validate import show as _show
+from hamrkq._validate import span as _span
+from hamrkq._validate import tolerance as _tolerance
+from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
+from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
+from hamrkq.errors import HamrkqWarning, InputError, InputTypeError, OptionError
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
+from hamrkq.methods.tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+from hamrkq.result import Solution, Status
+from hamrkq.rkq import kernel as rkq
+from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["BACKENDS", "METHODS", "MethodSpec", "Task", "solve"]
 
@@ -54,7 +54,7 @@ QUENCH_MODES = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
 TOLERANCE_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
 GAMMA_MODES = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
 Z_METHODS = ("dop853", "cooper_verner")
-#: Where the RK loop runs: "numba" (compiled, :mod:`hamrkq.compiled`),
+#: Where the RK loop runs: "numba" (compiled, :mod:`hamrkq.backends.compiled`),
 #: "python" (interpreted), or "auto" (numba when it can be used).
 BACKENDS = ("auto", "numba", "python")
 
@@ -113,7 +113,7 @@ def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
         progress=task.progress,
     )
     if backend == "numba":
-        from . import compiled
+        from hamrkq.backends import compiled
 
         return compiled.run(task.ham, task.params, task.t0, task.y0, task.t_end, **options)
     numeric = task.ham.numeric
@@ -130,7 +130,7 @@ def _resolve_backend(backend: Any, ham: Hamiltonian, spec: MethodSpec) -> str:
         )
     if backend == "python" or "numba" not in spec.backends:
         return "python" if backend == "auto" else backend
-    from . import compiled
+    from hamrkq.backends import compiled
 
     return compiled.resolve_backend(backend, ham)
 
@@ -234,7 +234,7 @@ def solve(
     Parameters
     ----------
     system_or_problem : Hamiltonian or Problem
-        The system.  With a catalogue :class:`~hamrkq.catalogue.Problem`, its
+        The system.  With a catalogue :class:`~hamrkq.catalogue.problems.Problem`, its
         ``q0``, ``p0``, ``t_span`` and ``integration`` settings are the
         defaults and the keywords below override them.
     q0, p0 : sequence of n numbers
@@ -247,9 +247,9 @@ def solve(
         ``"rk34q8"`` (default): Prentice's RKQ.  ``"rk34"``: RK3/RK4 local
         extrapolation only (no RK8 track: ``z``, ``global_error``, ``gamma``
         and ``quenched`` are None).  Fixed-step symplectic baselines
-        (:mod:`hamrkq.symplectic`, they need ``step``): ``"midpoint"``,
+        (:mod:`hamrkq.fixed_step.symplectic`, they need ``step``): ``"midpoint"``,
         ``"gauss4"``, ``"gauss6"``, ``"verlet"`` and ``"yoshida4"`` (the last
-        two for separable H only).  SciPy baselines (:mod:`hamrkq.baselines`):
+        two for separable H only).  SciPy baselines (:mod:`hamrkq.baselines.scipy_ivp`):
         ``"scipy:RK23"``, ``"scipy:RK45"``, ``"scipy:DOP853"``,
         ``"scipy:Radau"``, ``"scipy:BDF"``, ``"scipy:LSODA"`` (the symbolic
         Jacobian goes to the last three) and ``"scipy:RK34Q8"`` (this RKQ
@@ -302,7 +302,7 @@ def solve(
     backend : {"auto", "numba", "python"}, default "auto"
         Where the step loop of ``rk34q8``/``rk34`` runs: ``"numba"``
         compiles it with the generated functions (cached on disk, see
-        :mod:`hamrkq.compiled`); ``"python"`` interprets it; ``"auto"`` uses
+        :mod:`hamrkq.backends.compiled`); ``"python"`` interprets it; ``"auto"`` uses
         numba when it can (``HAMRKQ_DISABLE_NUMBA=1`` turns it off) and
         otherwise Python with one :class:`~hamrkq.errors.HamrkqWarning`.
         Both give the same nodes and values, bit for bit.
@@ -451,7 +451,7 @@ class _Defaults:
 
 def _system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
     """The Hamiltonian and the defaults a Problem supplies."""
-    from .catalogue import Problem
+    from hamrkq.catalogue.problems import Problem
 
     if parameters is not None and not isinstance(parameters, Mapping):
         raise InputTypeError(
@@ -535,7 +535,7 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
     if not out.t.size:
         energy = out.t
     elif backend == "numba":
-        from . import compiled
+        from hamrkq.backends import compiled
 
         energy = compiled.energy(task.ham, out.t, out.y, task.params)
     else:

@@ -158,7 +158,7 @@ def exact_field(values: Sequence[Any]) -> ExactArithmetic:
 
 
 def tableau_in(tableau: Any, convert: Callable[[Any], Any]) -> tuple[list[list[Any]], list[Any]]:
-    """``(A, b)`` of a :class:`hamrkq.tableaus.ButcherTableau` converted entrywise."""
+    """``(A, b)`` of a :class:`hamrkq.methods.tableaus.ButcherTableau` converted entrywise."""
     A = [[convert(a) for a in row] for row in tableau.A_exact]
     b = [convert(x) for x in tableau.b_exact]
     return A, b

@@ -32,8 +32,8 @@ from hamrkq.errors import (
     ProblemNotFoundError,
     UndeclaredSymbolError,
 )
-from hamrkq.expressions import MAX_DEPTH, MAX_LENGTH, parse_expression
 from hamrkq.result import Solution, Status
+from hamrkq.symbolic.expressions import MAX_DEPTH, MAX_LENGTH, parse_expression
 
 ROOT = Path(__file__).resolve().parent.parent
 q, p, x, y, px, py, a, b = sp.symbols("q p x y px py a b", real=True)

@@ -9,10 +9,10 @@ from scipy.integrate import DOP853, solve_ivp
 
 import hamrkq
 from hamrkq import Status
-from hamrkq.baselines import SCIPY_METHODS, USES_JACOBIAN, solve_scipy
+from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, USES_JACOBIAN, solve_scipy
 from hamrkq.errors import InputError, OptionError
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.solve import METHODS
-from hamrkq.symplectic import FIXED_STEP_METHODS, solve_fixed
 
 try:  # the pendulum data of the symplectic tests (10 000 periods, steps, criterion)
     import test_symplectic as sym

@@ -10,7 +10,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import hamrkq
-from hamrkq.numeric import vectorized
+from hamrkq.backends.numeric import vectorized
 
 NAMES = hamrkq.list_problems()
 

@@ -45,7 +45,7 @@ def write(tmp_path, text, name="osc"):
 
 
 def good(tmp_path, name="osc", transform=lambda s: s):
-    text = GOOD.format(name=name).replace('x = 1\n', "")
+    text = GOOD.format(name=name).replace("x = 1\n", "")
     return write(tmp_path, transform(text), name)
 
 
@@ -77,40 +77,79 @@ def test_unknown_name_lists_the_catalogue():
 
 BAD_FILES = [
     # (transform of the good text, error class, fragments that must all appear)
-    (lambda s: s.replace('hamiltonian = "px**2/(2*m) + k*x**2/2"',
-                         'hamiltonian = "__import__(\'os\').system(\'touch pwned\')"'),
-     ExpressionError, ["osc.toml:6", "key 'hamiltonian'", "__import__"]),
-    (lambda s: s.replace('twice_H = "px**2/m + k*x**2"', 'twice_H = "x.__class__"'),
-     ExpressionError, ["key 'invariants.twice_H'", "attribute access", "x.__class__"]),
-    (lambda s: s.replace('q = ["sqrt(k)/2"]', 'q = ["open(\'f\')"]'),
-     ExpressionError, ["initial.q[0]", "open"]),
-    (lambda s: s.replace('t_span = [0, "2*pi*sqrt(m/k)"]', 't_span = [0, "lambda: 0"]'),
-     ExpressionError, ["integration.t_span", "lambda"]),
-    (lambda s: s.replace('name = "osc"', 'name = "other"'),
-     ProblemFileError, ["name 'other' must equal the file stem 'osc'", ":1"]),
+    (
+        lambda s: s.replace(
+            'hamiltonian = "px**2/(2*m) + k*x**2/2"',
+            "hamiltonian = \"__import__('os').system('touch pwned')\"",
+        ),
+        ExpressionError,
+        ["osc.toml:6", "key 'hamiltonian'", "__import__"],
+    ),
+    (
+        lambda s: s.replace('twice_H = "px**2/m + k*x**2"', 'twice_H = "x.__class__"'),
+        ExpressionError,
+        ["key 'invariants.twice_H'", "attribute access", "x.__class__"],
+    ),
+    (
+        lambda s: s.replace('q = ["sqrt(k)/2"]', "q = [\"open('f')\"]"),
+        ExpressionError,
+        ["initial.q[0]", "open"],
+    ),
+    (
+        lambda s: s.replace('t_span = [0, "2*pi*sqrt(m/k)"]', 't_span = [0, "lambda: 0"]'),
+        ExpressionError,
+        ["integration.t_span", "lambda"],
+    ),
+    (
+        lambda s: s.replace('name = "osc"', 'name = "other"'),
+        ProblemFileError,
+        ["name 'other' must equal the file stem 'osc'", ":1"],
+    ),
     (lambda s: "surprise = 1\n" + s, ProblemFileError, ["unknown key(s): surprise", ":1"]),
-    (lambda s: s.replace("atol = 1e-8", "atol = 1e-8\nbogus = 2"),
-     ProblemFileError, ["integration.bogus", "unknown key"]),
-    (lambda s: s.replace('title = "test oscillator"', 'title = "unterminated'),
-     ProblemFileError, ["osc.toml:2", "TOML syntax error"]),
-    (lambda s: s.replace('momenta = ["px"]', 'momenta = ["px", "py"]'),
-     ProblemFileError, ["q has 1 symbols but p has 2"]),
-    (lambda s: s.replace("k*x**2/2", "k*x**2/2 + zeta"),
-     ProblemFileError, ["unknown name", "zeta"]),
-    (lambda s: s.replace('coordinates = ["x"]', 'coordinates = ["t"]'),
-     ProblemFileError, ["reserved"]),
-    (lambda s: s.replace('coordinates = ["x"]', 'coordinates = ["__x"]'),
-     ProblemFileError, ["underscore"]),
-    (lambda s: s.replace('p = [0]', 'p = [0, 1]'), ProblemFileError, ["initial.p"]),
-    (lambda s: s.replace('q = ["sqrt(k)/2"]', 'q = ["x"]'),
-     ExpressionError, ["initial.q[0]", "unknown name"]),
-    (lambda s: s.replace('m = 2', 'm = "sin"'), ExpressionError, ["parameters.m"]),
+    (
+        lambda s: s.replace("atol = 1e-8", "atol = 1e-8\nbogus = 2"),
+        ProblemFileError,
+        ["integration.bogus", "unknown key"],
+    ),
+    (
+        lambda s: s.replace('title = "test oscillator"', 'title = "unterminated'),
+        ProblemFileError,
+        ["osc.toml:2", "TOML syntax error"],
+    ),
+    (
+        lambda s: s.replace('momenta = ["px"]', 'momenta = ["px", "py"]'),
+        ProblemFileError,
+        ["q has 1 symbols but p has 2"],
+    ),
+    (
+        lambda s: s.replace("k*x**2/2", "k*x**2/2 + zeta"),
+        ProblemFileError,
+        ["unknown name", "zeta"],
+    ),
+    (
+        lambda s: s.replace('coordinates = ["x"]', 'coordinates = ["t"]'),
+        ProblemFileError,
+        ["reserved"],
+    ),
+    (
+        lambda s: s.replace('coordinates = ["x"]', 'coordinates = ["__x"]'),
+        ProblemFileError,
+        ["underscore"],
+    ),
+    (lambda s: s.replace("p = [0]", "p = [0, 1]"), ProblemFileError, ["initial.p"]),
+    (
+        lambda s: s.replace('q = ["sqrt(k)/2"]', 'q = ["x"]'),
+        ExpressionError,
+        ["initial.q[0]", "unknown name"],
+    ),
+    (lambda s: s.replace("m = 2", 'm = "sin"'), ExpressionError, ["parameters.m"]),
 ]
 
 
 @pytest.mark.parametrize(("transform", "error", "fragments"), BAD_FILES)
-def test_bad_files_are_refused_with_file_line_key(tmp_path, monkeypatch, transform, error,
-                                                  fragments):
+def test_bad_files_are_refused_with_file_line_key(
+    tmp_path, monkeypatch, transform, error, fragments
+):
     monkeypatch.chdir(tmp_path)
     path = good(tmp_path, transform=transform)
     with pytest.raises(error) as info:

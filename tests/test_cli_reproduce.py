@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import hamrkq
+from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.cli import main
-from hamrkq.diagnostics import diagnose
-from hamrkq.report import jsonable
+from hamrkq.io.report import jsonable
 from hamrkq.solve import solve
 
 FILES = {
@@ -167,8 +167,8 @@ def test_full_reproduction_of_the_paper(tmp_path):
 
 
 def test_interrupt_keeps_the_run_so_far_and_exits_1(tmp_path, monkeypatch):
-    from hamrkq.commands import reproduce as reproduce_module
-    from hamrkq.report import ProgressBar
+    from hamrkq.cli import reproduce as reproduce_module
+    from hamrkq.io.report import ProgressBar
 
     class Interrupting(ProgressBar):
         def __call__(self, fraction: float, t: float) -> None:

@@ -12,10 +12,10 @@ import pytest
 
 import hamrkq
 from hamrkq import Solution, Status
+from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.cli import main
-from hamrkq.commands import run as run_module
-from hamrkq.diagnostics import diagnose
-from hamrkq.report import OutputDir, ProgressBar, jsonable
+from hamrkq.cli import run as run_module
+from hamrkq.io.report import OutputDir, ProgressBar, jsonable
 from hamrkq.solve import solve
 
 FIGURES = (

@@ -13,8 +13,8 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq import codegen
-from hamrkq.codegen import CodegenError
+from hamrkq.backends import codegen
+from hamrkq.backends.codegen import CodegenError
 
 CATALOGUE = hamrkq.list_problems()
 
@@ -71,7 +71,8 @@ def test_fused_rhs_jvp_is_rhs_then_jac_then_matvec_bit_for_bit(generated, name):
     """The compiled loop's tangent propagation calls rhs_jvp where the
     interpreted one calls rhs, jac and rkq._matvec: the same bits, or the
     backends would part (zero entries of J and signs of zero included)."""
-    from hamrkq import compiled, rkq
+    from hamrkq.backends import compiled
+    from hamrkq.rkq import kernel as rkq
 
     problem, module = generated[name]
     ham = problem.hamiltonian

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import hamrkq
+from hamrkq.analysis.comparison import compare, default_methods
 from hamrkq.cli import main
-from hamrkq.commands.compare import FILES
-from hamrkq.comparison import compare, default_methods
+from hamrkq.cli.compare import FILES
 
 ONE_PERIOD = 2 * np.pi
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -18,9 +18,10 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq import codegen, compiled, rkq
+from hamrkq.backends import codegen, compiled
 from hamrkq.errors import HamrkqWarning, OptionError
-from hamrkq.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+from hamrkq.methods.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+from hamrkq.rkq import kernel as rkq
 
 pytestmark = pytest.mark.skipif(
     not compiled.available()[0], reason=f"compiled backend unavailable: {compiled.available()[1]}"
@@ -262,8 +263,8 @@ SCRIPT = textwrap.dedent(
     import numpy as np
     import sympy as sp
     import hamrkq
-    from hamrkq import compiled
-    from hamrkq.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+    from hamrkq.backends import compiled
+    from hamrkq.methods.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
 
     q, p, w = sp.symbols("q p w", real=True)
     ham = hamrkq.Hamiltonian(p**2 / 2 + w * (1 - sp.cos(q)) + q**4 / 24, q=[q], p=[p],

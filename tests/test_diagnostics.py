@@ -1,4 +1,4 @@
-"""Diagnostics on data with known answers (hamrkq.diagnostics)."""
+"""Diagnostics on data with known answers (hamrkq.analysis.diagnostics)."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from hamrkq.diagnostics import (
+from hamrkq.analysis.diagnostics import (
     bound_ratio,
     diagnose,
     drift_summary,
@@ -15,8 +15,8 @@ from hamrkq.diagnostics import (
     trajectory_bound,
     trajectory_error,
 )
+from hamrkq.analysis.reference import integrate_reference
 from hamrkq.errors import InputError, OptionError
-from hamrkq.reference import integrate_reference
 from hamrkq.result import Solution, Status
 
 

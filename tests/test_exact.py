@@ -1,4 +1,4 @@
-"""Tests of the built-in exact solutions (hamrkq.exact).
+"""Tests of the built-in exact solutions (hamrkq.catalogue.exact).
 
 Independent of the catalogue loader and of the symbolic layer: the right-hand
 sides are written out here by hand, and the references are mpmath
@@ -13,8 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hamrkq.errors import InputError, OptionError
-from hamrkq.exact import (
+from hamrkq.catalogue.exact import (
     BUILTIN_EXACT,
     get_exact,
     harmonic,
@@ -22,6 +21,7 @@ from hamrkq.exact import (
     pendulum,
     solve_kepler_equation,
 )
+from hamrkq.errors import InputError, OptionError
 
 # -- hand-written right-hand sides and invariants -----------------------------
 

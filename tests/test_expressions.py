@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 from hamrkq.errors import ExpressionError, ProblemFileError
-from hamrkq.expressions import MAX_DEPTH, check_name, parse_expression
+from hamrkq.symbolic.expressions import MAX_DEPTH, check_name, parse_expression
 
 q, p, a = sp.symbols("q p a")
 t = sp.Symbol("t")
@@ -22,8 +22,10 @@ SYMS = {"q": q, "p": p, "a": a, "t": t}
         ("-q + +p", -q + p),
         ("atan2(q, p) + Abs(a)", sp.atan2(q, p) + sp.Abs(a)),
         ("sqrt(2)*pi*E", sp.sqrt(2) * sp.pi * sp.E),
-        ("exp(log(q)) * sinh(t) / tanh(a) + cosh(p) + tan(q) + asin(q) + atan(p)",
-         q * sp.sinh(t) / sp.tanh(a) + sp.cosh(p) + sp.tan(q) + sp.asin(q) + sp.atan(p)),
+        (
+            "exp(log(q)) * sinh(t) / tanh(a) + cosh(p) + tan(q) + asin(q) + atan(p)",
+            q * sp.sinh(t) / sp.tanh(a) + sp.cosh(p) + sp.tan(q) + sp.asin(q) + sp.atan(p),
+        ),
         ("0.994", sp.Rational(497, 500)),
         ("2.95912208286e-4", sp.Rational(295912208286, 10**15)),
         ("acos(-0.8)", sp.acos(sp.Rational(-4, 5))),

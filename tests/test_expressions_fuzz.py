@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hamrkq.errors import ExpressionError
-from hamrkq.expressions import FUNCTIONS, parse_expression
+from hamrkq.symbolic.expressions import FUNCTIONS, parse_expression
 
 pytestmark = [
     pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning"),
@@ -98,9 +98,7 @@ def test_random_expression_like_text_parses_or_is_refused(text):
 ALLOWED_LEAVES = st.one_of(
     st.sampled_from(["q", "p", "a", "t", "pi", "E"]).map(lambda n: ast.Name(id=n)),
     st.integers(min_value=0, max_value=50).map(lambda v: ast.Constant(value=v)),
-    st.floats(min_value=0.01, max_value=100, allow_nan=False).map(
-        lambda v: ast.Constant(value=v)
-    ),
+    st.floats(min_value=0.01, max_value=100, allow_nan=False).map(lambda v: ast.Constant(value=v)),
 )
 
 
@@ -157,7 +155,12 @@ def _forbidden_nodes(allowed):
 
 def _no_args():
     return ast.arguments(
-        posonlyargs=[], args=[], vararg=None, kwonlyargs=[], kw_defaults=[], kwarg=None,
+        posonlyargs=[],
+        args=[],
+        vararg=None,
+        kwonlyargs=[],
+        kw_defaults=[],
+        kwarg=None,
         defaults=[],
     )
 

@@ -1,11 +1,11 @@
-"""The paper's figures under Agg (hamrkq.plotting)."""
+"""The paper's figures under Agg (hamrkq.plotting.figures)."""
 
 import numpy as np
 import pytest
 
-from hamrkq.diagnostics import diagnose
+from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.errors import InputError
-from hamrkq.plotting import (
+from hamrkq.plotting.figures import (
     downsample_indices,
     figure1,
     figure2,

@@ -1,4 +1,4 @@
-"""Accuracy of the independent reference trajectories (hamrkq.reference).
+"""Accuracy of the independent reference trajectories (hamrkq.analysis.reference).
 
 Each reference is checked against something computed another way: closed
 forms (harmonic oscillator, Kepler's equation), a quadrature of the period,
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from hamrkq.errors import InputError
-from hamrkq.reference import (
+from hamrkq.analysis.reference import (
     TIGHTEST_RTOL,
     Reference,
     integrate_reference,
     periodic_reference,
 )
+from hamrkq.errors import InputError
 
 Q0_PRENTICE = float(np.arccos(-0.8))
 
@@ -225,7 +225,7 @@ def test_components_at_rounding_level_do_not_stall_the_reference():
     rounding and never finished; such components now borrow the largest scale.
     """
     import hamrkq
-    from hamrkq.reference import hamiltonian_reference
+    from hamrkq.analysis.reference import hamiltonian_reference
 
     problem = hamrkq.load_problem("toda")
     t = np.linspace(0.0, 50.0, 201)

@@ -1,4 +1,4 @@
-"""The RKQ step loop (hamrkq.rkq) on plain NumPy right-hand sides.
+"""The RKQ step loop (hamrkq.rkq.kernel) on plain NumPy right-hand sides.
 
 Everything here is checked against an exact solution or an independent
 computation: the Richardson estimate against the true local error of one RK8
@@ -10,8 +10,9 @@ evaluation count against the documented formula.
 import numpy as np
 import pytest
 
-from hamrkq import exact, rkq
-from hamrkq.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+from hamrkq.catalogue import exact
+from hamrkq.methods.tableaus import DOP853_RK8, RK3_KUTTA, RK4_CLASSIC
+from hamrkq.rkq import kernel as rkq
 
 
 def harmonic_f(t, y, params):

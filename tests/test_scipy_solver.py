@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 import hamrkq
 from hamrkq import RK34Q8
 from hamrkq.errors import HamrkqWarning, InputError, OptionError
-from hamrkq.scipy_solver import HermiteDenseOutput
+from hamrkq.rkq.scipy_solver import HermiteDenseOutput
 
 
 def harmonic(t, y):

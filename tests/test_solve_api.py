@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from hamrkq import exact
-from hamrkq.catalogue import load_problem
+from hamrkq.catalogue import exact
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import HamrkqWarning
-from hamrkq.hamiltonian import Hamiltonian
 from hamrkq.result import Solution, Status
 from hamrkq.solve import MIN_RTOL, solve
+from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 q, p = sp.symbols("q p")
 HARMONIC = Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])

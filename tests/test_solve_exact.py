@@ -11,8 +11,8 @@ from functools import cache
 import numpy as np
 import pytest
 
-from hamrkq import exact
-from hamrkq.catalogue import load_problem
+from hamrkq.catalogue import exact
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
 
 TOLS = [1e-4, 1e-6, 1e-8, pytest.param(1e-10, marks=pytest.mark.slow)]

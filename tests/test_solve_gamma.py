@@ -12,8 +12,8 @@ magnitude.  "tangent" follows the truth on both.
 import numpy as np
 import pytest
 
-from hamrkq.catalogue import load_problem
-from hamrkq.reference import periodic_reference
+from hamrkq.analysis.reference import periodic_reference
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
 
 

@@ -1,7 +1,7 @@
 """The paper's experiment: prentice2011 on [0, 4000] with atol = 1e-6
 (Prentice, arXiv:1111.6996, Section 4), against an independent reference.
 
-The reference is hamrkq.reference.periodic_reference: SciPy's DOP853 over one
+The reference is hamrkq.analysis.reference.periodic_reference: SciPy's DOP853 over one
 period at rtol = 100 eps with the period refined by Newton's method, read off
 modulo the period; its own estimated error (~3e-11) is checked to be at least
 100 times below the tolerance.  The pure-Python loop takes ~30 s for the
@@ -11,8 +11,8 @@ modulo the period; its own estimated error (~3e-11) is checked to be at least
 import numpy as np
 import pytest
 
-from hamrkq.catalogue import load_problem
-from hamrkq.reference import periodic_reference
+from hamrkq.analysis.reference import periodic_reference
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
 
 pytestmark = pytest.mark.slow

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from hamrkq.catalogue import load_problem
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError, InputTypeError, OptionError
-from hamrkq.hamiltonian import Hamiltonian
 from hamrkq.solve import solve
+from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 q, p, a = sp.symbols("q p a")
 HAM = Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])

@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.hamiltonian import is_zero
+from hamrkq.symbolic.hamiltonian import is_zero
 
 NAMES = hamrkq.list_problems()
 
@@ -18,8 +18,17 @@ def problem(request):
 
 def test_catalogue_has_the_promised_entries():
     promised = {
-        "prentice2011", "harmonic", "pendulum", "kepler", "henon_heiles",
-        "outer_solar_system", "fpu", "toda", "double_pendulum", "arenstorf", "pleiades",
+        "prentice2011",
+        "harmonic",
+        "pendulum",
+        "kepler",
+        "henon_heiles",
+        "outer_solar_system",
+        "fpu",
+        "toda",
+        "double_pendulum",
+        "arenstorf",
+        "pleiades",
     }
     assert promised <= set(NAMES)
 

@@ -14,14 +14,14 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.errors import InputError, OptionError
-from hamrkq.implicit_rk import GAUSS_TABLEAUS
-from hamrkq.result import Solution, Status
-from hamrkq.symplectic import (
+from hamrkq.fixed_step.implicit_rk import GAUSS_TABLEAUS
+from hamrkq.fixed_step.symplectic import (
     FIXED_STEP_METHODS,
     SPLITTING_SCHEMES,
     integrate_fixed,
     solve_fixed,
 )
+from hamrkq.result import Solution, Status
 
 ALL = sorted(FIXED_STEP_METHODS)
 GAUSS = sorted(GAUSS_TABLEAUS)

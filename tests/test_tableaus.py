@@ -1,4 +1,4 @@
-"""Tests of hamrkq.tableaus: the coefficients prove their order.
+"""Tests of hamrkq.methods.tableaus: the coefficients prove their order.
 
 Three independent lines of evidence per tableau:
 
@@ -22,7 +22,7 @@ import sympy as sp
 from scipy.integrate._ivp import dop853_coefficients as scipy_dop853
 
 from hamrkq.errors import InputError, InputTypeError, OptionError
-from hamrkq.tableaus import (
+from hamrkq.methods.tableaus import (
     COOPER_VERNER_RK8,
     DOP853_RK8,
     RK3_KUTTA,

@@ -1,22 +1,22 @@
 """The compiled backend: the RKQ loop and the generated functions under numba.
 
 Nothing here re-implements the algorithm.  The step loop is
-:func:`hamrkq.rkq.advance` and its callees, written in the subset of Python
+:func:`hamrkq.rkq.kernel.advance` and its callees, written in the subset of Python
 that :func:`numba.njit` accepts; this module compiles them:
 
-1. **The system.**  :mod:`hamrkq.codegen` writes ``rhs``, ``jac``, ``energy``
+1. **The system.**  :mod:`hamrkq.backends.codegen` writes ``rhs``, ``jac``, ``energy``
    and ``energy_rows`` of a Hamiltonian as scalar code into the cache
    directory; they are compiled here with explicit signatures and
    ``cache=True``, so numba keeps their machine code beside the generated file.
 2. **The loop.**  The text of ``hamrkq/rkq.py`` is copied into the cache
    directory (followed by the twins below) under a name that hashes it and
-   the versions, imported, and :func:`~hamrkq.rkq.advance` and the functions
+   the versions, imported, and :func:`~hamrkq.rkq.kernel.advance` and the functions
    it calls are compiled there with ``cache=True``.  ``rhs`` and ``jac`` reach
    the loop as *first-class function* arguments (function pointers with a
    fixed signature), so one compiled loop serves every Hamiltonian and its
    machine code is cached once per hamrkq version.  (Passed as ordinary
    numba dispatchers they would specialise the loop to one system and make
-   it uncacheable.)  The small vector primitives of :mod:`hamrkq.rkq` (sums
+   it uncacheable.)  The small vector primitives of :mod:`hamrkq.rkq.kernel` (sums
    over stages, a matrix-vector product, compensated summation, the tolerance
    and the weighted norm) are swapped for element loops (:data:`PRIMITIVES`):
    NumPy calls on arrays of a few elements are the right choice in the
@@ -24,7 +24,7 @@ that :func:`numba.njit` accepts; this module compiles them:
    more than the stage).  The twins do the same arithmetic in the same order
    as rkq's versions, so both backends compute the same bits; the tests check
    that element by element.
-3. **The driver.**  :func:`hamrkq.rkq.run` itself (chunks, growing output,
+3. **The driver.**  :func:`hamrkq.rkq.kernel.run` itself (chunks, growing output,
    progress, Ctrl-C) runs unchanged in Python, with the compiled ``advance``.
 
 Parameters are run-time arguments: a parameter sweep never recompiles.
@@ -56,11 +56,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import codegen, rkq
-from .errors import HamrkqError, HamrkqWarning, OptionError
+from hamrkq.backends import codegen
+from hamrkq.errors import HamrkqError, HamrkqWarning, OptionError
+from hamrkq.rkq import kernel as rkq
 
 if TYPE_CHECKING:
-    from .hamiltonian import Hamiltonian
+    from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
     "COMPILE_COUNT",
@@ -417,7 +418,7 @@ def _kernel_source() -> str:
 
 
 _TWINS_BANNER = (
-    "# ---- appended by hamrkq.compiled: element-loop twins of the primitives above ----"
+    "# ---- appended by hamrkq.backends.compiled: element-loop twins of the primitives above ----"
 )
 
 
@@ -560,13 +561,13 @@ class _Advance:
 
 def run(ham: Hamiltonian, params: np.ndarray, t0: float, y0: np.ndarray, t_end: float,
         **options: Any) -> rkq.RunOutput:  # fmt: skip
-    """:func:`hamrkq.rkq.run` with the compiled loop and the compiled system.
+    """:func:`hamrkq.rkq.kernel.run` with the compiled loop and the compiled system.
 
     Parameters
     ----------
     ham : Hamiltonian
     params, t0, y0, t_end, **options
-        As for :func:`hamrkq.rkq.run` (``rk3``, ``rk4``, ``rk8``, ``atol``,
+        As for :func:`hamrkq.rkq.kernel.run` (``rk3``, ``rk4``, ``rk8``, ``atol``,
         ``rtol``, ...), except ``inplace``, which is implied.
 
     Raises

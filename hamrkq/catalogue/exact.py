@@ -43,7 +43,7 @@ from types import MappingProxyType
 import numpy as np
 from scipy.special import ellipj, ellipk, ellipkinc
 
-from .errors import InputError, OptionError
+from hamrkq.errors import InputError, OptionError
 
 __all__ = [
     "BUILTIN_EXACT",

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import sympy as sp
 
-from .errors import ExpressionError
+from hamrkq.errors import ExpressionError
 
 __all__ = [
     "CONSTANTS",
@@ -300,8 +300,7 @@ class _Builder:
         function, arity = FUNCTIONS[ident]
         if len(node.args) != arity:
             raise self.fail(
-                f"{ident} takes {arity} argument{'s' if arity > 1 else ''}, "
-                f"got {len(node.args)}",
+                f"{ident} takes {arity} argument{'s' if arity > 1 else ''}, got {len(node.args)}",
                 node,
             )
         args = [self.build(arg, depth + 1) for arg in node.args]

@@ -1,4 +1,4 @@
-"""NumPy functions generated once from a :class:`~hamrkq.hamiltonian.Hamiltonian`.
+"""NumPy functions generated once from a :class:`~hamrkq.symbolic.hamiltonian.Hamiltonian`.
 
 Every function takes ``(t, y, params)``: the time, the state (all q then all
 p) and the parameter values as an array ordered like
@@ -19,7 +19,7 @@ import numpy as np
 import sympy as sp
 
 if TYPE_CHECKING:
-    from .hamiltonian import Hamiltonian
+    from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["NumericHamiltonian", "vectorized"]
 
@@ -83,11 +83,11 @@ class NumericHamiltonian:
 
     @cached_property
     def _scalar(self):
-        """The scalar functions of :mod:`hamrkq.codegen`, which the compiled
+        """The scalar functions of :mod:`hamrkq.backends.codegen`, which the compiled
         backend compiles: evaluating f and J with them here too gives every
         integrator (and both backends) the same bits.  None when they cannot
         be generated or cached; then the lambdified functions serve."""
-        from .codegen import CodegenError, load_module
+        from hamrkq.backends.codegen import CodegenError, load_module
 
         try:
             return load_module(self._ham)

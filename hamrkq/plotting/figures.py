@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from hamrkq.diagnostics import Diagnostics
+    from hamrkq.analysis.diagnostics import Diagnostics
     from hamrkq.result import Solution
 
 __all__ = [
@@ -259,13 +259,13 @@ def _error_arrays(items, diagnostics, which: str) -> list[tuple[str, Solution, n
         else:
             raise InputError(
                 f"run {label!r} has no {which} global error: pass diagnostics computed "
-                "with a reference (see hamrkq.diagnostics.diagnose)"
+                "with a reference (see hamrkq.analysis.diagnostics.diagnose)"
             )
     return out
 
 
 def _tolerance_line(ax, sol: Solution, part: slice, label: str) -> None:
-    from hamrkq.diagnostics import tolerance
+    from hamrkq.analysis.diagnostics import tolerance
 
     rule = str(sol.options.get("tolerance_rule", "componentwise"))
     delta = tolerance(sol.y, sol.atol, sol.rtol, rule)[:, part].max(axis=1)
@@ -325,7 +325,7 @@ def figure3(
     of freedom and an absolute tolerance (the paper's "upper bound").
     Parameters as :func:`figure2`.
     """
-    from hamrkq.diagnostics import tolerance, trajectory_bound, trajectory_error
+    from hamrkq.analysis.diagnostics import tolerance, trajectory_bound, trajectory_error
 
     if error not in ("estimated", "true"):
         raise InputError(f"error must be 'estimated' or 'true', got {error!r}")

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import InputError, InputTypeError, OptionError
+from hamrkq.errors import InputError, InputTypeError, OptionError
 
 __all__ = ["choice", "count", "positive", "real", "show", "span", "tolerance"]
 

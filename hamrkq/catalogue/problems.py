@@ -1,7 +1,7 @@
 """The problem catalogue: TOML files describing classic Hamiltonian problems.
 
 A problem file is data, never code: its expressions go through the restricted
-parser of :mod:`hamrkq.expressions`.  The format is documented in
+parser of :mod:`hamrkq.symbolic.expressions`.  The format is documented in
 ``docs/catalogue.md``.  The catalogue's own files live in the repository's
 ``problems/`` folder, installed as the package ``hamrkq.problems``.
 """
@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import InputError, InputTypeError, ProblemFileError, ProblemNotFoundError
-from .expressions import check_name, parse_expression
-from .hamiltonian import Hamiltonian
+from hamrkq.errors import InputError, InputTypeError, ProblemFileError, ProblemNotFoundError
+from hamrkq.symbolic.expressions import check_name, parse_expression
+from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["Problem", "catalogue_dir", "list_problems", "load_problem"]
 
@@ -170,7 +170,7 @@ class Problem:
 
     def invariant_functions(self) -> dict[str, Callable]:
         """Each invariant as ``f(t, Y) -> (N,)`` at the current parameters."""
-        from .numeric import vectorized
+        from hamrkq.backends.numeric import vectorized
 
         params = self.parameter_array
         result = {}
@@ -418,7 +418,7 @@ class _FileReader:
     def setting(self, key: str, value: Any) -> None:
         """Check one ``[integration]`` value against :data:`INTEGRATION_KINDS`
         and, for names, against what :func:`hamrkq.solve` accepts."""
-        from .solve import GAMMA_MODES, METHODS, QUENCH_MODES, TOLERANCE_RULES, Z_METHODS
+        from hamrkq.solve import GAMMA_MODES, METHODS, QUENCH_MODES, TOLERANCE_RULES, Z_METHODS
 
         kind = INTEGRATION_KINDS[key]
         where = f"integration.{key}"
@@ -459,7 +459,7 @@ class _FileReader:
         if not table:
             return None
         if "builtin" in table:
-            from .exact import BUILTIN_EXACT
+            from hamrkq.catalogue.exact import BUILTIN_EXACT
 
             builtin = table["builtin"]
             if set(table) != {"builtin"}:
@@ -496,7 +496,7 @@ def _exact_function(problem: Problem) -> Callable[[Any], np.ndarray]:
     ham = problem.hamiltonian
     params = problem.parameter_array
     if "builtin" in spec:
-        from .exact import BUILTIN_EXACT
+        from hamrkq.catalogue.exact import BUILTIN_EXACT
 
         solver = BUILTIN_EXACT[spec["builtin"]]
         y0 = problem.y0.copy()

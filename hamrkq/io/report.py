@@ -5,7 +5,7 @@
   (a temporary name in the same directory, then :func:`os.replace`), so a
   crash or Ctrl-C never leaves a half-written file under its final name.
 - :func:`summary_dict`: the content of ``summary.json`` for one run: the
-  settings, every number :func:`hamrkq.diagnostics.diagnose` found, the
+  settings, every number :func:`hamrkq.analysis.diagnostics.diagnose` found, the
   counters, wall times, the status and the package versions.
 - :func:`summary_rows` and :func:`format_table`: the text table printed on
   stdout.
@@ -196,8 +196,8 @@ class OutputDir:
         return self._record(solution.save(self.file(name)))
 
     def figure(self, name: str, fig: Any, *, dpi: int = 120) -> Path:
-        """:func:`hamrkq.plotting.save_figure` (atomic itself)."""
-        from hamrkq.plotting import save_figure
+        """:func:`hamrkq.plotting.figures.save_figure` (atomic itself)."""
+        from hamrkq.plotting.figures import save_figure
 
         return self._record(save_figure(fig, self.file(name), dpi=dpi))
 
@@ -234,7 +234,7 @@ def summary_dict(
     ----------
     solution : Solution
     diagnostics : Diagnostics or None
-        From :func:`hamrkq.diagnostics.diagnose`; its :meth:`to_dict` is stored
+        From :func:`hamrkq.analysis.diagnostics.diagnose`; its :meth:`to_dict` is stored
         unchanged under ``"diagnostics"``, so the file and a library call with
         the same settings agree number for number.
     problem : Problem, optional

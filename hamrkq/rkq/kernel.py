@@ -138,7 +138,7 @@ def _stage_sum(a, K, out):
     """out = sum_l a[l] K[l], added in the order l = 0, 1, ...: NumPy reduces
     over the outer axis of a C array row by row (``np.dot`` adds in BLAS's
     order instead), so the compiled backend's element loops, which add in the
-    same order, give the same bits (hamrkq.compiled.PRIMITIVES)."""
+    same order, give the same bits (hamrkq.backends.compiled.PRIMITIVES)."""
     np.add.reduce(np.multiply(a[:, None], K, order="C"), axis=0, out=out)
 
 
@@ -240,7 +240,7 @@ def _tangent(rhs, jac):
     J(t, y) v into ``dout``, from ``jac`` (into the scratch ``JM``) and
     :func:`_matvec`.  The compiled backend passes instead a generated
     function that computes the same bits (``rhs_jvp`` of
-    :mod:`hamrkq.codegen`, in one call for small systems)."""
+    :mod:`hamrkq.backends.codegen`, in one call for small systems)."""
 
     def tangent(t, y, params, v, out, dout, JM):
         rhs(t, y, params, out)
@@ -791,7 +791,7 @@ def run(
 
     ``rhs``/``jac`` are ``f(t, y, params) -> array`` (or already in-place
     ``f(t, y, params, out)`` when ``inplace``).  ``rk3``, ``rk4``, ``rk8`` are
-    :class:`~hamrkq.tableaus.ButcherTableau`.  Options are validated by
+    :class:`~hamrkq.methods.tableaus.ButcherTableau`.  Options are validated by
     :func:`hamrkq.solve`; the codes are this module's constants.
     ``progress(fraction, t)`` is called between chunks of ``budget`` steps.
     A ``KeyboardInterrupt`` ends the run with the nodes kept so far.

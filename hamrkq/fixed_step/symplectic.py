@@ -13,7 +13,7 @@ name          order  method
 ============  =====  ===================================================
 
 The Gauss methods work for any Hamiltonian and solve their stage equations by
-simplified Newton iterations (see :mod:`hamrkq.implicit_rk`).  The splitting
+simplified Newton iterations (see :mod:`hamrkq.fixed_step.implicit_rk`).  The splitting
 methods need ``H = T(p) + V(q)``.  They call the full right-hand side
 ``f = (dH/dp, -dH/dq)``: for a separable H the upper half depends on p only
 and the lower half on q only, so a *drift* (q advanced with dH/dp) may read
@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, InputTypeError, OptionError
-from .implicit_rk import (
+from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.fixed_step.implicit_rk import (
     GAUSS_TABLEAUS,
     MAX_NEWTON_ITER,
     NEWTON_FLOOR,
@@ -50,7 +50,7 @@ from .implicit_rk import (
     Mesh,
     gauss_integrate,
 )
-from .result import Solution, Status
+from hamrkq.result import Solution, Status
 
 __all__ = [
     "FIXED_STEP_METHODS",
@@ -181,7 +181,7 @@ class FixedStepResult:
 
 
 def _splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, params):
-    """The splitting loop; same contract as :func:`hamrkq.implicit_rk.gauss_integrate`."""
+    """The splitting loop; same contract as ``gauss_integrate``."""
     dim = y0.size
     n = dim // 2
     out = LoopOutcome()

@@ -6,9 +6,9 @@ atomically:
 - ``solution.npz``: the nodes, states and error estimates
   (:meth:`hamrkq.Solution.save`; read back with ``Solution.load``);
 - ``summary.json``: the settings, every number of
-  :func:`hamrkq.diagnostics.diagnose`, the counters, wall times, the status
+  :func:`hamrkq.analysis.diagnostics.diagnose`, the counters, wall times, the status
   (``"partial": true`` when the run stopped early) and package versions;
-- the figures (PNG) of :mod:`hamrkq.plotting`, unless ``--no-plots``.
+- the figures (PNG) of :mod:`hamrkq.plotting.figures`, unless ``--no-plots``.
 
 The summary table goes to stdout, a progress bar to stderr on a terminal.
 Exit status: 0 success, 1 the integration failed or was interrupted (the
@@ -23,16 +23,16 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hamrkq.catalogue import load_problem
-from hamrkq.diagnostics import diagnose
+from hamrkq.analysis.diagnostics import diagnose
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import HamrkqError, InputError, OptionError
-from hamrkq.report import OutputDir, ProgressBar, format_table, summary_dict, summary_rows
+from hamrkq.io.report import OutputDir, ProgressBar, format_table, summary_dict, summary_rows
 from hamrkq.solve import BACKENDS, METHODS, solve
 
 __all__ = ["REFERENCE_CHOICES", "register", "run_command"]
 
 #: ``--reference`` values.  ``auto``: the exact solution where the catalogue
-#: has one, otherwise an independent DOP853 reference (hamrkq.reference).
+#: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference).
 REFERENCE_CHOICES = ("auto", "exact", "independent", "rk8", "none")
 DEFAULT_ROOT = Path("hamrkq-run")
 
@@ -155,7 +155,7 @@ def diagnose_safely(sol: Any, problem: Any, reference: str) -> tuple[Any, list[s
 
 def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) -> list[str]:
     """Draw and save the figures this run supports; returns notes on those skipped."""
-    from hamrkq import plotting
+    from hamrkq.plotting import figures as plotting
 
     if len(sol) < 2:
         return ["fewer than two nodes: no figures"]

@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq.analysis.reference import Reference, hamiltonian_reference
 from hamrkq.errors import InputError, OptionError
-from hamrkq.reference import Reference, hamiltonian_reference
 
 __all__ = [
     "REFERENCE_KINDS",
@@ -448,7 +448,7 @@ def diagnose(
         What the true error is measured against.  ``"auto"``: the exact
         solution if there is one, else the run's RK8 track, else nothing (an
         independent reference costs a tight integration, so it is never
-        chosen silently).  A :class:`~hamrkq.reference.Reference` computed at
+        chosen silently).  A :class:`~hamrkq.analysis.reference.Reference` computed at
         ``solution.t`` can be passed directly (to share it between runs).
     params : array_like or mapping, optional
         Parameter values; default the problem's (or the Hamiltonian's defaults).
@@ -460,7 +460,7 @@ def diagnose(
     exact : callable, optional
         ``exact(t) -> (N, 2n)``; default the problem's exact solution.
     periodic : bool, optional
-        Passed to :func:`hamrkq.reference.hamiltonian_reference`.
+        Passed to :func:`hamrkq.analysis.reference.hamiltonian_reference`.
 
     Returns
     -------

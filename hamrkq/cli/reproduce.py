@@ -13,7 +13,7 @@ does the same and writes, into ``--out`` (default
 - ``comparison.md``: every number the paper reports (read from the
   problem's ``[expected]`` table), this run's value measured the paper's way
   (against its own RK8 track) and the true value (against an independent
-  reference, :mod:`hamrkq.reference`), side by side;
+  reference, :mod:`hamrkq.analysis.reference`), side by side;
 - ``summary.json`` (both runs: settings, diagnostics, versions) and the two
   solutions (``solution_rk34q8.npz``, ``solution_rk34.npz``).
 """
@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.catalogue import load_problem
-from hamrkq.diagnostics import diagnose, error_summary, tolerance
+from hamrkq.analysis.diagnostics import diagnose, error_summary, tolerance
+from hamrkq.analysis.reference import hamiltonian_reference
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError
-from hamrkq.reference import hamiltonian_reference
-from hamrkq.report import OutputDir, ProgressBar, format_table, summary_dict
+from hamrkq.io.report import OutputDir, ProgressBar, format_table, summary_dict
 from hamrkq.result import Status
 
 __all__ = ["EXPERIMENTS", "register", "reproduce_command"]
@@ -173,7 +173,7 @@ def _rk8_true_error(sol: Any, error: np.ndarray, ref: Any) -> Any:
 def _figures(out: OutputDir, runs: dict, diags: dict, rk8_error: np.ndarray, *, dpi: int) -> None:
     from matplotlib.figure import Figure
 
-    from hamrkq import plotting
+    from hamrkq.plotting import figures as plotting
 
     title = "prentice2011"
     out.figure("figure1_solution.png", plotting.figure1(runs, title=title), dpi=dpi)

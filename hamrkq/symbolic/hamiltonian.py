@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .codegen import CodegenError, check_supported
-from .errors import HamiltonianError, InputError, InputTypeError, UndeclaredSymbolError
+from hamrkq.backends.codegen import CodegenError, check_supported
+from hamrkq.errors import HamiltonianError, InputError, InputTypeError, UndeclaredSymbolError
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
 
@@ -343,9 +343,9 @@ class Hamiltonian:
 
     @cached_property
     def numeric(self):
-        """The numerical functions (:class:`~hamrkq.numeric.NumericHamiltonian`),
+        """The numerical functions (:class:`~hamrkq.backends.numeric.NumericHamiltonian`),
         generated once."""
-        from .numeric import NumericHamiltonian
+        from hamrkq.backends.numeric import NumericHamiltonian
 
         return NumericHamiltonian(self)
 

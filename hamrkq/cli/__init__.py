@@ -16,9 +16,9 @@ from collections.abc import Sequence
 
 import sympy as sp
 
-from . import __version__
-from .catalogue import list_problems, load_problem
-from .errors import HamrkqError
+from hamrkq import __version__
+from hamrkq.catalogue.problems import list_problems, load_problem
+from hamrkq.errors import HamrkqError
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_OK", "main"]
 
@@ -29,9 +29,9 @@ EXIT_BAD_INPUT = 2
 #: Modules providing further subcommands: each has ``register(subparsers)``
 #: which adds its parser and sets ``func`` (args -> exit status).
 COMMAND_MODULES: tuple[str, ...] = (
-    "hamrkq.commands.run",
-    "hamrkq.commands.reproduce",
-    "hamrkq.commands.compare",
+    "hamrkq.cli.run",
+    "hamrkq.cli.reproduce",
+    "hamrkq.cli.compare",
 )
 
 

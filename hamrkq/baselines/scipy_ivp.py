@@ -16,7 +16,7 @@ Tolerances are handed to SciPy unchanged except that ``rtol`` is raised to
 100 eps (SciPy's floor, without its warning).  Note that SciPy's error test is
 an RMS norm of ``err / (atol + rtol |y|)``, not hamrkq's max norm of
 ``err / max(atol, rtol |y|)``: equal numbers are not equal demands, which is
-why :mod:`hamrkq.comparison` compares methods over a sweep of tolerances.
+why :mod:`hamrkq.analysis.comparison` compares methods over a sweep of tolerances.
 """
 
 from __future__ import annotations
@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
-from .errors import InputError, OptionError
-from .result import Solution, Status
-from .scipy_solver import RK34Q8
+from hamrkq.errors import InputError, OptionError
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.scipy_solver import RK34Q8
 
 __all__ = ["PREFIX", "SCIPY_METHODS", "USES_JACOBIAN", "solve_scipy"]
 

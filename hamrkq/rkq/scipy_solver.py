@@ -5,7 +5,7 @@ hamrkq's RKQ steps (J.S.C. Prentice, arXiv:1111.6996): RK3/RK4 local
 extrapolation, an RK8 track on the same mesh, and quenching of the reported
 solution to the RK8 value wherever they differ by more than the tolerance.
 The algorithm is not re-implemented here: each call of :meth:`step` runs
-:func:`hamrkq.rkq.advance` until it has accepted exactly one step.
+:func:`hamrkq.rkq.kernel.advance` until it has accepted exactly one step.
 
 It works on any first-order system (nothing needs to be Hamiltonian), so
 ``solve_ivp``'s ``t_eval``, ``dense_output``, ``events`` and ``args`` behave as
@@ -46,18 +46,18 @@ from typing import Any
 import numpy as np
 from scipy.integrate import DenseOutput, OdeSolver
 
-from . import rkq
-from .errors import HamrkqWarning, InputError, OptionError
-from .result import Status
-from .tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
-from .validation import choice, tolerance
+from hamrkq._validate import choice, tolerance
+from hamrkq.errors import HamrkqWarning, InputError, OptionError
+from hamrkq.methods.tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+from hamrkq.result import Status
+from hamrkq.rkq import kernel as rkq
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
 EPS = float(np.finfo(float).eps)
 #: As in :func:`hamrkq.solve`: relative tolerances below 100 eps are raised.
 MIN_RTOL = 100 * EPS
-#: Step attempts per call of :func:`hamrkq.rkq.advance` before control comes
+#: Step attempts per call of :func:`hamrkq.rkq.kernel.advance` before control comes
 #: back to Python (a Ctrl-C is seen between calls).
 BUDGET = 1000
 #: No limit on steps: SciPy's callers stop a solver themselves.

@@ -1,6 +1,6 @@
 """``hamrkq compare NAME|FILE``: every method on one problem, side by side.
 
-The numerics are :func:`hamrkq.comparison.compare`; this module turns the
+The numerics are :func:`hamrkq.analysis.comparison.compare`; this module turns the
 result into files.  What it writes into ``--out`` (default
 ``./hamrkq-compare/NAME``), every file atomically:
 
@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hamrkq.catalogue import load_problem
-from hamrkq.comparison import MATCH_MODES, Comparison, compare, default_methods
+from hamrkq.analysis.comparison import MATCH_MODES, Comparison, compare, default_methods
+from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError
-from hamrkq.report import OutputDir, package_versions
+from hamrkq.io.report import OutputDir, package_versions
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -230,7 +230,7 @@ def work_precision_figure(result: Comparison, *, axes: Any = None) -> Figure:
 
 def energy_figure(result: Comparison, *, ax: Any = None) -> Figure:
     """abs(H - H(0)) against t for the headline run of each method."""
-    from hamrkq.plotting import upper_envelope
+    from hamrkq.plotting.figures import upper_envelope
 
     if ax is None:
         fig, (ax,) = _figure(1, (9.0, 4.5))
@@ -273,7 +273,7 @@ def _command_line(args: argparse.Namespace, methods: list[str]) -> str:
 
 def compare_command(args: argparse.Namespace) -> int:
     """The ``compare`` subcommand; returns the exit status."""
-    from hamrkq.commands.run import parse_parameters
+    from hamrkq.cli.run import parse_parameters
 
     problem = load_problem(args.problem)
     if args.param:

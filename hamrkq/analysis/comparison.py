@@ -21,18 +21,18 @@ notes say so).
 
 Settings.  Adaptive methods get the problem's default ``atol``/``rtol`` times
 each factor of the sweep (SciPy reads them with its own norm, see
-:mod:`hamrkq.baselines`).  A fixed-step method gets ``h_ref`` times each
+:mod:`hamrkq.baselines.scipy_ivp`).  A fixed-step method gets ``h_ref`` times each
 factor, where ``h_ref`` spends as many ``f`` evaluations as the anchor run:
 ``h_ref = span * (f per step) / nfev_anchor``, the cost per step measured on a
 short pilot run (Newton iterations vary with h and the problem).
 
 The true error of every run is measured against the same reference at its
 own nodes: the problem's exact solution where the catalogue has one, else
-:func:`hamrkq.reference.hamiltonian_reference` (a periodic-orbit reference for
+:func:`hamrkq.analysis.reference.hamiltonian_reference` (a periodic-orbit reference for
 one degree of freedom, a tight DOP853 integration otherwise), evaluated once
 at the union of all node times.  Runs with many nodes are thinned to about
 :data:`MAX_NODES` kept nodes (``keep_every``), which does not change the
-integration.  The figures are drawn by :mod:`hamrkq.commands.compare`.
+integration.  The figures are drawn by :mod:`hamrkq.cli.compare`.
 """
 
 from __future__ import annotations
@@ -45,12 +45,12 @@ from typing import Any
 
 import numpy as np
 
-from .diagnostics import drift_summary
-from .errors import InputError, OptionError
-from .reference import hamiltonian_reference
-from .result import Solution
-from .solve import DEFAULT_MAX_STEPS, METHODS, solve
-from .symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
+from hamrkq.analysis.diagnostics import drift_summary
+from hamrkq.analysis.reference import hamiltonian_reference
+from hamrkq.errors import InputError, OptionError
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
+from hamrkq.result import Solution
+from hamrkq.solve import DEFAULT_MAX_STEPS, METHODS, solve
 
 __all__ = [
     "DEFAULT_METHODS",

@@ -1,0 +1,1 @@
+"""Analysis of a solution: diagnostics, independent references, comparisons."""

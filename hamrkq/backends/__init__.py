@@ -1,0 +1,1 @@
+"""Numerical backends: generated scalar code, its cache, NumPy and numba."""

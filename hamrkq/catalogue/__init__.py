@@ -1,0 +1,1 @@
+"""The problem catalogue: the TOML file format, :class:`Problem`, exact solutions."""

@@ -1,1 +1,0 @@
-"""Subcommands of the ``hamrkq`` command line beyond ``list`` and ``show``."""

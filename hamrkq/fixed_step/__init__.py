@@ -1,0 +1,1 @@
+"""Fixed-step baselines: Gauss-Legendre collocation and symplectic splittings."""

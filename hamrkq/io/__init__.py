@@ -1,0 +1,1 @@
+"""Output files: directory policy, atomic writes, JSON and NPZ."""

@@ -1,0 +1,1 @@
+"""Runge-Kutta methods as frozen, cited data, in one registry."""

@@ -1,0 +1,1 @@
+"""The RKQ integrator: its step kernel, driver and SciPy ``OdeSolver`` form."""

@@ -1,0 +1,1 @@
+"""The symbolic layer: the safe expression parser and :class:`Hamiltonian`."""
