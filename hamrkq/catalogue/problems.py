@@ -204,7 +204,7 @@ def catalogue_dir() -> Path:
     except (ModuleNotFoundError, TypeError):
         pass
     # A source checkout without installation: problems/ beside the package.
-    return Path(__file__).resolve().parent.parent / "problems"
+    return Path(__file__).resolve().parents[2] / "problems"
 
 
 def list_problems() -> list[str]:
