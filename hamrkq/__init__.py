@@ -6,9 +6,6 @@ fast numerical code, and integrates with explicit Runge-Kutta methods under
 stepwise control of the *global* error (J.S.C. Prentice, arXiv:1111.6996).
 """
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
-
 from hamrkq.analysis.diagnostics import Diagnostics, diagnose
 from hamrkq.catalogue.problems import Problem, list_problems, load_problem
 from hamrkq.result import Solution, Status
@@ -18,11 +15,8 @@ from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 from . import errors
+from ._version import __version__
 
-try:
-    __version__ = _version("hamrkq")
-except PackageNotFoundError:  # a source checkout that is not installed
-    __version__ = "0.1.0"
 
 __all__ = [
     "RK34Q8",

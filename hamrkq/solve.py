@@ -1,17 +1,21 @@
 """`solve`: the one public entry for integrating a Hamiltonian system.
 
-:func:`solve` validates its input (every message names the parameter and the
-value), fills in defaults from a catalogue :class:`~hamrkq.catalogue.problems.Problem`,
-dispatches to a method through a small table (:data:`METHODS`) and packs the
-result into a :class:`~hamrkq.result.Solution`.  The numerics live elsewhere:
-the RKQ loop in :mod:`hamrkq.rkq.kernel`, the fixed-step symplectic baselines in
-:mod:`hamrkq.fixed_step.symplectic`, the SciPy baselines in :mod:`hamrkq.baselines.scipy_ivp`.
+:func:`solve` validates its whole input first (every message names the
+parameter and the value; :class:`~hamrkq.options.SolveOptions` holds the
+options' vocabulary and checks), fills in defaults from a catalogue
+:class:`~hamrkq.catalogue.problems.Problem`, only then chooses and prepares a
+backend (which may compile), dispatches to a method through a small table
+(:data:`METHODS`) and packs the result into a :class:`~hamrkq.result.Solution`.
+The numerics live elsewhere: the RKQ kernel in :mod:`hamrkq.rkq`, the
+fixed-step baselines in :mod:`hamrkq.fixed_step`, the SciPy baselines in
+:mod:`hamrkq.baselines`.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import time
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -20,43 +24,48 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from hamrkq._validate import choice as _choice
-from hamrkq._validate import count as _count
-from hamrkq._validate import positive as _positive
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
 from hamrkq._validate import tolerance as _tolerance
 from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
+from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import HamrkqWarning, InputError, InputTypeError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
-from hamrkq.methods.tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
+from hamrkq.options import (
+    BACKENDS,
+    DEFAULT_GAMMA_LIMIT,
+    DEFAULT_MAX_STEPS,
+    GAMMA_MODES,
+    MIN_ATOL,
+    MIN_RTOL,
+    QUENCH_MODES,
+    TOLERANCE_RULES,
+    Z_METHOD_NAMES,
+    SolveOptions,
+)
 from hamrkq.result import Solution, Status
-from hamrkq.rkq import kernel as rkq
+from hamrkq.rkq.driver import Integration, RunOutput, Settings, python_functions
+from hamrkq.rkq.family import MEMBERS, get_member
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["BACKENDS", "METHODS", "MethodSpec", "Task", "solve"]
+__all__ = [
+    "BACKENDS",
+    "DEFAULT_GAMMA_LIMIT",
+    "DEFAULT_MAX_STEPS",
+    "GAMMA_MODES",
+    "METHODS",
+    "MIN_RTOL",
+    "QUENCH_MODES",
+    "TOLERANCE_RULES",
+    "Z_METHODS",
+    "MethodSpec",
+    "Task",
+    "solve",
+]
 
-EPS = float(np.finfo(float).eps)
-#: Relative tolerances below this are raised to it (with a warning): below
-#: about 100 eps the local error test measures rounding, as in SciPy.
-MIN_RTOL = 100 * EPS
-#: Default step limit (accepted plus rejected attempts): a guard against runs
-#: that would never end, far above the ~62 000 steps of the paper's problem.
-DEFAULT_MAX_STEPS = 1_000_000
-#: Default for ``gamma_limit``: the run stops when the RK8 track's own
-#: estimated error (plus rounding) exceeds this fraction of the tolerance, so
-#: that a reported node's true error stays within (1 + 0.05) x tolerance.
-DEFAULT_GAMMA_LIMIT = 0.05
-
-QUENCH_MODES = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
-TOLERANCE_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
-GAMMA_MODES = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
-Z_METHODS = ("dop853", "cooper_verner")
-#: Where the RK loop runs: "numba" (compiled, :mod:`hamrkq.backends.compiled`),
-#: "python" (interpreted), or "auto" (numba when it can be used).
-BACKENDS = ("auto", "numba", "python")
+Z_METHODS = Z_METHOD_NAMES
 
 
 @dataclass(frozen=True)
@@ -70,7 +79,8 @@ class Task:
     y0: np.ndarray
     atol: np.ndarray
     rtol: np.ndarray
-    options: Mapping[str, Any]  # the validated keyword options
+    options: SolveOptions
+    t_eval: np.ndarray | None
     progress: Callable[[float, float], None] | None
 
 
@@ -78,56 +88,79 @@ class Task:
 class MethodSpec:
     """A method :func:`solve` can dispatch to.
 
-    ``run(task, backend) -> rkq.RunOutput`` (or a finished
+    ``run(task, backend) -> RunOutput`` (or a finished
     :class:`~hamrkq.result.Solution`, for the baselines); ``rk8`` says whether
-    the method produces the RK8 track (``z``, ``gamma``, ``quenched``).
+    the method produces the quencher track (``z``, ``gamma``, ``quenched``).
     """
 
     name: str
     summary: str
-    run: Callable[[Task, str], rkq.RunOutput | Solution]
+    run: Callable[[Task, str], RunOutput | Solution]
     backends: tuple[str, ...]
     rk8: bool
 
 
-def _run_rk(task: Task, backend: str) -> rkq.RunOutput:
+def _member(task: Task):
     o = task.options
-    rk8 = get_tableau(o["z_method"]) if o["method"] == "rk34q8" else None
-    options = dict(
-        rk3=RK3_KUTTA,
-        rk4=RK4_CLASSIC,
-        rk8=rk8,
-        atol=task.atol,
-        rtol=task.rtol,
-        quench=QUENCH_MODES[o["quench"]],
-        rule=TOLERANCE_RULES[o["tolerance_rule"]],
-        gamma=GAMMA_MODES[o["global_error_estimate"]],
-        safety=o["safety"],
-        theta=o["quench_threshold"],
-        max_step=o["max_step"],
-        max_steps=o["max_steps"],
-        gamma_limit=o["gamma_limit"],
-        keep_every=o["keep_every"],
-        t_eval=o["t_eval"],
-        first_step=o["first_step"],
-        progress=task.progress,
+    return get_member(o.method, o.z_method)
+
+
+def _run_rk(task: Task, backend: str) -> RunOutput:
+    o = task.options
+    member = _member(task)
+    settings = Settings(
+        **o.codes(),
+        safety=o.safety,
+        theta=o.quench_threshold,
+        max_step=o.max_step,
+        max_steps=o.max_steps,
+        gamma_limit=o.gamma_limit,
+        keep_every=o.keep_every,
+        t_eval=task.t_eval,
+        first_step=o.first_step,
     )
     if backend == "numba":
         from hamrkq.backends import compiled
 
-        return compiled.run(task.ham, task.params, task.t0, task.y0, task.t_end, **options)
-    numeric = task.ham.numeric
-    return rkq.run(numeric.rhs, numeric.jac, task.params, task.t0, task.y0, task.t_end, **options)
+        functions = compiled.kernel_functions(task.ham)
+    else:
+        numeric = task.ham.numeric
+        functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
+    run = Integration(
+        functions,
+        member,
+        task.params,
+        task.t0,
+        task.y0,
+        task.t_end,
+        task.atol,
+        task.rtol,
+        settings,
+    )
+    out = run.run(task.progress)
+    out.stats["integrate_s"] = run.integrate_s
+    return out
 
 
-def _resolve_backend(backend: Any, ham: Hamiltonian, spec: MethodSpec) -> str:
+def _inplace(fun: Callable, matrix: bool) -> Callable:
+    """``fun(t, y, params) -> array`` as ``fun(t, y, params, out)``."""
+    if matrix:
+
+        def wrapped(t, y, params, out):
+            out[:, :] = fun(t, y, params)
+
+    else:
+
+        def wrapped(t, y, params, out):
+            out[:] = fun(t, y, params)
+
+    return wrapped
+
+
+def _resolve_backend(backend: str, ham: Hamiltonian, spec: MethodSpec) -> str:
     """``"auto"`` -> ``"numba"`` when the method has a compiled runner and
     numba can be used (else ``"python"``, with one HamrkqWarning when numba
     was expected but cannot be used)."""
-    if not isinstance(backend, str) or backend not in BACKENDS:
-        raise OptionError(
-            f"backend={_show(backend)} is not valid; valid: {', '.join(map(repr, BACKENDS))}"
-        )
     if backend == "python" or "numba" not in spec.backends:
         return "python" if backend == "auto" else backend
     from hamrkq.backends import compiled
@@ -138,26 +171,48 @@ def _resolve_backend(backend: Any, ham: Hamiltonian, spec: MethodSpec) -> str:
 def _run_fixed(task: Task, backend: str) -> Solution:
     o = task.options
     return solve_fixed(
-        task.ham, task.y0, (task.t0, task.t_end), o["method"], o["step"], task.params,
-        keep_every=o["keep_every"], max_steps=o["max_steps"],
-    )  # fmt: skip
+        task.ham,
+        task.y0,
+        (task.t0, task.t_end),
+        o.method,
+        o.step,
+        task.params,
+        keep_every=o.keep_every,
+        max_steps=o.max_steps,
+    )
 
 
 #: Options of :func:`solve` that hamrkq's RK34Q8 takes in its SciPy form too.
-_RKQ_OPTIONS = ("quench", "quench_threshold", "safety", "tolerance_rule",
-                "global_error_estimate", "z_method", "gamma_limit")  # fmt: skip
+_RKQ_OPTIONS = (
+    "quench",
+    "quench_threshold",
+    "safety",
+    "tolerance_rule",
+    "global_error_estimate",
+    "z_method",
+    "gamma_limit",
+)
 
 
 def _run_scipy(task: Task, backend: str) -> Solution:
     o = task.options
-    name = o["method"][len(SCIPY_PREFIX) :]
+    name = o.method[len(SCIPY_PREFIX) :]
     return solve_scipy(
-        task.ham, task.y0, (task.t0, task.t_end), name, task.params, atol=task.atol,
-        rtol=task.rtol, first_step=o["first_step"], max_step=o["max_step"],
-        max_steps=o["max_steps"], keep_every=o["keep_every"], t_eval=o["t_eval"],
+        task.ham,
+        task.y0,
+        (task.t0, task.t_end),
+        name,
+        task.params,
+        atol=task.atol,
+        rtol=task.rtol,
+        first_step=o.first_step,
+        max_step=o.max_step,
+        max_steps=o.max_steps,
+        keep_every=o.keep_every,
+        t_eval=task.t_eval,
         progress=task.progress,
-        options={k: o[k] for k in _RKQ_OPTIONS} if name == "RK34Q8" else None,
-    )  # fmt: skip
+        options={k: getattr(o, k) for k in _RKQ_OPTIONS} if name == "RK34Q8" else None,
+    )
 
 
 _FIXED_SUMMARIES = {
@@ -168,24 +223,12 @@ _FIXED_SUMMARIES = {
     "yoshida4": "Yoshida's triple jump of Verlet, fixed step (symplectic, order 4; separable H)",
 }
 
-#: Dispatch table: method name -> :class:`MethodSpec`.  Later methods
-#: ("midpoint", "gauss4", "scipy:DOP853", ...) and backends ("numba") are
-#: added here without touching :func:`solve`.
+#: Dispatch table: method name -> :class:`MethodSpec`.
 METHODS: dict[str, MethodSpec] = {
-    "rk34q8": MethodSpec(
-        "rk34q8",
-        "RKQ: RK3/RK4 local extrapolation with an RK8 track and quenching (Prentice)",
-        _run_rk,
-        ("python", "numba"),
-        rk8=True,
-    ),
-    "rk34": MethodSpec(
-        "rk34",
-        "RK3/RK4 local extrapolation only (the paper's comparison)",
-        _run_rk,
-        ("python", "numba"),
-        rk8=False,
-    ),
+    **{
+        name: MethodSpec(name, member.summary, _run_rk, ("python", "numba"), member.use_z)
+        for name, member in MEMBERS.items()
+    },
     **{
         name: MethodSpec(name, _FIXED_SUMMARIES[name], _run_fixed, ("python",), rk8=False)
         for name in FIXED_STEP_METHODS
@@ -331,128 +374,123 @@ def solve(
     ham, defaults, q0, p0, t_span, parameters = _system(
         system_or_problem, q0, p0, t_span, parameters
     )
-    pick = _Defaults(defaults)
-    method = _choice("method", pick("method", method, "rk34q8"), METHODS)
-    spec = METHODS[method]
-    backend = _resolve_backend(backend, ham, spec)
-    if backend not in spec.backends:
-        known = BACKENDS if backend not in BACKENDS else spec.backends
-        raise OptionError(
-            f"backend={backend!r} is not available for method {method!r}; "
-            f"valid: {', '.join(map(repr, known))}"
-        )
+    given = dict(
+        method=method,
+        quench=quench,
+        quench_threshold=quench_threshold,
+        safety=safety,
+        tolerance_rule=tolerance_rule,
+        global_error_estimate=global_error_estimate,
+        z_method=z_method,
+        first_step=first_step,
+        max_step=max_step,
+        step=step,
+        max_steps=max_steps,
+        gamma_limit=gamma_limit,
+        keep_every=keep_every,
+        backend=backend,
+    )
+    options = SolveOptions.resolve(given, defaults)
+    spec = METHODS[options.method]
+    # Everything is validated before a backend is chosen: choosing numba may compile.
     params = ham.parameter_values(parameters)
     y0 = ham.state_values(q0, p0)
     t0, t_end = _span(t_span)
-    dim = ham.dim
-    atol_v = _tolerance("atol", pick("atol", atol, 1e-6), dim, positive=True)
-    rtol_v = _tolerance("rtol", pick("rtol", rtol, 0.0), dim, positive=False)
-    if np.any((rtol_v > 0) & (rtol_v < MIN_RTOL)):
-        warnings.warn(
-            f"rtol={_show(rtol)} is below 100 eps and is raised to {MIN_RTOL:.3g}",
-            HamrkqWarning,
-            stacklevel=2,
-        )
-        rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
-    options = {
-        "method": method,
-        "quench": _choice("quench", pick("quench", quench, "node"), QUENCH_MODES),
-        "quench_threshold": _positive(
-            "quench_threshold", pick("quench_threshold", quench_threshold, 1.0)
-        ),
-        "safety": _positive("safety", pick("safety", safety, 0.9), upper=1.0),
-        "tolerance_rule": _choice(
-            "tolerance_rule",
-            pick("tolerance_rule", tolerance_rule, "componentwise"),
-            TOLERANCE_RULES,
-        ),
-        "global_error_estimate": _choice(
-            "global_error_estimate",
-            pick("global_error_estimate", global_error_estimate, "tangent"),
-            GAMMA_MODES,
-        ),
-        "z_method": _choice("z_method", pick("z_method", z_method, "dop853"), Z_METHODS),
-        "max_step": _positive("max_step", pick("max_step", max_step, math.inf), inf=True),
-        "max_steps": _count("max_steps", pick("max_steps", max_steps, DEFAULT_MAX_STEPS)),
-        "gamma_limit": _positive(
-            "gamma_limit", DEFAULT_GAMMA_LIMIT if gamma_limit is None else gamma_limit, inf=True
-        ),
-        "keep_every": _count("keep_every", keep_every),
-        "t_eval": _t_eval(t_eval, t0, t_end),
-        "first_step": None,
-    }
-    first = pick("first_step", first_step, None)
-    if first is not None:
-        first = _positive("first_step", first)
-        if t_end != t0 and first > abs(t_end - t0):
-            raise InputError(
-                f"first_step={first!r} exceeds the length of t_span ({abs(t_end - t0)!r})"
-            )
-        options["first_step"] = first
-    _fixed_step_options(options, pick("step", step, None), step, atol, rtol, first_step)
-    if options["t_eval"] is not None and keep_every != 1:
+    t_eval_v = _t_eval(t_eval, t0, t_end)
+    _step_rules(options, step, atol, rtol, first_step, t_eval_v, t0, t_end)
+    atol_v, rtol_v = _tolerances(ham.dim, defaults, atol, rtol)
+    if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
-            f"keep_every={keep_every!r} and t_eval cannot be combined: t_eval already "
+            f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
             "chooses the nodes that are kept"
         )
     bar = _progress(progress)
-    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, bar)
+    started = time.perf_counter()
+    chosen = _resolve_backend(options.backend, ham, spec)
+    compile_s = time.perf_counter() - started
+    if chosen not in spec.backends:
+        raise OptionError(
+            f"backend={chosen!r} is not available for method {options.method!r}; "
+            f"valid: {', '.join(map(repr, spec.backends))}"
+        )
+    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar)
     # A failure is reported by the status; NumPy's RuntimeWarnings from the
     # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
     # singular initial node, would only be noise.
     with np.errstate(all="ignore"):
-        out = spec.run(task, backend)
+        started = time.perf_counter()
+        out = spec.run(task, chosen)
+        elapsed = time.perf_counter() - started
         if bar is not None and progress is True:
             sys.stderr.write("\n")  # leave the finished bar on its own line
         if isinstance(out, Solution):  # the baselines build their own
             return out
-        return _solution(task, spec, out, backend)
+        out.stats.setdefault("integrate_s", elapsed)
+        out.stats["compile_s"] = compile_s
+        return _solution(task, spec, out, chosen)
 
 
 # -- validation ------------------------------------------------------------------
 
 
-def _fixed_step_options(options, value, given, atol, rtol, first_step) -> None:
+def _step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, t_end):
     """``step`` is required by the fixed-step methods and refused by the others;
     tolerances, ``first_step`` and ``t_eval`` mean nothing to a fixed step."""
-    method = options["method"]
-    if method not in FIXED_STEP_METHODS:
-        if given is not None:
+    if not options.is_fixed_step:
+        if step is not None:
             raise OptionError(
-                f"step={_show(given)} applies only to the fixed-step methods "
-                f"({', '.join(map(repr, FIXED_STEP_METHODS))}); method {method!r} chooses "
-                "its own steps (see first_step and max_step)"
+                f"step={_show(step)} applies only to the fixed-step methods "
+                f"({', '.join(map(repr, FIXED_STEP_METHODS))}); method {options.method!r} "
+                "chooses its own steps (see first_step and max_step)"
             )
+        if options.first_step is not None and t_end != t0:
+            if options.first_step > abs(t_end - t0):
+                raise InputError(
+                    f"first_step={options.first_step!r} exceeds the length of t_span "
+                    f"({abs(t_end - t0)!r})"
+                )
         return
-    if value is None:
-        raise InputError(f"method {method!r} is a fixed-step method: step (h) must be given")
-    options["step"] = _positive("step", value)
-    for name, other in (("atol", atol), ("rtol", rtol), ("first_step", first_step),
-                        ("t_eval", options["t_eval"])):  # fmt: skip
+    if options.step is None:
+        raise InputError(
+            f"method {options.method!r} is a fixed-step method: step (h) must be given"
+        )
+    for name, other in (
+        ("atol", atol),
+        ("rtol", rtol),
+        ("first_step", first_step),
+        ("t_eval", t_eval),
+    ):
         if other is not None:
             raise OptionError(
-                f"{name} does not apply to the fixed-step method {method!r} (it has no "
-                "error control and no dense output); give step only"
+                f"{name} does not apply to the fixed-step method {options.method!r} (it has "
+                "no error control and no dense output); give step only"
             )
 
 
-class _Defaults:
-    """``pick(name, given, fallback)``: the keyword if given, else the
-    problem's setting, else the fallback."""
-
-    def __init__(self, settings: Mapping[str, Any]):
-        self.settings = settings
-
-    def __call__(self, name: str, given: Any, fallback: Any) -> Any:
-        if given is not None:
-            return given
-        return self.settings.get(name, fallback)
+def _tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
+    """``atol`` and ``rtol`` as arrays of ``dim`` values (keyword, else the
+    problem's, else 1e-6 and 0); an rtol below 100 eps is raised to it."""
+    atol_given = atol if atol is not None else defaults.get("atol", 1e-6)
+    rtol_given = rtol if rtol is not None else defaults.get("rtol", 0.0)
+    atol_v = _tolerance("atol", atol_given, dim, positive=True)
+    rtol_v = _tolerance("rtol", rtol_given, dim, positive=False)
+    if np.any(atol_v < MIN_ATOL):
+        raise InputError(
+            f"atol={_show(atol_given)} is below {MIN_ATOL:g}, which no double-precision "
+            "step can resolve; use a larger atol (or rtol for relative control)"
+        )
+    if np.any((rtol_v > 0) & (rtol_v < MIN_RTOL)):
+        warnings.warn(
+            f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}",
+            HamrkqWarning,
+            stacklevel=3,
+        )
+        rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
+    return atol_v, rtol_v
 
 
 def _system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
     """The Hamiltonian and the defaults a Problem supplies."""
-    from hamrkq.catalogue.problems import Problem
-
     if parameters is not None and not isinstance(parameters, Mapping):
         raise InputTypeError(
             f"parameters must be a mapping of names or symbols to numbers, got {parameters!r}"
@@ -524,12 +562,11 @@ def _terminal_bar(width: int = 40) -> Callable[[float, float], None]:
 _STATUS_BY_CODE = {status.code: status for status in Status}
 
 
-def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) -> Solution:
+def _solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solution:
     o = task.options
-    gamma_mode = o["global_error_estimate"] if spec.rk8 else "off"
-    nfev_step, njev_step = rkq.evaluations_per_step(
-        o["method"], gamma_mode, get_tableau(o["z_method"]).stages
-    )
+    member = _member(task)
+    gamma_mode = o.global_error_estimate if spec.rk8 else "off"
+    nfev_step, njev_step = member.evaluations_per_step(gamma_mode)
     stats = dict(out.stats)
     status = _STATUS_BY_CODE[out.status]
     if not out.t.size:
@@ -541,19 +578,19 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
     else:
         energy = task.ham.numeric.energy(out.t, out.y, task.params)
     options: dict[str, Any] = {
-        "method": o["method"],
+        "method": o.method,
         "backend": backend,
         "t_span": [task.t0, task.t_end],
         "atol": task.atol.tolist(),
         "rtol": task.rtol.tolist(),
-        "tolerance_rule": o["tolerance_rule"],
-        "safety": o["safety"],
+        "tolerance_rule": o.tolerance_rule,
+        "safety": o.safety,
         "first_step": out.first_step,
-        "first_step_rule": "given" if o["first_step"] is not None else "hairer-norsett-wanner",
-        "max_step": None if math.isinf(o["max_step"]) else o["max_step"],
-        "max_steps": o["max_steps"],
-        "keep_every": o["keep_every"],
-        "t_eval": None if o["t_eval"] is None else o["t_eval"].tolist(),
+        "first_step_rule": "given" if o.first_step is not None else "hairer-norsett-wanner",
+        "max_step": None if math.isinf(o.max_step) else o.max_step,
+        "max_steps": o.max_steps,
+        "keep_every": o.keep_every,
+        "t_eval": None if task.t_eval is None else task.t_eval.tolist(),
         "parameters": {
             s.name: float(v) for s, v in zip(task.ham.parameters, task.params, strict=True)
         },
@@ -562,11 +599,12 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
     }
     if spec.rk8:
         options.update(
-            quench=o["quench"],
-            quench_threshold=o["quench_threshold"],
-            global_error_estimate=o["global_error_estimate"],
-            z_method=o["z_method"],
-            gamma_limit=None if math.isinf(o["gamma_limit"]) else o["gamma_limit"],
+            quench=o.quench,
+            quench_threshold=o.quench_threshold,
+            global_error_estimate=o.global_error_estimate,
+            z_method=o.z_method,
+            z_substeps=member.z_substeps,
+            gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,
         )
     has_gamma = spec.rk8 and gamma_mode != "off"
     return Solution(
@@ -575,7 +613,7 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
         energy=energy,
         status=status,
         message=_message(status, out, task),
-        method=o["method"],
+        method=o.method,
         n=task.ham.n,
         names=task.ham.names,
         atol=task.atol,
@@ -589,7 +627,51 @@ def _solution(task: Task, spec: MethodSpec, out: rkq.RunOutput, backend: str) ->
     )
 
 
-def _message(status: Status, out: rkq.RunOutput, task: Task) -> str:
+def _component(task: Task, index: int) -> str:
+    """Which derivative a state component's right-hand side is, in words."""
+    ham = task.ham
+    n = ham.n
+    if index < 0:
+        return "the right-hand side"
+    if index < n:
+        return f"d{ham.q[index]}/dt = dH/d{ham.p[index]}"
+    return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
+
+
+def _unattainable(out: RunOutput, task: Task) -> str:
+    o = task.options
+    t = out.t_last
+    text = (
+        f"At t = {t!r} the quencher's estimated global error plus its rounding would reach "
+        f"{out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so the "
+        "tolerance can no longer be certified; the run ends at the last node where it held."
+    )
+    if out.y.size:
+        y = np.abs(out.y[-1])
+        delta = np.maximum(task.atol, task.rtol * y)
+        floor = float(np.max(np.finfo(float).eps * y / delta))
+        if floor >= 0.5 * o.gamma_limit:
+            return text + (
+                f" The tolerance is at double precision's floor for this state (the rounding "
+                f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
+            )
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps:
+        return text + (
+            " The quencher's error has reached double precision's rounding floor here: a "
+            "looser tolerance, or a shorter interval (the horizon of double precision for "
+            "this orbit), is what works."
+        )
+    remedies = [f"a smaller max_step (the quencher's error falls like h^{_member(task).z_order})"]
+    better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
+    if better:
+        remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
+    remedies.append("a looser tolerance only if the quencher's error grows with the step")
+    return text + " What helps: " + "; ".join(remedies) + "."
+
+
+def _message(status: Status, out: RunOutput, task: Task) -> str:
     t = out.t_last
     if status is Status.SUCCESS:
         text = f"The integration reached the end of the interval (t = {t!r})."
@@ -599,27 +681,26 @@ def _message(status: Status, out: rkq.RunOutput, task: Task) -> str:
             f"(10 eps |t|) at t = {t!r}."
         )
     elif status is Status.NON_FINITE:
-        text = f"The state or the right-hand side became non-finite (inf or nan) at t = {t!r}."
+        text = (
+            f"The state or the right-hand side became non-finite (inf or nan) at t = {t!r}: "
+            f"{_component(task, out.bad_component)} could not be evaluated to a finite value "
+            "there (a singularity, or H outside its domain)."
+        )
     elif status is Status.MAX_STEPS:
-        text = f"The step limit max_steps = {task.options['max_steps']} was reached at t = {t!r}."
+        text = f"The step limit max_steps = {task.options.max_steps} was reached at t = {t!r}."
     elif status is Status.INTERRUPTED:
         text = f"Interrupted (KeyboardInterrupt) near t = {t!r}."
     elif status is Status.TOLERANCE_UNATTAINABLE:
-        text = (
-            f"At t = {t!r} the RK8 track's estimated global error plus its rounding "
-            f"reached {out.max_ratio:.3g} x the tolerance (gamma_limit = "
-            f"{task.options['gamma_limit']:g}): the tolerance cannot be guaranteed in "
-            "double precision from here on; loosen atol/rtol."
-        )
+        text = _unattainable(out, task)
     else:  # pragma: no cover - other statuses come from other methods
         text = f"{status.description} (t = {t!r})"
     if not status.success:
         text += f" The {out.t.size} nodes computed so far are kept."
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
-    if steps and 2 * rounded > steps:
+    if steps and 2 * rounded > steps and status is not Status.TOLERANCE_UNATTAINABLE:
         text += (
-            f" Note: on {rounded} of {steps} steps the RK8 local error was below "
+            f" Note: on {rounded} of {steps} steps the quencher's local error was below "
             "double-precision rounding; there the Richardson estimate (and Gamma) "
             "measures rounding, not truncation."
         )

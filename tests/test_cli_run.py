@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import counters
 
 import hamrkq
 from hamrkq import Solution, Status
@@ -76,7 +77,7 @@ def test_summary_numbers_equal_the_library_call(prentice_run):
     sol = solve(problem, t_span=(0, 50))
     diag = diagnose(sol, problem, reference="independent")
     assert summary["diagnostics"] == jsonable(diag.to_dict())
-    assert summary["stats"] == dict(sol.stats)
+    assert counters(summary["stats"]) == counters(sol.stats)
     assert summary["nodes"] == len(sol) and summary["t_final"] == 50.0
     assert summary["status"] == "SUCCESS" and summary["partial"] is False
     assert summary["settings"]["solve"] == jsonable(dict(sol.options))
@@ -150,7 +151,7 @@ def test_parameters_override_the_problem(tmp_path, capsys):
     assert summary["problem"]["q0"] == [pytest.approx(0.7), 0.0]  # q0 = 1 - e follows
     problem = hamrkq.load_problem("kepler", e=0.3)
     sol = solve(problem, t_span=(problem.t_span[0], 6.3))
-    assert summary["stats"] == dict(sol.stats)
+    assert counters(summary["stats"]) == counters(sol.stats)
     # Kepler has an exact solution: the true error is measured against it
     true = summary["diagnostics"]["global_error"]
     assert true["source"] == "exact"

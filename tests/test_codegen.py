@@ -69,10 +69,10 @@ def test_generated_functions_match_the_symbolic_layer(generated, name):
 @pytest.mark.parametrize("name", CATALOGUE)
 def test_fused_rhs_jvp_is_rhs_then_jac_then_matvec_bit_for_bit(generated, name):
     """The compiled loop's tangent propagation calls rhs_jvp where the
-    interpreted one calls rhs, jac and rkq._matvec: the same bits, or the
+    interpreted one calls rhs, jac and arith.matvec: the same bits, or the
     backends would part (zero entries of J and signs of zero included)."""
     from hamrkq.backends import compiled
-    from hamrkq.rkq import kernel as rkq
+    from hamrkq.rkq import arith
 
     problem, module = generated[name]
     ham = problem.hamiltonian
@@ -85,7 +85,7 @@ def test_fused_rhs_jvp_is_rhs_then_jac_then_matvec_bit_for_bit(generated, name):
             module.rhs(t, y, params, f)
             module.jac(t, y, params, J)
             by_numpy, by_loops = np.empty(dim), np.empty(dim)
-            rkq._matvec(J, v, by_numpy)
+            arith.matvec(J, v, by_numpy)
             compiled._matvec_loops(J, v, by_loops)
             fused_f, fused_jv = np.full(dim, np.nan), np.full(dim, np.nan)
             module.rhs_jvp(t, y, params, v, fused_f, fused_jv, np.full((dim, dim), np.nan))

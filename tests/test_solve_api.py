@@ -5,6 +5,7 @@ solutions where numbers are involved."""
 import numpy as np
 import pytest
 import sympy as sp
+from helpers import counters
 
 from hamrkq.catalogue import exact
 from hamrkq.catalogue.problems import load_problem
@@ -109,7 +110,7 @@ def test_keep_every_and_t_eval_select_nodes():
     thin = solve(pr, atol=1e-6, keep_every=50)
     assert thin.t.size == 1 + (full.t.size - 2) // 50 + 1
     np.testing.assert_array_equal(thin.t[:-1], full.t[::50][: thin.t.size - 1])
-    assert thin.t[-1] == full.t[-1] and thin.stats == full.stats
+    assert thin.t[-1] == full.t[-1] and counters(thin.stats) == counters(full.stats)
     times = np.linspace(0, pr.t_span[1], 7)
     picked = solve(pr, atol=1e-6, t_eval=times)
     np.testing.assert_array_equal(picked.t, times)
@@ -148,7 +149,7 @@ def test_max_steps_status_and_message():
 def test_unattainable_tolerance_status_and_message():
     sol = solve(HARMONIC, [0], [1], (0, 1), atol=1e-17)
     assert sol.status is Status.TOLERANCE_UNATTAINABLE
-    assert "cannot be guaranteed" in sol.message and sol.t.size == 2
+    assert "can no longer be certified" in sol.message and sol.t.size == 1
 
 
 def test_rtol_below_100_eps_is_raised_with_a_warning():

@@ -39,7 +39,7 @@ def call(**changes):
         ({"method": "rk45"}, OptionError, "method='rk45'.*'rk34q8', 'rk34'"),
         ({"quench": "always"}, OptionError, "quench='always'.*'node', 'redo'"),
         ({"tolerance_rule": "mixed"}, OptionError, "'componentwise', 'prentice'"),
-        ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'off'"),
+        ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'shadow', 'off'"),
         ({"z_method": "rk4"}, OptionError, "z_method='rk4'.*'dop853', 'cooper_verner'"),
         ({"backend": "cuda"}, OptionError, "backend='cuda'.*'auto', 'numba', 'python'"),
         ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),

@@ -119,7 +119,7 @@ def cache_dir() -> Path:
 
 
 def _versions() -> str:
-    from hamrkq import __version__
+    from hamrkq._version import __version__
 
     try:
         from importlib.metadata import version

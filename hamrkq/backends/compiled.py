@@ -1,37 +1,29 @@
-"""The compiled backend: the RKQ loop and the generated functions under numba.
+"""The compiled backend: the RKQ kernel and the generated functions under numba.
 
-Nothing here re-implements the algorithm.  The step loop is
-:func:`hamrkq.rkq.kernel.advance` and its callees, written in the subset of Python
-that :func:`numba.njit` accepts; this module compiles them:
+Nothing here re-implements the algorithm, and no source text is copied:
 
-1. **The system.**  :mod:`hamrkq.backends.codegen` writes ``rhs``, ``jac``, ``energy``
-   and ``energy_rows`` of a Hamiltonian as scalar code into the cache
-   directory; they are compiled here with explicit signatures and
-   ``cache=True``, so numba keeps their machine code beside the generated file.
-2. **The loop.**  The text of ``hamrkq/rkq.py`` is copied into the cache
-   directory (followed by the twins below) under a name that hashes it and
-   the versions, imported, and :func:`~hamrkq.rkq.kernel.advance` and the functions
-   it calls are compiled there with ``cache=True``.  ``rhs`` and ``jac`` reach
-   the loop as *first-class function* arguments (function pointers with a
-   fixed signature), so one compiled loop serves every Hamiltonian and its
-   machine code is cached once per hamrkq version.  (Passed as ordinary
-   numba dispatchers they would specialise the loop to one system and make
-   it uncacheable.)  The small vector primitives of :mod:`hamrkq.rkq.kernel` (sums
-   over stages, a matrix-vector product, compensated summation, the tolerance
-   and the weighted norm) are swapped for element loops (:data:`PRIMITIVES`):
-   NumPy calls on arrays of a few elements are the right choice in the
-   interpreter and the slowest one under numba (a BLAS call per stage costs
-   more than the stage).  The twins do the same arithmetic in the same order
-   as rkq's versions, so both backends compute the same bits; the tests check
-   that element by element.
-3. **The driver.**  :func:`hamrkq.rkq.kernel.run` itself (chunks, growing output,
-   progress, Ctrl-C) runs unchanged in Python, with the compiled ``advance``.
+1. **The system.**  :mod:`hamrkq.backends.codegen` writes ``rhs``, ``jac``,
+   ``rhs_jvp``, ``energy`` and ``energy_rows`` of a Hamiltonian as scalar code
+   into the cache directory; they are compiled here with explicit signatures
+   and ``cache=True``, so numba keeps their machine code beside the generated
+   file.
+2. **The kernel.**  :func:`hamrkq.rkq.loop.advance` and everything it calls
+   are ordinary Python functions marked with numba's public
+   ``register_jitable`` (:mod:`hamrkq.rkq.jit`): the interpreted backend calls
+   them as they are, and here ``numba.njit`` compiles ``advance`` with an
+   explicit signature in which ``rhs``, ``rhs_jvp`` and ``jac`` are
+   first-class function types, so one compiled kernel serves every
+   Hamiltonian and its machine code is cached once per kernel version, in
+   ``<cache dir>/kernel-<hash of the kernel's sources and versions>``.
+3. **The driver.**  :class:`hamrkq.rkq.driver.Integration` (chunks, growing
+   output, progress, Ctrl-C) runs in Python with the compiled ``advance``.
 
 Parameters are run-time arguments: a parameter sweep never recompiles.
 
 ``HAMRKQ_DISABLE_NUMBA=1`` (or numba missing, or a system that cannot be
-compiled) makes :func:`resolve_backend` choose the Python backend for
-``backend="auto"``, with one :class:`~hamrkq.errors.HamrkqWarning` saying why.
+compiled, or a failure compiling the kernel) makes :func:`resolve_backend`
+choose the interpreted backend for ``backend="auto"``, with one
+:class:`~hamrkq.errors.HamrkqWarning` saying what failed.
 
 Compilation is counted: :data:`COMPILE_COUNT` grows by one for every function
 signature numba had to compile in this process (rather than load from its
@@ -43,7 +35,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import inspect
 import math
 import os
 import threading
@@ -58,7 +49,6 @@ import numpy as np
 
 from hamrkq.backends import codegen
 from hamrkq.errors import HamrkqError, HamrkqWarning, OptionError
-from hamrkq.rkq import kernel as rkq
 
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -66,15 +56,17 @@ if TYPE_CHECKING:
 __all__ = [
     "COMPILE_COUNT",
     "DISABLE_ENV",
-    "PRIMITIVES",
     "BackendUnavailable",
+    "CompiledKernel",
     "CompiledSystem",
     "available",
     "compile_system",
     "energy",
+    "kernel",
+    "kernel_functions",
     "resolve_backend",
-    "run",
     "stats",
+    "warm_up",
 ]
 
 #: Environment variable: set to 1 (or true/yes/on) to turn the compiled backend off.
@@ -85,8 +77,6 @@ _STATS = {"compiled": 0, "loaded": 0, "compile_seconds": 0.0, "load_seconds": 0.
 _LOCK = threading.RLock()
 _SYSTEMS: dict[str, CompiledSystem] = {}
 _KERNEL: dict[str, Any] = {}
-_TANGENTS: dict[Any, Any] = {}  # compiled jac -> compiled rhs_jvp of the same system
-_POINTERS: dict[tuple, tuple] = {}  # (rhs, jac) -> the loop's three function pointers
 
 
 class BackendUnavailable(HamrkqError, RuntimeError):
@@ -142,7 +132,7 @@ def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
     ok, reason = available()
     if ok and ham is not None:
         try:
-            compile_system(ham)
+            warm_up(ham)
         except BackendUnavailable as exc:
             ok, reason = False, str(exc)
     if ok:
@@ -252,9 +242,6 @@ class CompiledSystem:
         self.rhs = namespace["rhs"]
         self.jac = namespace["jac"]
         self.rhs_jvp = namespace["rhs_jvp"]
-        # The loop is handed (rhs, jac) by rkq.run; it finds the fused
-        # function of the same system through its jac.
-        _TANGENTS[self.jac] = self.rhs_jvp
         self.energy = namespace["energy"]
         self.energy_rows = namespace["energy_rows"]
 
@@ -296,314 +283,152 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
         return system
 
 
-# -- the loop --------------------------------------------------------------------
-# Element-loop versions of rkq's small vector primitives, with the same
-# arguments and the same arithmetic per element.  Only the order of the sums
-# over stages differs from NumPy's dot (so results agree to rounding, not
-# bit for bit).  Under numba a loop over a few elements costs nanoseconds,
-# where a BLAS call costs a few hundred.
+# -- the kernel --------------------------------------------------------------------
+
+#: The modules whose functions make up the compiled kernel (their text keys its cache).
+KERNEL_MODULES = ("jit", "layout", "arith", "steps", "loop")
 
 
-def _fmax(x, y):
-    """np.fmax for two floats: the larger, ignoring a NaN."""
-    return x if (x >= y or y != y) else y
+def _kernel_key() -> str:
+    """Hash of the kernel's sources and the versions."""
+    from hamrkq import rkq
 
-
-def _stage_sum(A, j, K, i):
-    acc = 0.0
-    for m in range(j):
-        acc += A[j, m] * K[m, i]
-    return acc
-
-
-def _combine_loops(base, lo, h, A, j, K, out):
-    for i in range(out.shape[0]):
-        out[i] = base[i] + (lo[i] + _stage_sum(A, j, K, i) * h) if j else base[i] + lo[i]
-
-
-def _plain_loops(base, h, A, j, K, out):
-    for i in range(out.shape[0]):
-        out[i] = _stage_sum(A, j, K, i) * h + base[i] if j else base[i]
-
-
-def _max_loops(x):
-    top = -math.inf
-    for i in range(x.shape[0]):
-        value = x[i]
-        if value != value:  # NaN wins, like ndarray.max
-            return value
-        if value > top:
-            top = value
-    return top
-
-
-def _copy_loops(src, out):
-    for i in range(out.shape[0]):
-        out[i] = src[i]
-
-
-def _matvec_loops(M, v, out):
-    for i in range(out.shape[0]):
-        acc = 0.0
-        for k in range(v.shape[0]):
-            acc += M[i, k] * v[k]
-        out[i] = acc
-
-
-def _increment_loops(h, b, K, out):
-    for i in range(out.shape[0]):
-        acc = 0.0
-        for m in range(b.shape[0]):
-            acc += b[m] * K[m, i]
-        out[i] = acc * h
-
-
-def _two_sum_loops(hi, lo, inc, out_hi, out_lo, tmp, tmp2):
-    for i in range(hi.shape[0]):
-        b = inc[i] + lo[i]
-        s = hi[i] + b
-        bb = s - hi[i]
-        out_lo[i] = (hi[i] - (s - bb)) + (b - bb)
-        out_hi[i] = s
-
-
-def _delta_loops(atol, rtol, a, b, rel, rule, out, tmp):
-    low = math.inf
-    for i in range(out.shape[0]):
-        if rel:
-            value = _fmax(_fmax(abs(a[i]), abs(b[i])) * rtol[i], atol[i])
-        else:
-            value = atol[i]
-        out[i] = value
-        # The minimum propagates NaN, like ndarray.min.
-        if value < low or (value != value and low == low):
-            low = value
-    if rule == RULE_PRENTICE:  # noqa: F821 - a global of the kernel module
-        for i in range(out.shape[0]):
-            out[i] = low
-
-
-def _wnorm_loops(e, delta, tmp):
-    top = -math.inf
-    for i in range(e.shape[0]):
-        value = abs(e[i]) / delta[i]
-        if value != value:  # NaN wins, like ndarray.max
-            return value
-        if value > top:
-            top = value
-    return top
-
-
-#: rkq primitive -> its element-loop twin, swapped in when compiling.
-PRIMITIVES: dict[str, Callable] = {
-    "_copy": _copy_loops,
-    "_max": _max_loops,
-    "_combine": _combine_loops,
-    "_plain": _plain_loops,
-    "_increment": _increment_loops,
-    "_matvec": _matvec_loops,
-    "_two_sum": _two_sum_loops,
-    "_delta": _delta_loops,
-    "_wnorm": _wnorm_loops,
-}
-_HELPERS = (_fmax, _stage_sum)
-
-
-def _kernel_source() -> str:
-    """rkq's text followed by the primitives' twins: one file, so that numba
-    caches all of the loop's machine code beside it, in the cache directory."""
-    parts = [Path(rkq.__file__).read_text(encoding="utf-8"), "", "", _TWINS_BANNER]
-    parts += [inspect.getsource(f) + "\n" for f in (*_HELPERS, *PRIMITIVES.values())]
-    return "\n".join(parts)
-
-
-_TWINS_BANNER = (
-    "# ---- appended by hamrkq.backends.compiled: element-loop twins of the primitives above ----"
-)
-
-
-def _kernel_key(source: str) -> str:
-    """Hash of the kernel text and the versions (the text includes the twins)."""
     digest = hashlib.sha256()
-    for part in (source, codegen._versions()):
-        digest.update(part.encode())
+    for name in KERNEL_MODULES:
+        path = Path(rkq.__file__).parent / f"{name}.py"
+        digest.update(path.read_bytes())
         digest.update(b"\0")
-    return digest.hexdigest()
+    digest.update(codegen._versions().encode())
+    return digest.hexdigest()[:16]
 
 
-def _callees(function: types.FunctionType, namespace: dict[str, Any]) -> set[str]:
-    """Names of the module functions that ``function`` calls, transitively."""
-    found: set[str] = set()
-    pending = [function]
-    while pending:
-        code = pending.pop().__code__
-        for name in code.co_names:
-            value = namespace.get(name)
-            if isinstance(value, types.FunctionType) and name not in found:
-                found.add(name)
-                pending.append(value)
-    return found
+def kernel_cache_dir() -> Path:
+    """Where numba keeps the kernel's machine code."""
+    return codegen.cache_dir() / f"kernel-{_kernel_key()}"
 
 
-def _kernel():
-    """The compiled ``advance`` (memoised): rkq's source copied into the cache,
-    its loop (``_advance``, which takes the fused ``rhs_jvp`` besides ``rhs``
-    and ``jac``) and the primitives' twins compiled in that module."""
-    with _LOCK:
-        if "advance" in _KERNEL:
-            return _KERNEL["advance"]
-        _numba()
-        source = _kernel_source()
-        module = codegen.load_source("kernel_" + _kernel_key(source), lambda: source)
-        namespace = vars(module)
-        # A primitive rkq does not define is simply not swapped (its callers
-        # are compiled as written); tests/test_compiled.py checks every one.
-        for name, twin in PRIMITIVES.items():
-            if name in namespace:
-                namespace[name] = namespace[twin.__name__]
-        for name in [*sorted(_callees(namespace["_advance"], namespace)), "_advance"]:
-            # Without numba's runtime (NRT): the loop allocates nothing, and
-            # with the runtime every array view and every array argument
-            # costs atomic reference-count updates (measured: about a third
-            # of the run time).  A stray allocation fails to compile.
-            namespace[name] = _jit(namespace[name], _nrt=False)
-        _KERNEL["advance"] = _Advance(namespace["_advance"])
-        _KERNEL["namespace"] = namespace
-        return _KERNEL["advance"]
-
-
-def _pointers(rhs, jac) -> tuple:
-    """``rhs``, ``jac`` and the system's ``rhs_jvp`` as function pointers
-    whose addresses are looked up once (memoised): numba would otherwise
-    look up a dispatcher's address on every call of the loop, which costs
-    about a tenth of a millisecond each time."""
-    from numba.core.types import WrapperAddressProtocol
-    from numba.experimental.function_type import _get_wrapper_address
-
-    class Pointer(WrapperAddressProtocol):
-        def __init__(self, function, signature):
-            self._function = function  # keeps the machine code alive
-            self._signature = signature
-            self._address = _get_wrapper_address(function, signature)
-
-        def __wrapper_address__(self):
-            return self._address
-
-        def signature(self):
-            return self._signature
+def _signature(args: tuple) -> tuple:
+    """The kernel's signature for arguments ``(rhs, tangent, jac, *rest)``:
+    the functions as first-class function types, the rest as typed."""
+    import numba
 
     sig = _types()
-    pointers = (
-        Pointer(rhs, sig["rhs"]),
-        Pointer(jac, sig["jac"]),
-        Pointer(_TANGENTS[jac], sig["rhs_jvp"]),
-    )
-    _POINTERS[(rhs, jac)] = pointers
-    return pointers
+    rest = tuple(numba.typeof(a) for a in args[3:])
+    return (sig["rhs_type"], sig["rhs_jvp_type"], sig["jac_type"], *rest)
 
 
-class _Advance:
-    """Calls the compiled ``_advance`` as ``advance(rhs, jac, *args)``, adding
-    the system's fused ``rhs_jvp`` (found through ``jac``) and compiling (or
-    loading from the disk cache) the signature of its arguments first, with
-    the functions typed as function pointers rather than as the particular
-    functions, so that one compiled loop serves every system."""
+def _compile_kernel(signature: tuple):
+    """``loop.advance`` compiled for one signature (or loaded from the cache)."""
+    numba = _numba()
+    from hamrkq.rkq import loop
 
-    def __init__(self, dispatcher):
-        self.dispatcher = dispatcher
-        self.seen: set[tuple] = set()
+    folder = kernel_cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    previous = numba.config.CACHE_DIR
+    # numba reads its cache directory when a dispatcher is created: point it
+    # at a folder named by the kernel's hash, so that a changed callee (numba
+    # only checks the time stamp of advance's own file) never loads stale code.
+    numba.config.CACHE_DIR = str(folder)
+    try:
+        flags = {"cache": True, "nogil": True, "error_model": "numpy"}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", numba.NumbaWarning)
+            started = time.perf_counter()
+            dispatcher = numba.njit(numba.types.int64(*signature), **flags)(loop.advance)
+            _account(dispatcher, started)
+    finally:
+        numba.config.CACHE_DIR = previous
+    return dispatcher
 
-    def __call__(self, rhs, jac, *args):
-        # A cheap description of the arguments (numba.typeof on all of them
-        # would cost more than the call itself on a short chunk).
-        seen = tuple(
-            (type(a), a.dtype.char, a.ndim, a.flags.c_contiguous, a.flags.writeable)
-            if isinstance(a, np.ndarray)
-            else type(a)
-            for a in args
+
+class CompiledKernel:
+    """``advance(rhs, tangent, jac, *args)`` with the compiled kernel: the
+    signature of the arguments is compiled (or loaded from the disk cache)
+    on first use."""
+
+    def __init__(self):
+        self._by_types: dict[tuple, Any] = {}
+
+    def __call__(self, rhs, tangent, jac, *args):
+        key = tuple(_describe(a) for a in args)
+        dispatcher = self._by_types.get(key)
+        if dispatcher is None:
+            with _LOCK:
+                dispatcher = self._by_types.get(key)
+                if dispatcher is None:
+                    dispatcher = _compile_kernel(_signature((rhs, tangent, jac, *args)))
+                    self._by_types[key] = dispatcher
+        return dispatcher(rhs, tangent, jac, *args)
+
+
+def _describe(value: Any) -> Any:
+    """A cheap description of an argument's numba type (numba.typeof on every
+    call would cost more than a short chunk of steps)."""
+    if isinstance(value, np.ndarray):
+        return (
+            value.dtype.str,
+            value.dtype.names,
+            value.ndim,
+            value.flags.c_contiguous,
+            value.flags.writeable,
         )
-        if seen not in self.seen:
-            self._prepare(args)
-            self.seen.add(seen)
-        pointers = _POINTERS.get((rhs, jac))
-        if pointers is None:
-            pointers = _pointers(rhs, jac)
-        return self.dispatcher(*pointers, *args)
-
-    def _prepare(self, args) -> None:
-        import numba
-
-        sig = _types()
-        key = (sig["rhs_type"], sig["jac_type"], sig["rhs_jvp_type"],
-               *(numba.typeof(a) for a in args))  # fmt: skip
-        if key not in self.dispatcher.signatures:
-            dispatcher = self.dispatcher
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", numba.NumbaWarning)
-                started = time.perf_counter()
-                before = sum(dispatcher.stats.cache_misses.values())
-                dispatcher.disable_compile(False)
-                try:
-                    dispatcher.compile(key)
-                finally:
-                    # Calls must use the compiled signatures: left enabled,
-                    # numba would compile a copy specialised to this rhs.
-                    if dispatcher.signatures:
-                        dispatcher.disable_compile()
-            global COMPILE_COUNT
-            compiled = sum(dispatcher.stats.cache_misses.values()) - before
-            COMPILE_COUNT += compiled
-            _STATS["compiled" if compiled else "loaded"] += 1
-            _STATS["compile_seconds" if compiled else "load_seconds"] += (
-                time.perf_counter() - started
-            )
+    if isinstance(value, tuple):
+        return (type(value), tuple(_describe(v) for v in value))
+    return type(value)
 
 
-def run(ham: Hamiltonian, params: np.ndarray, t0: float, y0: np.ndarray, t_end: float,
-        **options: Any) -> rkq.RunOutput:  # fmt: skip
-    """:func:`hamrkq.rkq.kernel.run` with the compiled loop and the compiled system.
+def kernel() -> CompiledKernel:
+    """The compiled kernel (one per process)."""
+    with _LOCK:
+        if "kernel" not in _KERNEL:
+            _numba()
+            _KERNEL["kernel"] = CompiledKernel()
+        return _KERNEL["kernel"]
 
-    Parameters
-    ----------
-    ham : Hamiltonian
-    params, t0, y0, t_end, **options
-        As for :func:`hamrkq.rkq.kernel.run` (``rk3``, ``rk4``, ``rk8``, ``atol``,
-        ``rtol``, ...), except ``inplace``, which is implied.
+
+def kernel_functions(ham: Hamiltonian):
+    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of ``ham`` on this backend.
 
     Raises
     ------
     BackendUnavailable
         See :func:`compile_system`.
     """
+    from hamrkq.rkq.driver import KernelFunctions
+
     system = compile_system(ham)
+    return KernelFunctions(system.rhs, system.rhs_jvp, system.jac, kernel())
+
+
+def warm_up(ham: Hamiltonian) -> None:
+    """Compile (or load) the system and the kernel for the signatures a run
+    uses, by integrating one step of ``ham``; raises BackendUnavailable with
+    what failed."""
+    from hamrkq.rkq.driver import Integration, Settings
+    from hamrkq.rkq.family import get_member
+    from hamrkq.rkq.layout import GAMMA_TANGENT, QUENCH_NODE, RULE_COMPONENTWISE
+
+    functions = kernel_functions(ham)
+    d = ham.dim
+    run = Integration(
+        functions,
+        get_member("rk34q8"),
+        np.zeros(len(ham.parameters)),
+        0.0,
+        np.full(d, 0.5),
+        1e-3,
+        np.full(d, 1e-6),
+        np.zeros(d),
+        Settings(QUENCH_NODE, RULE_COMPONENTWISE, GAMMA_TANGENT, max_steps=1),
+    )
     try:
-        driver = _driver()
-    except BackendUnavailable:
-        raise
-    except Exception as exc:  # numba failing on the loop itself
+        with np.errstate(all="ignore"):
+            run.run()
+    except Exception as exc:  # numba's TypingError/LoweringError and relatives
         raise BackendUnavailable(
-            f"numba failed to compile the RKQ loop ({type(exc).__name__})"
+            f"numba failed to compile the RKQ kernel ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''})"
         ) from exc
-    return driver(system.rhs, system.jac, np.require(params, np.float64, ("C", "W")),
-                  float(t0), np.require(y0, np.float64, ("C", "W")), float(t_end),
-                  inplace=True, **options)  # fmt: skip
-
-
-def _driver():
-    """``rkq.run`` rebound so that its global ``advance`` is the compiled one."""
-    with _LOCK:
-        if "run" not in _KERNEL:
-            advance = _kernel()
-            namespace = dict(vars(rkq))
-            namespace["advance"] = advance
-            original = rkq.run
-            driver = types.FunctionType(
-                original.__code__, namespace, original.__name__, original.__defaults__
-            )
-            driver.__kwdefaults__ = original.__kwdefaults__
-            driver.__doc__ = original.__doc__
-            _KERNEL["run"] = driver
-        return _KERNEL["run"]
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:

@@ -416,43 +416,15 @@ class _FileReader:
         )
 
     def setting(self, key: str, value: Any) -> None:
-        """Check one ``[integration]`` value against :data:`INTEGRATION_KINDS`
-        and, for names, against what :func:`hamrkq.solve` accepts."""
-        from hamrkq.solve import GAMMA_MODES, METHODS, QUENCH_MODES, TOLERANCE_RULES, Z_METHODS
+        """Check one ``[integration]`` value with :func:`hamrkq.options.check_setting`,
+        the same checks :func:`hamrkq.solve` makes."""
+        from hamrkq.errors import HamrkqError
+        from hamrkq.options import check_setting
 
-        kind = INTEGRATION_KINDS[key]
-        where = f"integration.{key}"
-        if kind == "name":
-            valid = {
-                "method": METHODS,
-                "quench": QUENCH_MODES,
-                "tolerance_rule": TOLERANCE_RULES,
-                "global_error_estimate": GAMMA_MODES,
-                "z_method": Z_METHODS,
-            }[key]
-            if value not in valid:
-                listing = ", ".join(map(repr, valid))
-                raise self.error(f"{value!r} is not valid; valid values: {listing}", where)
-            return
-        if kind == "count":
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise self.error(f"must be a positive integer, got {value!r}", where)
-            return
-        items = value if kind == "tolerance" and isinstance(value, list) and value else [value]
-        for item in items:
-            if isinstance(item, bool) or not isinstance(item, int | float) or math.isnan(item):
-                ok = False
-            elif kind == "tolerance":
-                ok = math.isfinite(item) and (item > 0 or (key == "rtol" and item == 0))
-            else:
-                ok = item > 0 and (math.isfinite(item) or key == "max_step")
-            if not ok:
-                need = {"atol": "a positive finite number", "rtol": "a finite number >= 0"}
-                raise self.error(
-                    f"must be {need.get(key, 'a positive number')}"
-                    f"{' (or a list of them)' if kind == 'tolerance' else ''}, got {value!r}",
-                    where,
-                )
+        try:
+            check_setting(key, value)
+        except HamrkqError as exc:
+            raise self.error(str(exc), f"integration.{key}") from None
 
     def exact_spec(self, symbols: Mapping[str, sp.Symbol], n: int) -> dict | None:
         table = self.table("exact")

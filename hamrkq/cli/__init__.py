@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import sympy as sp
 
-from hamrkq import __version__
+from hamrkq._version import __version__
 from hamrkq.catalogue.problems import list_problems, load_problem
 from hamrkq.errors import HamrkqError
 

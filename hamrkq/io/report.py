@@ -205,7 +205,7 @@ class OutputDir:
 # -- summary.json --------------------------------------------------------------
 def package_versions() -> dict[str, str | None]:
     """Python, the platform and the versions of hamrkq and its dependencies."""
-    from hamrkq import __version__
+    from hamrkq._version import __version__
 
     versions: dict[str, str | None] = {
         "python": platform.python_version(),

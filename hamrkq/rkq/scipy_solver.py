@@ -5,7 +5,7 @@ hamrkq's RKQ steps (J.S.C. Prentice, arXiv:1111.6996): RK3/RK4 local
 extrapolation, an RK8 track on the same mesh, and quenching of the reported
 solution to the RK8 value wherever they differ by more than the tolerance.
 The algorithm is not re-implemented here: each call of :meth:`step` runs
-:func:`hamrkq.rkq.kernel.advance` until it has accepted exactly one step.
+:class:`hamrkq.rkq.driver.Integration` until it has accepted exactly one step.
 
 It works on any first-order system (nothing needs to be Hamiltonian), so
 ``solve_ivp``'s ``t_eval``, ``dense_output``, ``events`` and ``args`` behave as
@@ -48,24 +48,25 @@ from scipy.integrate import DenseOutput, OdeSolver
 
 from hamrkq._validate import choice, tolerance
 from hamrkq.errors import HamrkqWarning, InputError, OptionError
-from hamrkq.methods.tableaus import RK3_KUTTA, RK4_CLASSIC, get_tableau
 from hamrkq.result import Status
-from hamrkq.rkq import kernel as rkq
+from hamrkq.rkq import layout
+from hamrkq.rkq.driver import Integration, Settings, initial_step, python_functions
+from hamrkq.rkq.family import Z_METHODS, get_member
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
 EPS = float(np.finfo(float).eps)
 #: As in :func:`hamrkq.solve`: relative tolerances below 100 eps are raised.
 MIN_RTOL = 100 * EPS
-#: Step attempts per call of :func:`hamrkq.rkq.kernel.advance` before control comes
+#: Step attempts per call of the kernel before control comes
 #: back to Python (a Ctrl-C is seen between calls).
 BUDGET = 1000
 #: No limit on steps: SciPy's callers stop a solver themselves.
 NO_STEP_LIMIT = 1 << 62
 
-_QUENCH = {"node": rkq.QUENCH_NODE, "redo": rkq.QUENCH_REDO}
-_RULES = {"componentwise": rkq.RULE_COMPONENTWISE, "prentice": rkq.RULE_PRENTICE}
-_GAMMA = {"tangent": rkq.GAMMA_TANGENT, "paper": rkq.GAMMA_PAPER, "off": rkq.GAMMA_OFF}
+_QUENCH = {"node": layout.QUENCH_NODE, "redo": layout.QUENCH_REDO}
+_RULES = {"componentwise": layout.RULE_COMPONENTWISE, "prentice": layout.RULE_PRENTICE}
+_GAMMA = {"tangent": layout.GAMMA_TANGENT, "paper": layout.GAMMA_PAPER, "off": layout.GAMMA_OFF}
 _STATUS_BY_CODE = {status.code: status for status in Status}
 _NO_PARAMS = np.zeros(0)
 
@@ -227,31 +228,53 @@ class RK34Q8(OdeSolver):
         self._jac = self._wrap_jac(jac)
         if global_error_estimate is None:
             global_error_estimate = "off" if self._jac is None else "tangent"
+            if self._jac is None:
+                warnings.warn(
+                    "RK34Q8 without jac cannot estimate the RK8 track's own global error "
+                    "(Gamma), so the safeguard that stops a run whose tolerance cannot be "
+                    "certified is off; pass jac= to keep it (or "
+                    "global_error_estimate='off' to silence this warning)",
+                    HamrkqWarning,
+                    stacklevel=2,
+                )
         gamma = _GAMMA[choice("global_error_estimate", global_error_estimate, _GAMMA)]
-        if gamma != rkq.GAMMA_OFF and self._jac is None:
+        if gamma != layout.GAMMA_OFF and self._jac is None:
             raise InputError(
                 f"global_error_estimate={global_error_estimate!r} needs jac, got None"
             )
         rule = _RULES[choice("tolerance_rule", tolerance_rule, _RULES)]
-        if z_method not in ("dop853", "cooper_verner"):
-            raise OptionError(
-                f"z_method={z_method!r} is not valid; valid values: 'dop853', 'cooper_verner'"
-            )
+        if z_method not in Z_METHODS:
+            valid = ", ".join(map(repr, Z_METHODS))
+            raise OptionError(f"z_method={z_method!r} is not valid; valid values: {valid}")
         self.on_step = on_step
         self.global_error_estimate = global_error_estimate
-        self._ws = rkq.workspace(
-            float(t0), self.y.astype(float), float(t_bound), rk3=RK3_KUTTA, rk4=RK4_CLASSIC,
-            rk8=get_tableau(z_method), atol=atol, rtol=rtol,
-            quench=_QUENCH[choice("quench", quench, _QUENCH)], rule=rule, gamma=gamma,
-            safety=float(safety), theta=float(quench_threshold), max_step=max_step,
-            max_steps=NO_STEP_LIMIT, gamma_limit=float(gamma_limit),
-        )  # fmt: skip
-        self._out = (np.empty(1), np.empty((1, n)), np.empty((1, n)), np.empty((1, n)),
-                     np.zeros(1, dtype=np.int8))  # fmt: skip
+        settings = Settings(
+            quench=_QUENCH[choice("quench", quench, _QUENCH)],
+            rule=rule,
+            gamma=gamma,
+            safety=float(safety),
+            theta=float(quench_threshold),
+            max_step=max_step,
+            max_steps=NO_STEP_LIMIT,
+            gamma_limit=float(gamma_limit),
+        )
+        jac_inplace = self._jac if self._jac is not None else _no_jacobian
+        self._run = Integration(
+            python_functions(self._rhs, jac_inplace),
+            get_member("rk34q8", z_method),
+            _NO_PARAMS,
+            float(t0),
+            self.y.astype(float),
+            float(t_bound),
+            atol,
+            rtol,
+            settings,
+        )
+        self._out = layout.allocate_output(1, n, True)
         self._f = np.zeros(n)
         self._y_old = self._f_old = None
         self.quenched = False
-        self._start(t0, t_bound, first_step, atol, rtol, rule, max_step)
+        self._start(t0, t_bound, first_step, atol, rtol, max_step)
 
     # -- set-up ------------------------------------------------------------------
     def _wrap_jac(self, jac: Any) -> Callable | None:
@@ -282,19 +305,19 @@ class RK34Q8(OdeSolver):
     def _rhs(self, t, y, params, out):
         out[:] = self.fun(t, y)
 
-    def _start(self, t0, t_bound, first_step, atol, rtol, rule, max_step) -> None:
-        ws = self._ws
-        X, istate, fstate = ws.X, ws.istate, ws.fstate
+    def _start(self, t0, t_bound, first_step, atol, rtol, max_step) -> None:
+        run = self._run
+        s, work = run.record, run.work
         interval = abs(t_bound - t0)
         if t_bound == t0:
             return
-        self._rhs(t0, X[rkq.U], _NO_PARAMS, X[rkq.K1])
-        istate[rkq.IS_NFEV] += 1
-        self._f[:] = X[rkq.K1]
+        self._rhs(t0, work.u, _NO_PARAMS, work.k1)
+        s["nfev"] += 1
+        self._f[:] = work.k1
         finite = bool(np.all(np.isfinite(self._f)))
         # With a non-finite f(t0, y0) the first step recomputes it and fails
         # with a message; otherwise f(t0, y0) is its first stage.
-        istate[rkq.IS_K1_VALID] = int(finite)
+        s["k1_valid"] = int(finite)
         if first_step is not None:
             h0 = float(first_step)
             if not (h0 > 0 and h0 <= interval):
@@ -303,60 +326,57 @@ class RK34Q8(OdeSolver):
                     f"got {first_step!r}"
                 )
         elif finite:
-            rel = int(np.any(rtol > 0))
-            h0 = rkq.initial_step(
-                self._rhs, t0, X[rkq.U], X[rkq.K1], t_bound, atol, ws.rtol, rel, rule, 3,
-                max_step, _NO_PARAMS, np.zeros((3, self.n)),
-            )  # fmt: skip
-            istate[rkq.IS_NFEV] += 1
+            h0 = initial_step(
+                self._rhs, t0, work.u, work.k1, t_bound, run.inputs, run.config[0], 3, max_step
+            )
+            s["nfev"] += 1
         else:
             h0 = interval
         self.first_step = h0
-        fstate[rkq.FS_H] = self.direction * h0
+        s["h"] = self.direction * h0
 
     # -- stepping ------------------------------------------------------------------
+
     def _step_impl(self) -> tuple[bool, str | None]:
-        ws = self._ws
-        istate = ws.istate
+        run = self._run
+        s, work = run.record, run.work
         self._y_old = self.y.copy()
         self._f_old = self._f.copy()
-        istate[rkq.IS_NOUT] = 0
-        # One output row: advance returns as soon as one step is accepted.
+        s["nout"] = 0
+        # One output row: the kernel returns as soon as one step is accepted.
         while True:
-            ret = rkq.advance(self._rhs, self._jac, _NO_PARAMS, *ws.advance_args(), *self._out,
-                              BUDGET)  # fmt: skip
-            if ret != rkq.RET_BUDGET:
+            ret = run.advance(self._out, BUDGET)
+            if ret != layout.RET_BUDGET:
                 break
-        status = int(istate[rkq.IS_STATUS])
-        if ret == rkq.RET_DONE and status != rkq.ST_SUCCESS:
+        status = int(s["status"])
+        if ret == layout.RET_DONE and status != layout.ST_SUCCESS:
             return False, self._failure(_STATUS_BY_CODE[status])
-        out_t, out_y, _, _, out_q = self._out
-        self.t = float(out_t[0])
-        self.y = out_y[0].copy()
-        self.quenched = bool(out_q[0])
-        X = ws.X
-        self._rhs(self.t, self.y, _NO_PARAMS, X[rkq.K1])
-        istate[rkq.IS_NFEV] += 1
-        self._f = X[rkq.K1].copy()
+        self.t = float(self._out.t[0])
+        self.y = self._out.y[0].copy()
+        self.quenched = bool(self._out.quenched[0])
+        self._rhs(self.t, self.y, _NO_PARAMS, work.k1)
+        s["nfev"] += 1
+        self._f = work.k1.copy()
         # f at the new node is the next step's first stage, unless it is not
         # finite: then the next step evaluates it again and reports the failure.
-        istate[rkq.IS_K1_VALID] = int(bool(np.all(np.isfinite(self._f))))
+        s["k1_valid"] = int(bool(np.all(np.isfinite(self._f))))
         if self.on_step is not None:
             self.on_step(self)
         return True, None
 
     def _failure(self, status: Status) -> str:
-        fstate = self._ws.fstate
-        t = float(fstate[rkq.FS_T])
+        s = self._run.record
+        t = float(s["t"])
         if status is Status.STEP_SIZE_UNDERFLOW:
             return (
-                f"RK34Q8: the step size {abs(fstate[rkq.FS_FAIL_H]):.3g} fell below the "
+                f"RK34Q8: the step size {abs(s['failed_h']):.3g} fell below the "
                 f"roundoff floor at t = {t!r}."
             )
         if status is Status.TOLERANCE_UNATTAINABLE:
             return (
-                f"RK34Q8: at t = {t!r} the RK8 track's estimated error plus rounding reached "
-                f"{fstate[rkq.FS_RATIO]:.3g} x the tolerance (gamma_limit); loosen atol/rtol."
+                f"RK34Q8: at t = {t!r} the RK8 track's estimated error plus rounding would "
+                f"reach {s['max_ratio']:.3g} x the tolerance (gamma_limit); a smaller "
+                "max_step or a shorter interval is what helps."
             )
         return f"RK34Q8: {status.description} (t = {t!r})"
 
@@ -367,28 +387,32 @@ class RK34Q8(OdeSolver):
     @property
     def z(self) -> np.ndarray:
         """The RK8 track at ``self.t``."""
-        return self._ws.X[rkq.ZHI].copy()
+        return self._run.work.zhi.copy()
 
     @property
     def global_error(self) -> np.ndarray:
         """Estimated global error of ``y``: ``y - z`` (numerical minus exact)."""
-        return self.y - self._ws.X[rkq.ZHI]
+        return self.y - self._run.work.zhi
 
     @property
     def gamma(self) -> np.ndarray | None:
         """Estimated global error of the RK8 track (None when not propagated)."""
         if self.global_error_estimate == "off":
             return None
-        return self._ws.X[rkq.GAM].copy()
+        return self._run.work.gam.copy()
 
     @property
     def stats(self) -> dict[str, int]:
         """Accepted and rejected steps, quenches, f and Jacobian evaluations."""
-        istate = self._ws.istate
+        s = self._run.record
         return {
-            "steps": int(istate[rkq.IS_STEPS]),
-            "rejected": int(istate[rkq.IS_REJECTED]),
-            "quenches": int(istate[rkq.IS_QUENCHES]),
+            "steps": int(s["steps"]),
+            "rejected": int(s["rejected"]),
+            "quenches": int(s["quenches"]),
             "nfev": int(self.nfev),
             "njev": int(self.njev),
         }
+
+
+def _no_jacobian(t, y, params, out):  # pragma: no cover - never called with Gamma off
+    raise InputError("this solver has no Jacobian")

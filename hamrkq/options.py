@@ -1,0 +1,195 @@
+"""The options of an integration: one vocabulary, one validation.
+
+:class:`SolveOptions` holds every option of :func:`hamrkq.solve` that does not
+depend on the system's dimension, validated once; :func:`hamrkq.solve`, the
+catalogue's ``[integration]`` tables (:func:`check_setting`) and the command
+line all go through it, so an option's valid values, default and message are
+written here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from hamrkq._validate import choice, count, positive, show
+from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
+from hamrkq.baselines.scipy_ivp import SCIPY_METHODS
+from hamrkq.errors import InputError, OptionError
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
+from hamrkq.rkq.family import MEMBERS, Z_METHODS
+from hamrkq.rkq.layout import (
+    GAMMA_OFF,
+    GAMMA_PAPER,
+    GAMMA_SHADOW,
+    GAMMA_TANGENT,
+    QUENCH_NODE,
+    QUENCH_REDO,
+    RULE_COMPONENTWISE,
+    RULE_PRENTICE,
+)
+
+__all__ = [
+    "BACKENDS",
+    "DEFAULT_GAMMA_LIMIT",
+    "DEFAULT_MAX_STEPS",
+    "GAMMA_MODES",
+    "METHOD_NAMES",
+    "MIN_RTOL",
+    "QUENCH_MODES",
+    "TOLERANCE_RULES",
+    "Z_METHOD_NAMES",
+    "SolveOptions",
+    "check_setting",
+]
+
+EPS = float(np.finfo(float).eps)
+#: Relative tolerances below this are raised to it (with a warning): below
+#: about 100 eps the local error test measures rounding, as in SciPy.
+MIN_RTOL = 100 * EPS
+#: Absolute tolerances below this are refused: no double can resolve them
+#: (a smaller atol would make every step fail until the step limit).
+MIN_ATOL = 1e-300
+#: Default step limit (accepted plus rejected attempts): a guard against runs
+#: that would never end, far above the ~62 000 steps of the paper's problem.
+DEFAULT_MAX_STEPS = 1_000_000
+#: Default for ``gamma_limit``: the run stops when the quencher's own
+#: estimated error (plus rounding) exceeds this fraction of the tolerance, so
+#: that a reported node's true error stays within (1 + 0.05) x tolerance.
+DEFAULT_GAMMA_LIMIT = 0.05
+
+QUENCH_MODES = {"node": QUENCH_NODE, "redo": QUENCH_REDO}
+TOLERANCE_RULES = {"componentwise": RULE_COMPONENTWISE, "prentice": RULE_PRENTICE}
+GAMMA_MODES = {
+    "tangent": GAMMA_TANGENT,
+    "paper": GAMMA_PAPER,
+    "shadow": GAMMA_SHADOW,
+    "off": GAMMA_OFF,
+}
+Z_METHOD_NAMES = tuple(Z_METHODS)
+#: Where the RK loop runs: "numba" (compiled), "python" (interpreted), or
+#: "auto" (numba when it can be used).
+BACKENDS = ("auto", "numba", "python")
+#: Every method name :func:`hamrkq.solve` accepts.
+METHOD_NAMES = (
+    *MEMBERS,
+    *FIXED_STEP_METHODS,
+    *(SCIPY_PREFIX + name for name in SCIPY_METHODS),
+)
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """Validated options of one integration (those that do not depend on the
+    system's dimension; tolerances and ``t_eval`` are checked by
+    :func:`hamrkq.solve` against the state).  See :func:`hamrkq.solve` for
+    what each means."""
+
+    method: str = "rk34q8"
+    quench: str = "node"
+    quench_threshold: float = 1.0
+    safety: float = 0.9
+    tolerance_rule: str = "componentwise"
+    global_error_estimate: str = "tangent"
+    z_method: str = "dop853"
+    first_step: float | None = None
+    max_step: float = math.inf
+    step: float | None = None
+    max_steps: int = DEFAULT_MAX_STEPS
+    gamma_limit: float = DEFAULT_GAMMA_LIMIT
+    keep_every: int = 1
+    backend: str = "auto"
+
+    @classmethod
+    def resolve(cls, given: Mapping[str, Any], settings: Mapping[str, Any]) -> SolveOptions:
+        """Options from keywords (``None`` = not given) over a problem's
+        ``settings`` over the defaults, each validated.
+
+        Raises
+        ------
+        InputError, InputTypeError, OptionError
+            The first invalid option, named with its value.
+        """
+        names = {f.name for f in fields(cls)}
+        values = {f.name: f.default for f in fields(cls)}
+        for source in (settings, given):
+            for key, value in source.items():
+                if key in names and value is not None:
+                    values[key] = value
+        checked = {key: _check(key, value) for key, value in values.items()}
+        return cls(**checked)
+
+    @property
+    def is_fixed_step(self) -> bool:
+        """Whether the method takes a fixed ``step`` (and no tolerances)."""
+        return self.method in FIXED_STEP_METHODS
+
+    def codes(self) -> dict[str, int]:
+        """The kernel's codes for the named options."""
+        return {
+            "quench": QUENCH_MODES[self.quench],
+            "rule": TOLERANCE_RULES[self.tolerance_rule],
+            "gamma": GAMMA_MODES[self.global_error_estimate],
+        }
+
+
+def _check(key: str, value: Any) -> Any:
+    """One option's value, validated (the message names the option)."""
+    if key in _NAMES:
+        return choice(key, value, _NAMES[key])
+    if key in ("first_step", "step"):
+        return None if value is None else positive(key, value)
+    if key == "max_step":
+        return positive(key, value, inf=True)
+    if key == "gamma_limit":
+        return positive(key, value, inf=True)
+    if key == "safety":
+        return positive(key, value, upper=1.0)
+    if key == "quench_threshold":
+        return positive(key, value)
+    if key in ("max_steps", "keep_every"):
+        return count(key, value)
+    raise OptionError(f"unknown option {key!r}")  # pragma: no cover - fields are fixed
+
+
+_NAMES: dict[str, Any] = {
+    "method": METHOD_NAMES,
+    "quench": QUENCH_MODES,
+    "tolerance_rule": TOLERANCE_RULES,
+    "global_error_estimate": GAMMA_MODES,
+    "z_method": Z_METHOD_NAMES,
+    "backend": BACKENDS,
+}
+
+
+def check_setting(key: str, value: Any) -> None:
+    """Check one setting of a problem file's ``[integration]`` table.
+
+    Tolerances (``atol``, ``rtol``: a number or a list of them) are checked
+    for their sign here and for their length when the problem is solved.
+
+    Raises
+    ------
+    InputError, InputTypeError, OptionError
+        With the key and value named.
+    """
+    if key in ("atol", "rtol"):
+        items = value if isinstance(value, list) and value else [value]
+        for item in items:
+            ok = not isinstance(item, bool) and isinstance(item, int | float)
+            ok = ok and math.isfinite(item) and (item > 0 or (key == "rtol" and item == 0))
+            if ok and key == "atol" and item < MIN_ATOL:
+                ok = False
+            if not ok:
+                need = "a positive finite number" if key == "atol" else "a finite number >= 0"
+                raise InputError(f"{key} must be {need} (or a list of them), got {show(value)}")
+        return
+    if key not in _NAMES and key not in {f.name for f in fields(SolveOptions)}:
+        raise OptionError(f"unknown setting {key!r}")
+    if isinstance(value, bool) or (key not in _NAMES and isinstance(value, str)):
+        raise InputError(f"{key} must be a number, got {show(value)}")
+    _check(key, value)

@@ -1,0 +1,155 @@
+"""Vector arithmetic of the step kernel, as element loops.
+
+Every function here runs as written in the interpreter and compiles under
+``numba.njit`` unchanged (:mod:`hamrkq.backends.compiled`): one source for
+both backends.  Element loops are the right shape for the compiled kernel
+(a NumPy call on a vector of a few elements costs more than the arithmetic)
+and they fix the order of every sum, so the two backends compute the same
+bits.  Nothing here allocates.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hamrkq.rkq.jit import jitable
+from hamrkq.rkq.layout import RULE_PRENTICE
+
+
+@jitable
+def fmax(x, y):
+    """``np.fmax`` for two floats: the larger, ignoring a NaN."""
+    return x if (x >= y or y != y) else y
+
+
+@jitable
+def all_finite(x) -> bool:
+    """Whether every element is finite (inf and nan poison the sum)."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        total += x[i]
+    return math.isfinite(total)
+
+
+@jitable
+def first_nonfinite(x) -> int:
+    """Index of the first inf or nan element, or -1."""
+    for i in range(x.shape[0]):
+        if not math.isfinite(x[i]):
+            return i
+    return -1
+
+
+@jitable
+def copy(src, out):
+    """``out[:] = src``."""
+    for i in range(out.shape[0]):
+        out[i] = src[i]
+
+
+@jitable
+def vmax(x):
+    """The largest element; NaN if any element is NaN (as ``ndarray.max``)."""
+    top = -math.inf
+    for i in range(x.shape[0]):
+        value = x[i]
+        if value != value:
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+@jitable
+def stage_sum(A, j, K, i):
+    """``sum_{l<j} A[j, l] K[l, i]``, added in the order l = 0, 1, ..."""
+    acc = 0.0
+    for m in range(j):
+        acc += A[j, m] * K[m, i]
+    return acc
+
+
+@jitable
+def stage_value(base, h, A, j, K, out):
+    """``out = base + h sum_{l<j} A[j, l] K[l]``."""
+    for i in range(out.shape[0]):
+        out[i] = stage_sum(A, j, K, i) * h + base[i] if j else base[i]
+
+
+@jitable
+def stage_value_compensated(base, lo, h, A, j, K, out):
+    """``out = base + (lo + h sum_{l<j} A[j, l] K[l])``: a stage from the
+    compensated state ``(base, lo)``."""
+    for i in range(out.shape[0]):
+        out[i] = base[i] + (lo[i] + stage_sum(A, j, K, i) * h) if j else base[i] + lo[i]
+
+
+@jitable
+def increment(h, b, K, out):
+    """``out = h sum_j b[j] K[j]``."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for m in range(b.shape[0]):
+            acc += b[m] * K[m, i]
+        out[i] = acc * h
+
+
+@jitable
+def matvec(M, v, out):
+    """``out = M v``, each row added in the order k = 0, 1, ..."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for k in range(v.shape[0]):
+            acc += M[i, k] * v[k]
+        out[i] = acc
+
+
+@jitable
+def two_sum(hi, lo, inc, out_hi, out_lo):
+    """``(out_hi, out_lo) = (hi, lo) + inc``, compensated (Knuth's TwoSum,
+    which unlike Fast2Sum stays exact when a component crosses zero)."""
+    for i in range(hi.shape[0]):
+        b = inc[i] + lo[i]
+        s = hi[i] + b
+        bb = s - hi[i]
+        out_lo[i] = (hi[i] - (s - bb)) + (b - bb)
+        out_hi[i] = s
+
+
+@jitable
+def tolerance(atol, rtol, a, b, relative, rule, out):
+    """Tolerance per component, ``max(atol, rtol max(|a|, |b|))``; the paper's
+    scalar rule then takes the minimum over the components."""
+    low = math.inf
+    for i in range(out.shape[0]):
+        if relative:
+            value = fmax(fmax(abs(a[i]), abs(b[i])) * rtol[i], atol[i])
+        else:
+            value = atol[i]
+        out[i] = value
+        if value < low or (value != value and low == low):  # NaN wins, as in min
+            low = value
+    if rule == RULE_PRENTICE:
+        for i in range(out.shape[0]):
+            out[i] = low
+
+
+@jitable
+def weighted_norm(e, delta):
+    """``max_k |e_k| / delta_k`` (NaN if any term is NaN)."""
+    top = -math.inf
+    for i in range(e.shape[0]):
+        value = abs(e[i]) / delta[i]
+        if value != value:
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+@jitable
+def scaled_difference(a_hi, a_lo, b_hi, b_lo, scale, out):
+    """``out = ((a_hi - b_hi) + (a_lo - b_lo)) / scale``: the difference of
+    two compensated tracks that are close together."""
+    for i in range(out.shape[0]):
+        out[i] = ((a_hi[i] - b_hi[i]) + (a_lo[i] - b_lo[i])) / scale

@@ -1,0 +1,334 @@
+"""Drive the step loop: allocate, start, run in chunks, collect the nodes.
+
+:class:`Integration` owns the arrays of one run (:mod:`hamrkq.rkq.layout`)
+and calls the kernel's ``advance`` (interpreted, or compiled by
+:mod:`hamrkq.backends.compiled`) in chunks of ``budget`` step attempts, so that
+progress can be reported and Ctrl-C ends the run with the nodes kept so far.
+:func:`hamrkq.solve` and the SciPy solver :class:`hamrkq.RK34Q8` both use it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from hamrkq.rkq import arith, loop
+from hamrkq.rkq.family import Member
+from hamrkq.rkq.layout import (
+    GAMMA_OFF,
+    RET_BUFFER_FULL,
+    RET_DONE,
+    ST_INTERRUPTED,
+    ST_NON_FINITE,
+    ST_RUNNING,
+    ST_SUCCESS,
+    Inputs,
+    Output,
+    allocate_output,
+    allocate_work,
+    new_config,
+    new_state,
+)
+
+__all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings", "initial_step"]
+
+#: Step attempts per call of the kernel: progress and Ctrl-C are seen between calls.
+BUDGET = 2000
+#: Output rows of the first buffer; later buffers double up to MAX_BUFFER_ROWS.
+FIRST_BUFFER_ROWS = 4096
+MAX_BUFFER_ROWS = 1 << 16
+
+
+class KernelFunctions(NamedTuple):
+    """The functions the kernel calls, and the kernel itself.
+
+    ``rhs(t, y, params, out)``, ``tangent(t, y, params, v, out, dout, JM)``,
+    ``jac(t, y, params, out)`` and ``advance`` (:func:`hamrkq.rkq.loop.advance`
+    or its compiled form).
+    """
+
+    rhs: Callable
+    tangent: Callable
+    jac: Callable
+    advance: Callable
+
+
+def python_functions(rhs: Callable, jac: Callable) -> KernelFunctions:
+    """Interpreted kernel functions from in-place ``rhs`` and ``jac``."""
+
+    def tangent(t, y, params, v, out, dout, JM):
+        rhs(t, y, params, out)
+        jac(t, y, params, JM)
+        arith.matvec(JM, v, dout)
+
+    return KernelFunctions(rhs, tangent, jac, loop.advance)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Validated run options, as the kernel's configuration needs them."""
+
+    quench: int
+    rule: int
+    gamma: int
+    safety: float = 0.9
+    theta: float = 1.0
+    max_step: float = math.inf
+    max_steps: int = 1_000_000
+    gamma_limit: float = 0.05
+    keep_every: int = 1
+    t_eval: np.ndarray | None = None
+    first_step: float | None = None
+
+
+@dataclass(frozen=True)
+class RunOutput:
+    """Raw result of a run: the kept nodes and the final counters."""
+
+    t: np.ndarray
+    y: np.ndarray
+    z: np.ndarray | None
+    gamma: np.ndarray | None
+    quenched: np.ndarray | None
+    status: int  # a Status code
+    t_last: float  # time of the last accepted node
+    h_fail: float  # the step size that failed (underflow, non-finite)
+    first_step: float
+    max_ratio: float  # largest attainability ratio seen
+    bad_component: int  # first non-finite component found, or -1
+    stats: dict
+
+
+def _floats(values: Any) -> np.ndarray:
+    return np.array(values, dtype=np.float64, order="C", copy=True)
+
+
+def initial_step(rhs, t0, y0, f0, t_end, inputs: Inputs, config, order, max_step) -> float:
+    """First step size by the heuristic of Hairer, Norsett & Wanner (Solving
+    ODEs I, II.4), as in SciPy's ``select_initial_step``, for a method of
+    order ``order``, with hamrkq's weighted max norm.  Costs one evaluation
+    of ``rhs`` (``f0 = f(t0, y0)`` is given).  Returns a positive step size."""
+    interval = abs(t_end - t0)
+    direction = 1.0 if t_end >= t0 else -1.0
+    relative, rule = config["relative"], config["rule"]
+    delta, y1, f1 = np.zeros_like(y0), np.zeros_like(y0), np.zeros_like(y0)
+    arith.tolerance(inputs.atol, inputs.rtol, y0, y0, relative, rule, delta)
+    d0 = arith.weighted_norm(y0, delta)
+    d1 = arith.weighted_norm(f0, delta)
+    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    np.multiply(f0, direction * h0, y1)
+    np.add(y1, y0, y1)
+    rhs(t0 + direction * h0, y1, inputs.params, f1)
+    np.subtract(f1, f0, f1)
+    d2 = arith.weighted_norm(f1, delta) / h0
+    if not math.isfinite(d2):
+        h1 = h0
+    elif max(d1, d2) <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+    return min(100.0 * h0, h1, interval, max_step)
+
+
+class Integration:
+    """One RKQ (or pair-only) integration from ``(t0, y0)`` to ``t_end``.
+
+    Parameters
+    ----------
+    functions : KernelFunctions
+    member : Member
+        The pair and the quencher (:mod:`hamrkq.rkq.family`).
+    params, t0, y0, t_end, atol, rtol
+        The problem, validated (``atol``/``rtol`` arrays of ``y0.size``).
+    settings : Settings
+    """
+
+    def __init__(
+        self,
+        functions: KernelFunctions,
+        member: Member,
+        params: np.ndarray,
+        t0: float,
+        y0: np.ndarray,
+        t_end: float,
+        atol: np.ndarray,
+        rtol: np.ndarray,
+        settings: Settings,
+    ):
+        self.functions = functions
+        self.member = member
+        self.t0, self.t_end = float(t0), float(t_end)
+        self.settings = settings
+        use_teval = settings.t_eval is not None
+        self.inputs = Inputs(
+            params=np.require(params, np.float64, ("C", "W")),
+            atol=_floats(atol),
+            rtol=_floats(rtol),
+            t_eval=_floats(settings.t_eval if use_teval else []),
+        )
+        self.tableaus = member.tableaus
+        gamma = settings.gamma if member.use_z else GAMMA_OFF
+        self.config = new_config(
+            quench_mode=settings.quench,
+            rule=settings.rule,
+            gamma_mode=gamma,
+            use_z=int(member.use_z),
+            keep_every=settings.keep_every,
+            max_steps=settings.max_steps,
+            use_t_eval=int(use_teval),
+            relative=int(np.any(self.inputs.rtol > 0)),
+            z_substeps=member.z_substeps,
+            fsal=int(member.fsal),
+            safety=settings.safety,
+            theta=settings.theta,
+            max_step=settings.max_step,
+            gamma_limit=settings.gamma_limit,
+            t_end=self.t_end,
+            richardson=member.richardson,
+            shadow_scale=member.shadow_scale,
+            error_exponent=1.0 / (member.error_order + 1),
+            beta=member.beta,
+        )
+        self.state = new_state(self.t0)
+        y0 = _floats(y0)
+        self.work = allocate_work(y0, self.tableaus.b.shape[0], self.tableaus.bz.shape[0])
+        self.first_step = 0.0
+        self.integrate_s = 0.0
+
+    # -- the run -----------------------------------------------------------------
+
+    @property
+    def record(self):
+        """The state record (``record["t"]``, ``record["steps"]``, ...)."""
+        return self.state[0]
+
+    def start(self, out: Output) -> int:
+        """Write the first node (unless ``t_eval`` skips it), evaluate
+        ``f(t0, y0)`` and choose the first step.  Returns the status so far."""
+        s, inputs, work = self.record, self.inputs, self.work
+        use_teval = self.settings.t_eval is not None
+        if not use_teval or (inputs.t_eval.size and inputs.t_eval[0] == self.t0):
+            loop.write_node(self.t0, 0, work, out, s, int(self.member.use_z))
+            s["eval_index"] = int(use_teval)
+        if self.t0 == self.t_end:
+            return ST_SUCCESS
+        self.functions.rhs(self.t0, work.u, inputs.params, work.k1)
+        s["nfev"] += 1
+        if not arith.all_finite(work.k1):
+            s["bad_component"] = arith.first_nonfinite(work.k1)
+            return ST_NON_FINITE
+        s["k1_valid"] = 1
+        if self.settings.first_step is None:
+            h0 = initial_step(
+                self.functions.rhs,
+                self.t0,
+                work.u,
+                work.k1,
+                self.t_end,
+                inputs,
+                self.config[0],
+                self.member.error_order,
+                self.settings.max_step,
+            )
+            s["nfev"] += 1
+        else:
+            h0 = float(self.settings.first_step)
+        self.first_step = h0
+        s["h"] = h0 if self.t_end > self.t0 else -h0
+        return ST_RUNNING
+
+    def advance(self, out: Output, budget: int = BUDGET) -> int:
+        """Run the kernel once; returns its code (``RET_*``)."""
+        started = time.perf_counter()
+        f = self.functions
+        ret = f.advance(
+            f.rhs,
+            f.tangent,
+            f.jac,
+            self.inputs,
+            self.tableaus,
+            self.config,
+            self.state,
+            self.work,
+            out,
+            budget,
+        )
+        self.integrate_s += time.perf_counter() - started
+        return ret
+
+    def run(
+        self,
+        progress: Callable[[float, float], None] | None = None,
+        budget: int = BUDGET,
+        buffer_rows: int = FIRST_BUFFER_ROWS,
+    ) -> RunOutput:
+        """Integrate to the end (or a failure, or Ctrl-C) and collect the nodes."""
+        s = self.record
+        d = self.work.u.shape[0]
+        use_z = self.member.use_z
+        rows = max(1, buffer_rows)
+        chunks: list[tuple[np.ndarray, ...]] = []
+        out = allocate_output(rows, d, use_z)
+        status = ST_RUNNING
+        try:
+            status = self.start(out)
+            while status == ST_RUNNING:
+                ret = self.advance(out, budget)
+                if ret == RET_DONE:
+                    status = int(s["status"])
+                elif ret == RET_BUFFER_FULL:
+                    chunks.append(_filled(out, s["nout"]))
+                    rows = min(2 * rows, MAX_BUFFER_ROWS)
+                    out = allocate_output(rows, d, use_z)
+                    s["nout"] = 0
+                if progress is not None and status == ST_RUNNING:
+                    progress(float((s["t"] - self.t0) / (self.t_end - self.t0)), float(s["t"]))
+        except KeyboardInterrupt:
+            status = ST_INTERRUPTED
+        chunks.append(_filled(out, s["nout"]))
+        return self._output(chunks, status)
+
+    def stats(self) -> dict[str, int]:
+        """The counters: steps, rejected, quenches, nfev, njev (and
+        roundoff_steps where Gamma is estimated by Richardson)."""
+        s = self.record
+        stats = {key: int(s[key]) for key in ("steps", "rejected", "quenches", "nfev", "njev")}
+        if self.member.use_z and self.config[0]["gamma_mode"] != GAMMA_OFF:
+            stats["roundoff_steps"] = int(s["roundoff_steps"])
+        return stats
+
+    def _output(self, chunks, status: int) -> RunOutput:
+        s = self.record
+        use_z = self.member.use_z
+        t, y, z, gam, q = (np.concatenate([c[i] for c in chunks]) for i in range(5))
+        return RunOutput(
+            t=t,
+            y=y,
+            z=z if use_z else None,
+            gamma=gam if use_z else None,
+            quenched=q.astype(bool) if use_z else None,
+            status=status,
+            t_last=float(s["t"]),
+            h_fail=float(s["failed_h"]),
+            first_step=float(self.first_step),
+            max_ratio=float(s["max_ratio"]),
+            bad_component=int(s["bad_component"]),
+            stats=self.stats(),
+        )
+
+
+def _filled(out: Output, n: int) -> tuple[np.ndarray, ...]:
+    nz = n if out.z.shape[0] else 0
+    return (
+        out.t[:n].copy(),
+        out.y[:n].copy(),
+        out.z[:nz].copy(),
+        out.gamma[:nz].copy(),
+        out.quenched[:nz].copy(),
+    )

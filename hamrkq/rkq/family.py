@@ -1,0 +1,224 @@
+"""Members of the RKQ family: which pair, which quencher, how they are run.
+
+A member ``rk{r}{v}q{z}`` (Prentice's RKrvQz) reports the order-``v``
+solution of an embedded pair whose order-``r`` companion sizes the steps
+(local extrapolation), and quenches it with a track of order ``z`` run over
+the same steps (``z_substeps`` quencher steps per step of the pair).
+:class:`Member` turns that choice into the arrays the kernel takes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from hamrkq.errors import OptionError
+from hamrkq.methods.tableaus import (
+    COOPER_VERNER_RK8,
+    DOP853_RK8,
+    RK3_KUTTA,
+    RK4_CLASSIC,
+    ButcherTableau,
+)
+from hamrkq.rkq.layout import Tableaus
+
+__all__ = ["MEMBERS", "Member", "get_member", "merge_pair"]
+
+
+def _read_only(values) -> np.ndarray:
+    array = np.array(values, dtype=np.float64, order="C")
+    array.setflags(write=False)
+    return array
+
+
+def _shared_stages(high: ButcherTableau, low: ButcherTableau) -> int:
+    """Leading stages the two methods have in common (equal nodes and rows)."""
+    shared = 0
+    for j in range(min(high.stages, low.stages)):
+        if high.c_exact[j] != low.c_exact[j] or any(
+            high.A_exact[j][k] != low.A_exact[j][k] for k in range(j)
+        ):
+            break
+        shared = j + 1
+    return shared
+
+
+def merge_pair(high: ButcherTableau, low: ButcherTableau) -> tuple[np.ndarray, ...]:
+    """One tableau evaluating two methods that share their first stages.
+
+    The stages are ``high``'s, then ``low``'s own stages after the shared
+    ones; the weights ``b`` are ``high``'s (zero on ``low``'s own stages) and
+    ``b_err`` are ``low``'s.  For Kutta's RK3 and the classical RK4 (two
+    shared stages) that is 5 stages, one step of both methods.
+
+    Returns
+    -------
+    (A, b, b_err, c) : read-only float64 arrays
+    """
+    shared = _shared_stages(high, low)
+    s = high.stages + low.stages - shared
+    index = list(range(shared)) + [high.stages + k for k in range(low.stages - shared)]
+    A = np.zeros((s, s))
+    A[: high.stages, : high.stages] = high.A
+    c = np.zeros(s)
+    c[: high.stages] = high.c
+    b = np.zeros(s)
+    b[: high.stages] = high.b
+    b_err = np.zeros(s)
+    for j in range(low.stages):
+        b_err[index[j]] = low.b[j]
+        if j >= shared:
+            c[index[j]] = low.c[j]
+            for k in range(j):
+                A[index[j], index[k]] = low.A[j, k]
+    return tuple(_read_only(x) for x in (A, b, b_err, c))
+
+
+@dataclass(frozen=True)
+class Member:
+    """One member of the family, ready for the kernel.
+
+    Parameters
+    ----------
+    name : str
+        ``"rk34q8"``, ``"rk34"``, ...
+    summary : str
+        One line for listings and error messages.
+    pair : tuple of arrays
+        ``(A, b, b_err, c)`` of the reported pair (:func:`merge_pair`).
+    order : int
+        Order ``v`` of the propagated (reported) solution.
+    error_order : int
+        Order ``r`` of the companion that sizes the steps.
+    quencher : ButcherTableau or None
+        The quencher (None: the pair alone, no quenching).
+    z_substeps : int
+        Quencher steps per step of the pair.
+    fsal : bool
+        The pair's last stage is ``f`` at the new node.
+    beta : float
+        Weight of the previous error in the PI step-size controller (0: plain).
+    """
+
+    name: str
+    summary: str
+    pair: tuple
+    order: int
+    error_order: int
+    quencher: ButcherTableau | None = None
+    z_substeps: int = 1
+    fsal: bool = False
+    beta: float = 0.0
+    tableaus: Tableaus = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        A, b, b_err, c = self.pair
+        if self.quencher is not None:
+            Az, bz, cz = self.quencher.A, self.quencher.b, self.quencher.c
+        else:
+            Az, bz, cz = np.zeros((1, 1)), np.zeros(1), np.zeros(1)
+        arrays = (A, b, b_err, c, Az, bz, cz)
+        tableaus = Tableaus(*(np.require(x, np.float64, ("C",)) for x in arrays))
+        object.__setattr__(self, "tableaus", tableaus)
+
+    @property
+    def use_z(self) -> bool:
+        """Whether the member has a quencher track."""
+        return self.quencher is not None
+
+    @property
+    def z_order(self) -> int:
+        """Order of the quencher (0 without one)."""
+        return self.quencher.order if self.quencher is not None else 0
+
+    @property
+    def z_stages(self) -> int:
+        """Stages of the quencher (0 without one)."""
+        return self.quencher.stages if self.quencher is not None else 0
+
+    @property
+    def richardson(self) -> float:
+        """``2^z / (2^z - 1)``: Richardson's factor for the quencher's local error."""
+        if not self.use_z:
+            return 0.0
+        return float(Fraction(2**self.z_order, 2**self.z_order - 1))
+
+    @property
+    def shadow_scale(self) -> float:
+        """``m^z - 1``: the shadow track's error over the quencher's, minus one."""
+        if not self.use_z or self.z_substeps < 2:
+            return 1.0
+        return float(self.z_substeps**self.z_order - 1)
+
+    def evaluations_per_step(self, gamma: str) -> tuple[int, int]:
+        """Right-hand-side and Jacobian evaluations of one accepted step
+        (without the ones a first-same-as-last stage saves)."""
+        s = self.pair[1].shape[0]
+        nfev = s
+        if not self.use_z:
+            return nfev, 0
+        m, sz = self.z_substeps, self.z_stages
+        nfev += m * sz
+        if gamma == "off":
+            return nfev, 0
+        if gamma == "shadow":
+            return nfev + sz, 0
+        nfev += m * (2 * sz - 1)
+        return nfev, m * sz if gamma == "tangent" else m
+
+
+_RK34 = merge_pair(RK4_CLASSIC, RK3_KUTTA)
+
+#: The family, by name.  ``rk34q8`` is the paper's method (RK3(4) with the
+#: 8th-order formula of DOP853 as quencher); ``rk34`` is its pair alone.
+MEMBERS: dict[str, Member] = {
+    "rk34q8": Member(
+        "rk34q8",
+        "RKQ: RK3/RK4 local extrapolation with an RK8 quencher (Prentice)",
+        _RK34,
+        order=4,
+        error_order=3,
+        quencher=DOP853_RK8,
+    ),
+    "rk34": Member(
+        "rk34",
+        "RK3/RK4 local extrapolation only (the paper's comparison)",
+        _RK34,
+        order=4,
+        error_order=3,
+    ),
+}
+
+#: Quenchers ``z_method`` may name for ``rk34q8``.
+Z_METHODS: dict[str, ButcherTableau] = {"dop853": DOP853_RK8, "cooper_verner": COOPER_VERNER_RK8}
+
+
+def get_member(name: str, z_method: str | None = None) -> Member:
+    """The family member ``name`` (with its quencher replaced by ``z_method``).
+
+    Raises
+    ------
+    OptionError
+        An unknown name, listing the valid ones.
+    """
+    member = MEMBERS.get(name)
+    if member is None:
+        valid = ", ".join(repr(k) for k in MEMBERS)
+        raise OptionError(f"method={name!r} is not an RKQ family member; valid: {valid}")
+    if z_method is not None and member.use_z:
+        quencher = Z_METHODS[z_method]
+        if quencher is not member.quencher:
+            member = Member(
+                member.name,
+                member.summary,
+                member.pair,
+                member.order,
+                member.error_order,
+                quencher,
+                member.z_substeps,
+                member.fsal,
+                member.beta,
+            )
+    return member

@@ -1,0 +1,241 @@
+"""The data an RKQ integration carries between steps, by name.
+
+The step kernel (:mod:`hamrkq.rkq.loop`) runs as plain Python or compiled by
+numba, so its state is plain arrays rather than objects:
+
+- a *configuration* record (:data:`CONFIG`, one row of a structured array):
+  the validated options as numbers, fixed for the run;
+- a *state* record (:data:`STATE`): time, step size, counters and flags,
+  updated in place by every step;
+- :class:`Work`: the vectors and stage matrices (named arrays);
+- :class:`Tableaus`: the coefficients of the reported pair and of the
+  quencher, as float64 arrays;
+- :class:`Output`: the buffers that kept nodes are written into.
+
+Everything here is data; the codes (``QUENCH_*``, ``GAMMA_*``, ``ST_*``) are
+the numbers the configuration and the status field hold.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "CONFIG",
+    "STATE",
+    "Inputs",
+    "Output",
+    "Tableaus",
+    "Work",
+    "allocate_output",
+    "allocate_work",
+    "new_config",
+    "new_state",
+]
+
+EPS = float(np.finfo(np.float64).eps)
+#: The smallest positive double: the step-size floor at t = 0, where 10 eps |t|
+#: would be zero and let the step shrink to nothing.
+MIN_SUBNORMAL = 5e-324
+
+# Option codes.
+QUENCH_NODE, QUENCH_REDO = 0, 1
+RULE_COMPONENTWISE, RULE_PRENTICE = 0, 1
+#: Gamma (the quencher's global error): not estimated; Richardson local errors
+#: propagated by the exact linearisation of the quencher's step; the paper's
+#: (I + h J) propagation; or global extrapolation from a shadow track run on a
+#: mesh ``z_substeps`` times coarser.
+GAMMA_OFF, GAMMA_TANGENT, GAMMA_PAPER, GAMMA_SHADOW = 0, 1, 2, 3
+
+# Status codes (values of hamrkq.result.Status.code) and return codes of advance.
+ST_RUNNING, ST_SUCCESS, ST_UNDERFLOW, ST_NON_FINITE, ST_MAX_STEPS = -1, 0, 1, 2, 3
+ST_INTERRUPTED, ST_UNATTAINABLE = 4, 5
+RET_DONE, RET_BUFFER_FULL, RET_BUDGET = 0, 1, 2
+
+_I, _F = np.int64, np.float64
+
+#: The run's options as numbers (see :func:`new_config`).
+CONFIG = np.dtype(
+    [
+        ("quench_mode", _I),  # QUENCH_*
+        ("rule", _I),  # RULE_*
+        ("gamma_mode", _I),  # GAMMA_*
+        ("use_z", _I),  # 1: RKQ (a quencher track); 0: the pair alone
+        ("keep_every", _I),  # keep every k-th accepted node
+        ("max_steps", _I),  # limit on step attempts (accepted + rejected)
+        ("use_t_eval", _I),  # keep only the requested times
+        ("relative", _I),  # any rtol > 0
+        ("z_substeps", _I),  # quencher steps per step of the pair
+        ("fsal", _I),  # the pair's last stage is f at the new node
+        ("safety", _F),
+        ("theta", _F),  # quench threshold
+        ("max_step", _F),
+        ("gamma_limit", _F),
+        ("t_end", _F),
+        ("richardson", _F),  # 2^z / (2^z - 1)
+        ("shadow_scale", _F),  # z_substeps^z - 1
+        ("error_exponent", _F),  # 1 / (r + 1), r the embedded (error) order
+        ("beta", _F),  # PI controller: weight of the previous error
+    ]
+)
+
+#: What changes from step to step.
+STATE = np.dtype(
+    [
+        ("t", _F),
+        ("t_lo", _F),  # compensation term of t (t is summed compensated)
+        ("h", _F),  # the next step size to try (signed)
+        ("max_ratio", _F),  # largest attainability ratio so far
+        ("cached_h", _F),  # step size of the cached quencher step (redo mode)
+        ("failed_h", _F),  # the step size that failed (underflow, non-finite)
+        ("err_prev", _F),  # the last accepted step's error norm (PI control)
+        ("steps", _I),
+        ("rejected", _I),
+        ("quenches", _I),
+        ("nfev", _I),
+        ("njev", _I),
+        ("nout", _I),  # rows of the output buffers filled
+        ("status", _I),  # ST_*
+        ("k1_valid", _I),  # work.k1 holds f(t, u)
+        ("since_kept", _I),
+        ("eval_index", _I),  # next t_eval entry
+        ("last_quenched", _I),
+        ("last_written", _I),  # the current node is in the output
+        ("roundoff_steps", _I),  # steps whose Richardson difference was rounding
+        ("last_nonfinite", _I),  # the last rejection found inf/nan
+        ("redo", _I),  # this step restarted from the quencher's value
+        ("z_cached", _I),  # the quencher step for cached_h is in work
+        ("cached_roundoff", _I),
+        ("prev_rejected", _I),
+        ("bad_component", _I),  # first non-finite component found, or -1
+    ]
+)
+
+
+class Tableaus(NamedTuple):
+    """Coefficients as float64 arrays: the reported pair and the quencher.
+
+    The pair's stages ``K[j] = f(t + c[j] h, u + h sum_l A[j, l] K[l])``
+    give the propagated solution ``u + h sum b K`` and the embedded one
+    ``u + h sum b_err K``; their difference sizes the steps.
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    b_err: np.ndarray
+    c: np.ndarray
+    Az: np.ndarray
+    bz: np.ndarray
+    cz: np.ndarray
+
+
+class Inputs(NamedTuple):
+    """The run's numeric inputs: parameter values, tolerances, output times."""
+
+    params: np.ndarray
+    atol: np.ndarray
+    rtol: np.ndarray
+    t_eval: np.ndarray
+
+
+class Work(NamedTuple):
+    """Vectors (length ``d``) and stage matrices of one integration."""
+
+    u: np.ndarray  # the reported solution
+    zhi: np.ndarray  # the quencher track, compensated: z = zhi + zlo
+    zlo: np.ndarray
+    gam: np.ndarray  # Gamma at the current node
+    rho2: np.ndarray  # accumulated rounding variance of z
+    shi: np.ndarray  # the shadow track (GAMMA_SHADOW), compensated
+    slo: np.ndarray
+    k1: np.ndarray  # f(t, u)
+    w: np.ndarray  # the pair's candidate
+    err: np.ndarray  # the pair's error estimate
+    delta: np.ndarray  # tolerance per component
+    yt: np.ndarray  # stage argument
+    dy: np.ndarray  # stage argument of the tangent
+    inc: np.ndarray  # an increment
+    inc_lo: np.ndarray  # the other increment of the pair
+    dinc: np.ndarray  # tangent increment
+    inca: np.ndarray  # Richardson half steps
+    incb: np.ndarray
+    mhi: np.ndarray  # Richardson midpoint, compensated
+    mlo: np.ndarray
+    nhi: np.ndarray  # the quencher's candidate, compensated
+    nlo: np.ndarray
+    nshi: np.ndarray  # the shadow's candidate, compensated
+    nslo: np.ndarray
+    gnew: np.ndarray  # Gamma's candidate
+    noise: np.ndarray  # rounding of this step
+    tmp: np.ndarray
+    tmp2: np.ndarray
+    K: np.ndarray  # the pair's stages (s x d)
+    Kz: np.ndarray  # the quencher's stages (sz x d)
+    dKz: np.ndarray  # their tangents
+    JM: np.ndarray  # a Jacobian (d x d)
+
+
+class Output(NamedTuple):
+    """Buffers for kept nodes (rows ``0 .. state.nout``)."""
+
+    t: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    gamma: np.ndarray
+    quenched: np.ndarray
+
+
+_VECTORS = [name for name in Work._fields if name not in ("K", "Kz", "dKz", "JM")]
+
+
+def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
+    """Zeroed work arrays for a state of ``d = y0.size`` components, loaded
+    with ``y0`` (the reported and the quencher tracks start there)."""
+    d = y0.shape[0]
+    vectors = {name: np.zeros(d) for name in _VECTORS}
+    work = Work(
+        **vectors,
+        K=np.zeros((stages, d)),
+        Kz=np.zeros((max(z_stages, 1), d)),
+        dKz=np.zeros((max(z_stages, 1), d)),
+        JM=np.zeros((d, d)),
+    )
+    work.u[:] = y0
+    work.zhi[:] = y0
+    work.shi[:] = y0
+    return work
+
+
+def allocate_output(rows: int, d: int, with_z: bool) -> Output:
+    """Empty output buffers of ``rows`` nodes (no quencher rows without ``with_z``)."""
+    zrows = rows if with_z else 0
+    return Output(
+        t=np.empty(rows),
+        y=np.empty((rows, d)),
+        z=np.empty((zrows, d)),
+        gamma=np.empty((zrows, d)),
+        quenched=np.zeros(zrows, dtype=np.int8),
+    )
+
+
+def new_config(**values: float) -> np.ndarray:
+    """A one-row :data:`CONFIG` array; every field must be given."""
+    missing = set(CONFIG.names) - set(values)
+    unknown = set(values) - set(CONFIG.names)
+    if missing or unknown:
+        raise TypeError(f"config fields missing {sorted(missing)}, unknown {sorted(unknown)}")
+    config = np.zeros(1, dtype=CONFIG)
+    for name, value in values.items():
+        config[0][name] = value
+    return config
+
+
+def new_state(t0: float) -> np.ndarray:
+    """A one-row :data:`STATE` array at ``t0``, running, nothing counted."""
+    state = np.zeros(1, dtype=STATE)
+    state[0]["t"] = t0
+    state[0]["status"] = ST_RUNNING
+    state[0]["bad_component"] = -1
+    return state

@@ -1,0 +1,342 @@
+"""The RKQ step loop: one source for the interpreted and the compiled backend.
+
+:func:`advance` implements Prentice's RKQ algorithm (J.S.C. Prentice,
+arXiv:1111.6996; ``docs/algorithm.md`` explains it in plain words) for any
+member of the family: an embedded pair with local extrapolation for the
+reported solution ``u``, a quencher track ``z`` on the same mesh (in
+``z_substeps`` steps per step of the pair), Gamma (the quencher's estimated
+global error), and quenching of ``u`` to ``z`` where they differ by more than
+the tolerance.  Without a quencher (``use_z = 0``) it is the pair alone.
+
+Conventions (so that numba compiles it as written, see
+:mod:`hamrkq.backends.compiled`): functions over float64 arrays, ints and
+floats; no objects, closures, exceptions or allocation; the right-hand side is
+``rhs(t, y, params, out)``, the Jacobian ``jac(t, y, params, out)``, and
+``tangent(t, y, params, v, out, dout, JM)`` gives ``f`` and ``J v`` at one
+point.  The state is explicit and named (:mod:`hamrkq.rkq.layout`), so
+:func:`advance` runs in chunks: it returns when the interval is done, when its
+output buffer is full, or when ``budget`` step attempts have been made, and
+the driver (:mod:`hamrkq.rkq.driver`) grows the output, reports progress and
+turns Ctrl-C into an interrupted status.
+
+``max_steps`` limits step attempts, accepted plus rejected, over the whole
+run (the state's counters carry across calls).
+"""
+
+from __future__ import annotations
+
+import math
+
+from hamrkq.rkq import arith, steps
+from hamrkq.rkq.jit import jitable
+from hamrkq.rkq.layout import (
+    EPS,
+    MIN_SUBNORMAL,
+    QUENCH_REDO,
+    RET_BUDGET,
+    RET_BUFFER_FULL,
+    RET_DONE,
+    ST_MAX_STEPS,
+    ST_NON_FINITE,
+    ST_RUNNING,
+    ST_SUCCESS,
+    ST_UNATTAINABLE,
+    ST_UNDERFLOW,
+)
+
+# Step-size control (Hairer, Norsett & Wanner, Solving ODEs I, II.4).
+MIN_FACTOR = 0.2  # never shrink by more than 5x on one rejection
+MAX_FACTOR = 5.0  # never grow by more than 5x on one acceptance
+#: A step shorter than this many ulps of t cannot advance t reliably.
+FLOOR_ULPS = 10.0
+
+
+@jitable
+def write_node(t, quenched, work, out, state, use_z):
+    """Append the current node to the output buffers."""
+    n = state["nout"]
+    out.t[n] = t
+    arith.copy(work.u, out.y[n])
+    if use_z:
+        arith.copy(work.zhi, out.z[n])
+        arith.copy(work.gam, out.gamma[n])
+        out.quenched[n] = quenched
+    # Count the node only once it is complete: an interrupt never leaves half a row.
+    state["nout"] = n + 1
+    state["last_written"] = 1
+
+
+@jitable
+def stop(status, work, out, state, cfg):
+    """End the run at the current (last accepted) node, which is kept unless
+    only ``t_eval`` times are kept."""
+    if not state["last_written"] and not cfg["use_t_eval"]:
+        quenched = 1 if (state["last_quenched"] or state["redo"]) else 0
+        write_node(state["t"], quenched, work, out, state, cfg["use_z"])
+    state["status"] = status
+    return RET_DONE
+
+
+@jitable
+def reject(state, h, factor, nonfinite):
+    """Count a rejected attempt and shrink the step."""
+    state["h"] = h * factor
+    state["rejected"] += 1
+    state["prev_rejected"] = 1
+    state["last_nonfinite"] = nonfinite
+
+
+@jitable
+def step_target(cfg, state, t_eval):
+    """The time the next step must not pass: the next ``t_eval`` entry or the end."""
+    if cfg["use_t_eval"] and state["eval_index"] < t_eval.shape[0]:
+        return t_eval[state["eval_index"]]
+    return cfg["t_end"]
+
+
+@jitable
+def growth_factor(cfg, state, err):
+    """The next step's factor after an accepted error norm ``err`` (PI control,
+    Hairer, Norsett & Wanner, Solving ODEs I, II.4 (4.13); ``beta = 0`` is the
+    plain controller)."""
+    if err == 0.0:
+        return MAX_FACTOR
+    alpha = cfg["error_exponent"] - 0.75 * cfg["beta"]
+    factor = cfg["safety"] * err**-alpha
+    if cfg["beta"] > 0.0:
+        factor *= max(state["err_prev"], 1e-4) ** cfg["beta"]
+    return min(MAX_FACTOR, factor)
+
+
+@jitable
+def attainability(work, problem, cfg, unew):
+    """max_k (|Gamma_k| + rho_k + eps |z_k|) / delta_k at the candidate node:
+    the quencher's estimated error, its accumulated rounding and the rounding
+    of the stored value, against the tolerance at the new solution ``unew``."""
+    arith.tolerance(
+        problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], work.delta
+    )
+    top = -math.inf
+    for i in range(unew.shape[0]):
+        rho = math.sqrt(work.rho2[i] + work.noise[i])
+        value = ((rho + abs(work.nhi[i]) * EPS) + abs(work.gnew[i])) / work.delta[i]
+        if value != value:
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+@jitable
+def commit_quencher(work, state):
+    """The quencher's candidate becomes the current track."""
+    arith.copy(work.nhi, work.zhi)
+    arith.copy(work.nlo, work.zlo)
+    arith.copy(work.nshi, work.shi)
+    arith.copy(work.nslo, work.slo)
+    arith.copy(work.gnew, work.gam)
+    for i in range(work.rho2.shape[0]):
+        work.rho2[i] += work.noise[i]
+    state["roundoff_steps"] += state["cached_roundoff"]
+    state["z_cached"] = 0
+
+
+@jitable
+def advance_time(state, h, clipped, target):
+    """t + h by compensated summation, or exactly the target of a clipped step."""
+    t = state["t"]
+    if clipped:
+        state["t"] = target
+        state["t_lo"] = 0.0
+        return
+    b = h + state["t_lo"]
+    t_new = t + b
+    bb = t_new - t
+    state["t_lo"] = (t - (t_new - bb)) + (b - bb)
+    state["t"] = t_new
+
+
+@jitable
+def keep_node(cfg, state, work, out, t_eval, quenched, done):
+    """Write the new node if it is kept (every ``keep_every``-th, the last, or
+    a ``t_eval`` time)."""
+    if cfg["use_t_eval"]:
+        index = state["eval_index"]
+        if index < t_eval.shape[0] and state["t"] == t_eval[index]:
+            write_node(state["t"], quenched, work, out, state, cfg["use_z"])
+            state["eval_index"] = index + 1
+        return
+    state["since_kept"] += 1
+    if state["since_kept"] >= cfg["keep_every"] or done:
+        write_node(state["t"], quenched, work, out, state, cfg["use_z"])
+        state["since_kept"] = 0
+
+
+@jitable
+def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
+    """Advance the integration from ``state``/``work``; see the module docstring.
+
+    ``problem`` holds ``params``, ``atol``, ``rtol`` and ``t_eval``; ``cfg`` and
+    ``state`` are one-row record arrays.  Returns ``RET_DONE`` (the run ended;
+    the state's ``status`` says why), ``RET_BUFFER_FULL`` or ``RET_BUDGET``.
+    """
+    c = cfg[0]
+    s = state[0]
+    attempts = 0
+    while True:
+        if s["nout"] >= out.t.shape[0]:
+            return RET_BUFFER_FULL
+        if attempts >= budget:
+            return RET_BUDGET
+        if s["steps"] + s["rejected"] >= c["max_steps"]:
+            return stop(ST_MAX_STEPS, work, out, s, c)
+        attempts += 1
+        ret = attempt(rhs, tangent, jac, problem, tab, c, s, work, out)
+        if ret == RET_DONE:
+            return RET_DONE
+
+
+@jitable
+def plan_step(c, s, t_eval):
+    """The step to try: ``(h, h_free, clipped, target)``; ``h`` lands exactly on
+    the target (the next ``t_eval`` time or the end) when it would reach or
+    nearly reach it (``clipped``), ``h_free`` is the controller's choice."""
+    t = s["t"]
+    target = step_target(c, s, t_eval)
+    direction = 1.0 if c["t_end"] > t else -1.0
+    remaining = target - t
+    h_free = s["h"]
+    if abs(h_free) > c["max_step"]:
+        h_free = direction * c["max_step"]
+    # Land exactly on the target, and never leave a sliver below the floor.
+    if abs(h_free) >= abs(remaining) or (
+        abs(remaining) - abs(h_free) < FLOOR_ULPS * EPS * abs(target)
+    ):
+        return remaining, h_free, True, target
+    return h_free, h_free, False, target
+
+
+@jitable
+def pair_phase(rhs, problem, tab, c, s, work, h):
+    """The pair's step of size ``h`` from the current node and its error norm;
+    a rejected attempt shrinks the step and returns -1."""
+    s["nfev"] += steps.pair_step(rhs, s["t"], h, tab, problem.params, work)
+    if not (arith.all_finite(work.err) and arith.all_finite(work.w)):
+        s["bad_component"] = arith.first_nonfinite(work.w)
+        reject(s, h, MIN_FACTOR, 1)
+        return -1.0
+    arith.tolerance(
+        problem.atol, problem.rtol, work.u, work.w, c["relative"], c["rule"], work.delta
+    )
+    err = arith.weighted_norm(work.err, work.delta)
+    if err > 1.0:
+        reject(s, h, max(MIN_FACTOR, c["safety"] * err ** -c["error_exponent"]), 0)
+        return -1.0
+    return err
+
+
+@jitable
+def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h, h_free):
+    """The quencher over the step, the quench decision, and the promise at the
+    new node.  Returns 0 or 1 (the node is quenched), -1 (the attempt is
+    over: rejected, or restarted from the quencher's value) or ``-1 - RET_DONE``
+    (the run ends at the current node)."""
+    if not (s["z_cached"] and s["cached_h"] == h):
+        steps.quencher_step(rhs, tangent, jac, s["t"], h, tab, c, problem.params, work, s)
+        if not arith.all_finite(work.nhi):
+            s["bad_component"] = arith.first_nonfinite(work.nhi)
+            reject(s, h, MIN_FACTOR, 1)
+            return -1
+        s["z_cached"] = 1
+        s["cached_h"] = h
+    # The global error of the candidate at the new node, against its tolerance.
+    for i in range(work.tmp2.shape[0]):
+        work.tmp2[i] = work.w[i] - work.nhi[i]
+    arith.tolerance(
+        problem.atol, problem.rtol, work.w, work.w, c["relative"], c["rule"], work.delta
+    )
+    quench = arith.weighted_norm(work.tmp2, work.delta) > c["theta"]
+    if quench and c["quench_mode"] == QUENCH_REDO and not s["redo"]:
+        # Restart the same step from the quencher's value at t.
+        arith.copy(work.zhi, work.u)
+        s["redo"] = 1
+        s["quenches"] += 1
+        s["k1_valid"] = 0
+        s["h"] = h_free
+        return -1
+    # The promise must hold at the new node: where the quencher can no longer
+    # be trusted to within gamma_limit of the tolerance, the run ends at t,
+    # the last node where it held.
+    ratio = attainability(work, problem, c, work.nhi if quench else work.w)
+    if ratio > s["max_ratio"] or ratio != ratio:
+        s["max_ratio"] = ratio
+    if not ratio <= c["gamma_limit"]:
+        stop(ST_UNATTAINABLE, work, out, s, c)
+        return -1 - RET_DONE
+    if quench:
+        arith.copy(work.nhi, work.u)
+        s["quenches"] += 1
+    else:
+        arith.copy(work.w, work.u)
+    commit_quencher(work, s)
+    return 1 if (quench or s["redo"]) else 0
+
+
+@jitable
+def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
+    """One step attempt; returns ``RET_DONE`` when the run ended, else -1."""
+    h, h_free, clipped, target = plan_step(c, s, problem.t_eval)
+    if not clipped and abs(h) < max(FLOOR_ULPS * EPS * abs(s["t"]), MIN_SUBNORMAL):
+        s["failed_h"] = h
+        return stop(ST_NON_FINITE if s["last_nonfinite"] else ST_UNDERFLOW, work, out, s, c)
+    if not s["k1_valid"]:
+        rhs(s["t"], work.u, problem.params, work.k1)
+        s["nfev"] += 1
+        if not arith.all_finite(work.k1):
+            s["failed_h"] = h
+            s["bad_component"] = arith.first_nonfinite(work.k1)
+            return stop(ST_NON_FINITE, work, out, s, c)
+        s["k1_valid"] = 1
+    # 1. The reported pair, locally extrapolated.
+    err = pair_phase(rhs, problem, tab, c, s, work, h)
+    if err < 0.0:
+        return -1
+    factor = growth_factor(c, s, err)
+    if s["prev_rejected"]:
+        factor = min(1.0, factor)  # no growth right after a rejection
+    h_next = h * factor
+    if clipped and abs(h_next) < abs(h_free):
+        h_next = h_free  # a step clipped to land says nothing against the free step
+    # 2.-5. The quencher, the quench, the promise.
+    quenched = 0
+    if c["use_z"]:
+        quenched = quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h, h_free)
+        if quenched < 0:
+            return RET_DONE if quenched == -1 - RET_DONE else -1
+    else:
+        arith.copy(work.w, work.u)
+    s["err_prev"] = err
+    return accept(c, s, work, out, problem.t_eval, h, h_next, clipped, target, quenched)
+
+
+@jitable
+def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched):
+    """Book-keeping of an accepted step: time, counters, the kept node, the end."""
+    s["redo"] = 0
+    advance_time(s, h, clipped, target)
+    s["h"] = h_next
+    s["steps"] += 1
+    fsal = c["fsal"] and not quenched
+    if fsal:
+        arith.copy(work.K[work.K.shape[0] - 1], work.k1)
+    s["k1_valid"] = 1 if fsal else 0
+    s["prev_rejected"] = 0
+    s["last_nonfinite"] = 0
+    s["last_quenched"] = quenched
+    s["last_written"] = 0
+    done = clipped and target == c["t_end"]
+    keep_node(c, s, work, out, t_eval, quenched, done)
+    if done:
+        s["status"] = ST_SUCCESS
+        return RET_DONE
+    return ST_RUNNING

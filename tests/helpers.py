@@ -1,0 +1,12 @@
+"""Small helpers shared by the test modules."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+
+def counters(stats: Mapping[str, Any]) -> dict[str, Any]:
+    """A solution's stats without its timings (``compile_s``, ``integrate_s``),
+    which differ from run to run."""
+    return {key: value for key, value in stats.items() if not key.endswith("_s")}
