@@ -274,6 +274,18 @@ def test_every_order_condition_holds(tableau, which):
     assert len(trees) == through[order]
 
 
+def test_a_wrong_25th_digit_is_caught():
+    # The 50-digit check has teeth at the level of the published digits: one
+    # coupling of Verner's robust 8(7) moved by 1e-25 breaks conditions by
+    # ~8e-27, far above DECIMAL_TOL (the true table's worst is 1.9e-40).
+    ar = oc.mpmath_arithmetic(DIGITS)
+    A, b = oc.tableau_in(VERNER_87, ar.convert)
+    assert max(abs(ar.to_float(r)) for _, r in oc.residuals(A, b, 8, ar.one)) < 1e-38
+    A[9][4] += ar.convert(Decimal("1e-25"))
+    worst = max(abs(ar.to_float(r)) for _, r in oc.residuals(A, b, 8, ar.one))
+    assert 1e-28 < worst < 1e-25
+
+
 @pytest.mark.parametrize(("tableau", "which"), WEIGHTS, ids=WEIGHT_IDS)
 def test_next_order_is_not_reached(tableau, which):
     weights, order = _weights_of(tableau, which)
