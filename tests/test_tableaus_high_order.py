@@ -540,3 +540,40 @@ def test_kernel_arrays(tableau):
 def test_kernel_arrays_rejects_non_tableaus():
     with pytest.raises(InputTypeError, match="ButcherTableau"):
         kernel_arrays("rk34")
+
+
+def test_kernel_arrays_feed_one_compiled_step_for_every_tableau():
+    # The arrays' types (read-only, C-contiguous float64) are the same for
+    # every pair and quencher, so a numba kernel compiles once for all of them.
+    numba = pytest.importorskip("numba")
+
+    @numba.njit(cache=False)
+    def step(A, b, b_error, c, y, h):  # y' = -y, one step
+        s = b.size
+        k = np.empty((s, y.size))
+        for i in range(s):
+            stage = y.copy()
+            for j in range(i):
+                stage += h * A[i, j] * k[j]
+            k[i] = -stage
+        y_new = y.copy()
+        err = np.zeros_like(y)
+        for i in range(s):
+            y_new += h * b[i] * k[i]
+            if b_error.size:
+                err += h * b_error[i] * k[i]
+        return y_new, err
+
+    # h = 0.5 keeps even Verner 9(8)'s estimate (3e-10) far above rounding.
+    h, y0 = 0.5, np.array([1.0])
+    for tableau in [*PAIRS.values(), *QUENCHERS.values()]:
+        arrays = kernel_arrays(tableau)
+        y1, err = step(arrays.A, arrays.b, arrays.b_error, arrays.c, y0, h)
+        # Local error of an order-p method on y' = -y: about h^(p+1)/(p+1)!.
+        assert abs(y1[0] - np.exp(-h)) < max(h ** (tableau.order + 1), 1e-16)
+        if tableau.is_pair:
+            low = fixed_step(tableau, tableau.b_embedded, lambda t, y: -y, y0, 0.0, h, 1)
+            # y1 - low cancels (both near 1): equal to a few ulps of y, not of err.
+            np.testing.assert_allclose(err, y1 - low, rtol=0, atol=4 * np.finfo(float).eps)
+            assert abs(err[0]) > 1e-12
+    assert len(step.signatures) == 1
