@@ -41,6 +41,8 @@ from hamrkq.methods.registry import (
 )
 from hamrkq.methods.tableaus import (
     COOPER_VERNER_RK8,
+    DOP853_BHH3,
+    DOP853_PAIR,
     DOP853_RK8,
     RK3_KUTTA,
     RK4_CLASSIC,
@@ -322,6 +324,39 @@ def test_feagin_embedded_weights_are_his_two_stage_estimates():
         expected = [Fraction(0)] * tableau.stages
         expected[1], expected[stage] = factor, -factor
         assert diff == expected
+
+
+def _max_residual(ar, A, weights, order: int) -> float:
+    b = [ar.convert(x) for x in weights]
+    return max(abs(ar.to_float(r)) for _, r in oc.residuals(A, b, order, ar.one, min_order=order))
+
+
+def test_dop853_estimators_have_orders_5_and_3():
+    # Hairer's er_i have 28 digits: the 5th-order weights b - er satisfy their
+    # conditions to 4.7e-28 (measured), the 3rd-order bhh to 2.5e-29.
+    ar = oc.mpmath_arithmetic(DIGITS)
+    A, _ = oc.tableau_in(DOP853_PAIR, ar.convert)
+    for order in range(1, 6):
+        assert _max_residual(ar, A, DOP853_PAIR.b_embedded_exact, order) < 1e-26
+    assert _max_residual(ar, A, DOP853_PAIR.b_embedded_exact, 6) > FAIL_MARGIN
+    for order in range(1, 4):
+        assert _max_residual(ar, A, DOP853_BHH3, order) < 1e-27
+    assert _max_residual(ar, A, DOP853_BHH3, 4) > FAIL_MARGIN
+    assert (DOP853_PAIR.order, DOP853_PAIR.embedded_order) == (8, 5)
+
+
+def test_dop853_estimators_match_scipy():
+    # An independent transcription of dop853.f: SciPy's E5 is er, its E3 is
+    # b - bhh (SciPy subtracts in float64, hence the ulp tolerance).
+    from scipy.integrate._ivp import dop853_coefficients as scipy_dop853
+
+    for name in ("A", "b", "c"):
+        assert getattr(DOP853_PAIR, name) is not getattr(DOP853_RK8, name)
+        np.testing.assert_array_equal(getattr(DOP853_PAIR, name), getattr(DOP853_RK8, name))
+    np.testing.assert_array_equal(DOP853_PAIR.b_error, scipy_dop853.E5[:12])
+    assert scipy_dop853.E5[12] == scipy_dop853.E3[12] == 0
+    bhh = np.array([float(x) for x in DOP853_BHH3])
+    np.testing.assert_allclose(DOP853_RK8.b - bhh, scipy_dop853.E3[:12], rtol=0, atol=1e-15)
 
 
 def test_rk34_pair_is_kutta_rk3_and_classical_rk4():

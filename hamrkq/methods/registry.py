@@ -34,6 +34,7 @@ from hamrkq.methods.dormand_prince import DORMAND_PRINCE_54
 from hamrkq.methods.feagin import FEAGIN_10, FEAGIN_12
 from hamrkq.methods.tableaus import (
     COOPER_VERNER_RK8,
+    DOP853_PAIR,
     DOP853_RK8,
     RK3_KUTTA,
     RK4_CLASSIC,
@@ -110,8 +111,8 @@ DEFAULT_QUENCHER_BY_ORDER: Mapping[int, str] = MappingProxyType(
 MIN_ORDER_GAP = 2
 
 #: Every tableau in hamrkq by name (read-only), including ones that are not
-#: in the family: RK3 and RK4 on their own, and Verner's efficient 8(7) pair,
-#: kept for comparison with the robust one.
+#: in the family: RK3 and RK4 on their own, Verner's efficient 8(7) pair (kept
+#: for comparison with the robust one) and DOP853 with its 5th-order estimator.
 ALL_TABLEAUS: Mapping[str, ButcherTableau] = MappingProxyType(
     {
         t.name: t
@@ -121,6 +122,7 @@ ALL_TABLEAUS: Mapping[str, ButcherTableau] = MappingProxyType(
             *PAIRS.values(),
             VERNER_87_EFFICIENT,
             *QUENCHERS.values(),
+            DOP853_PAIR,
         )
     }
 )

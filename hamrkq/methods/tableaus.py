@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from decimal import Decimal
+from decimal import Decimal, localcontext
 from fractions import Fraction
 from types import MappingProxyType
 
@@ -43,6 +43,8 @@ from hamrkq.errors import InputError, InputTypeError, OptionError
 
 __all__ = [
     "COOPER_VERNER_RK8",
+    "DOP853_BHH3",
+    "DOP853_PAIR",
     "DOP853_RK8",
     "RK3_KUTTA",
     "RK4_CLASSIC",
@@ -503,7 +505,8 @@ DOP853_RK8 = ButcherTableau(
     ),
 )
 """The 12-stage eighth-order formula of DOP853 (its 13th stage and embedded
-5th/3rd-order error estimators are not part of this tableau)."""
+5th/3rd-order error estimators are not part of this tableau; they are in
+:data:`DOP853_PAIR` and :data:`DOP853_BHH3`)."""
 
 RK34_PAIR = ButcherTableau(
     name="rk34",
@@ -534,6 +537,63 @@ RK34_PAIR = ButcherTableau(
 (whose third stage, ``c = 1``, ``a = (-1, 2)``, is stage 5 here).  One step of
 both costs 5 evaluations of ``f``, as :data:`RK3_KUTTA` and :data:`RK4_CLASSIC`
 evaluated separately with ``k1``, ``k2`` shared."""
+
+# DOP853's error estimators, from dop853.f (Hairer & Wanner; the same
+# 28-30 digit decimals as the tableau): the 5th-order estimate is
+# h sum_i er_i k_i = y_8 - y_5 over the 12 stages, and the 3rd-order one is
+# h (sum_i b_i k_i - bhh_1 k_1 - bhh_2 k_9 - bhh_3 k_12) = y_8 - y_3.
+_DOP853_ER = {
+    1: "0.1312004499419488073250102996E-01",
+    6: "-0.1225156446376204440720569753E+01",
+    7: "-0.4957589496572501915214079952E+00",
+    8: "0.1664377182454986536961530415E+01",
+    9: "-0.3503288487499736816886487290E+00",
+    10: "0.3341791187130174790297318841E+00",
+    11: "0.8192320648511571246570742613E-01",
+    12: "-0.2235530786388629525884427845E-01",
+}
+
+
+def _minus_er(i: int, b: Coefficient) -> Coefficient:
+    """``b_i - er_i`` exactly (the published decimals have at most 30 digits)."""
+    if i not in _DOP853_ER:
+        return b
+    with localcontext() as ctx:
+        ctx.prec = 80  # enough for every digit of both: the difference is exact
+        return b - Decimal(_DOP853_ER[i])  # every such b_i is a published Decimal
+
+
+DOP853_PAIR = ButcherTableau(
+    name="dop853_85",
+    order=8,
+    stages=12,
+    reference=(
+        "E. Hairer, S. P. Norsett and G. Wanner, Solving Ordinary Differential "
+        "Equations I, 2nd ed., Springer (1993), Sec. II.10; the code DOP853 "
+        "(dop853.f): its 12-stage formula with the 5th-order estimator er_i"
+    ),
+    A_exact=DOP853_RK8.A_exact,
+    b_exact=DOP853_RK8.b_exact,
+    c_exact=DOP853_RK8.c_exact,
+    b_embedded_exact=tuple(_minus_er(i + 1, b) for i, b in enumerate(DOP853_RK8.b_exact)),
+    embedded_order=5,
+)
+"""DOP853's 8th-order formula with its 5th-order embedded solution
+``b - er`` (so ``b_error`` is Hairer's ``er``).  Not in the RKQ registry's
+pairs: DOP853 serves as a quencher, which needs no estimator."""
+
+#: The weights of DOP853's 3rd-order embedded solution (``bhh`` in dop853.f),
+#: on stages 1, 9 and 12 of :data:`DOP853_RK8`.
+DOP853_BHH3: tuple[Coefficient, ...] = tuple(
+    Decimal(
+        {
+            1: "0.244094488188976377952755905512E+00",
+            9: "0.733846688281611857341361741547E+00",
+            12: "0.220588235294117647058823529412E-01",
+        }.get(i, "0")
+    )
+    for i in range(1, 13)
+)
 
 #: Every tableau by name (read-only).
 TABLEAUS: Mapping[str, ButcherTableau] = MappingProxyType(
