@@ -111,7 +111,8 @@ class ButcherTableau:
     Parameters
     ----------
     name : str
-        Short name, the key accepted by :func:`get_tableau`.
+        Short name, the key in :mod:`hamrkq.methods.registry` (and in
+        :func:`get_tableau` for RK3, RK4, DOP853 and Cooper-Verner).
     order : int
         Classical order of the method (of the weights ``b``).
     stages : int
@@ -154,9 +155,10 @@ class ButcherTableau:
         Whether every coefficient is exact (``False`` when some are published
         decimals, as for DOP853, Verner's and Feagin's methods).
     max_abs_a : float
-        The largest ``|a_ij|``.  Large coupling coefficients amplify rounding
-        in the stage values: a tableau with ``|a_ij|`` near 100 loses about
-        two digits to cancellation (Verner's "efficient" 8(7) reaches 118).
+        The largest ``|a_ij|``.  Large coefficients can amplify rounding
+        through cancellation in the stage sums: Verner's "efficient" 8(7)
+        reaches 123, and its float64 error floor is ten times the robust
+        pair's (``docs/algorithm.md``).
 
     Raises
     ------
