@@ -23,13 +23,16 @@ RK3 and RK4 share their first two stages: both have ``c1 = 0`` and ``c2 = 1/2``
 with ``a21 = 1/2``, so ``k1`` and ``k2`` can be computed once.  Kutta's third
 stage (``c = 1``, ``a31 = -1``, ``a32 = 2``) differs from RK4's stages 3 and 4,
 so one step of both methods together costs 5 evaluations of ``f``, not 7.
+:data:`RK34_PAIR` is that observation as one 5-stage tableau with an embedded
+solution, the form every embedded pair of the RKQ family takes (see
+:mod:`hamrkq.methods.registry`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from decimal import Decimal
+from decimal import Decimal, localcontext
 from fractions import Fraction
 from types import MappingProxyType
 
@@ -40,13 +43,17 @@ from hamrkq.errors import InputError, InputTypeError, OptionError
 
 __all__ = [
     "COOPER_VERNER_RK8",
+    "DOP853_BHH3",
+    "DOP853_PAIR",
     "DOP853_RK8",
     "RK3_KUTTA",
     "RK4_CLASSIC",
+    "RK34_PAIR",
     "TABLEAUS",
     "ButcherTableau",
     "Coefficient",
     "get_tableau",
+    "matrix_from_entries",
 ]
 
 #: One published coefficient: an exact rational, an exact SymPy expression
@@ -77,49 +84,89 @@ def _to_float(value: Coefficient) -> float:
 
 
 def _read_only(values: Sequence) -> np.ndarray:
-    array = np.array([_to_float(v) for v in values], dtype=np.float64)
+    array = np.ascontiguousarray([_to_float(v) for v in values], dtype=np.float64)
     array.setflags(write=False)
     return array
 
 
+def _difference(x: Coefficient, y: Coefficient) -> Coefficient:
+    """``x - y`` without rounding: ``Fraction`` for rationals and decimals
+    (a decimal is a rational), SymPy for anything irrational."""
+    if isinstance(x, (Fraction, Decimal, int)) and isinstance(y, (Fraction, Decimal, int)):
+        return Fraction(x) - Fraction(y)
+    return _sym(x) - _sym(y)
+
+
+def _sym(value: Coefficient) -> sp.Expr:
+    if isinstance(value, (Fraction, Decimal, int)):
+        f = Fraction(value)
+        return sp.Rational(f.numerator, f.denominator)
+    return value
+
+
 @dataclass(frozen=True)
 class ButcherTableau:
-    """An explicit Runge-Kutta method as immutable, cited data.
+    """An explicit Runge-Kutta method (optionally an embedded pair) as immutable, cited data.
 
     Parameters
     ----------
     name : str
-        Short name, the key accepted by :func:`get_tableau`.
+        Short name, the key in :mod:`hamrkq.methods.registry` (and in
+        :func:`get_tableau` for RK3, RK4, DOP853 and Cooper-Verner).
     order : int
-        Classical order of the method.
+        Classical order of the method (of the weights ``b``).
     stages : int
-        Number of stages ``s``.
+        Number of stages ``s``, counting an FSAL stage.
     reference : str
-        Citation of the publication the coefficients come from.
+        Citation of the publication the coefficients come from, and where the
+        digits were taken from.
     A_exact : tuple of tuple of Coefficient
         The ``s x s`` coupling matrix, zero on and above the diagonal.
     b_exact : tuple of Coefficient
-        The ``s`` weights.
+        The ``s`` weights of the propagated solution.
     c_exact : tuple of Coefficient
         The ``s`` nodes.
+    b_embedded_exact : tuple of Coefficient, optional
+        The ``s`` weights of the embedded solution of an embedded pair; the
+        local error estimate is ``h * sum_i (b_i - b_embedded_i) k_i``.
+    embedded_order : int, optional
+        Classical order of the embedded weights; required with
+        ``b_embedded_exact`` and only with it.
+    fsal : bool, default False
+        First same as last: the last stage is evaluated at ``t + h`` on the
+        propagated solution (``c_s = 1``, last row of ``A`` equal to ``b``,
+        ``b_s = 0``), so it is the first stage of the next step and a step
+        costs ``s - 1`` new evaluations of ``f``.
 
     Attributes
     ----------
-    A : ndarray, shape (s, s), float64, read-only
+    A : ndarray, shape (s, s), float64, C-contiguous, read-only
         ``A_exact`` rounded to float64, strictly lower triangular.
-    b : ndarray, shape (s,), float64, read-only
+    b : ndarray, shape (s,), float64, C-contiguous, read-only
         ``b_exact`` rounded to float64.
-    c : ndarray, shape (s,), float64, read-only
+    c : ndarray, shape (s,), float64, C-contiguous, read-only
         ``c_exact`` rounded to float64.
+    b_embedded : ndarray, shape (s,), float64, read-only, or None
+        ``b_embedded_exact`` rounded to float64 (``None`` without one).
+    b_error : ndarray, shape (s,), float64, read-only, or None
+        ``b - b_embedded`` computed exactly, then rounded once: the weights of
+        the local error estimate (more accurate than subtracting the floats).
     exact : bool
         Whether every coefficient is exact (``False`` when some are published
-        decimals, as for DOP853).
+        decimals, as for DOP853, Verner's and Feagin's methods).
+    max_abs_a : float
+        The largest ``|a_ij|``.  Large coefficients can amplify rounding
+        through cancellation in the stage sums: Verner's "efficient" 8(7)
+        reaches 123, and its float64 error floor is ten times the robust
+        pair's (``docs/algorithm.md``).
 
     Raises
     ------
     InputError
-        If the shapes disagree with ``stages`` or ``A_exact`` has a nonzero
-        entry on or above the diagonal.
+        If the shapes disagree with ``stages``, ``A_exact`` has a nonzero
+        entry on or above the diagonal, the embedded weights and order are not
+        given together, or ``fsal`` is claimed for a tableau without that
+        structure.
     """
 
     name: str
@@ -129,10 +176,16 @@ class ButcherTableau:
     A_exact: tuple[tuple[Coefficient, ...], ...] = field(repr=False)
     b_exact: tuple[Coefficient, ...] = field(repr=False)
     c_exact: tuple[Coefficient, ...] = field(repr=False)
+    b_embedded_exact: tuple[Coefficient, ...] | None = field(default=None, repr=False)
+    embedded_order: int | None = None
+    fsal: bool = False
     A: np.ndarray = field(init=False, repr=False, compare=False)
     b: np.ndarray = field(init=False, repr=False, compare=False)
     c: np.ndarray = field(init=False, repr=False, compare=False)
+    b_embedded: np.ndarray | None = field(init=False, repr=False, compare=False)
+    b_error: np.ndarray | None = field(init=False, repr=False, compare=False)
     exact: bool = field(init=False, repr=False, compare=False)
+    max_abs_a: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         s = self.stages
@@ -150,14 +203,94 @@ class ButcherTableau:
                         f"tableau {self.name!r} is not explicit: "
                         f"A_exact[{i}][{j}] = {row[j]} is on or above the diagonal"
                     )
-        A = np.array([[_to_float(a) for a in row] for row in self.A_exact], dtype=np.float64)
+        self._check_embedded()
+        if self.fsal:
+            self._check_fsal()
+        A = np.ascontiguousarray(
+            [[_to_float(a) for a in row] for row in self.A_exact], dtype=np.float64
+        )
         A.setflags(write=False)
         # Frozen dataclass: derived fields are set once, here, and never again.
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "b", _read_only(self.b_exact))
         object.__setattr__(self, "c", _read_only(self.c_exact))
-        everything = (*self.b_exact, *self.c_exact, *(a for row in self.A_exact for a in row))
+        embedded = self.b_embedded_exact
+        object.__setattr__(self, "b_embedded", None if embedded is None else _read_only(embedded))
+        if embedded is None:
+            b_error = None
+        else:
+            b_error = _read_only(
+                [_difference(x, y) for x, y in zip(self.b_exact, embedded, strict=True)]
+            )
+        object.__setattr__(self, "b_error", b_error)
+        everything = (
+            *self.b_exact,
+            *self.c_exact,
+            *(embedded or ()),
+            *(a for row in self.A_exact for a in row),
+        )
         object.__setattr__(self, "exact", not any(isinstance(v, Decimal) for v in everything))
+        object.__setattr__(self, "max_abs_a", float(np.max(np.abs(A))))
+
+    def _check_embedded(self) -> None:
+        embedded, order = self.b_embedded_exact, self.embedded_order
+        if (embedded is None) != (order is None):
+            raise InputError(
+                f"tableau {self.name!r}: b_embedded_exact and embedded_order go together, "
+                f"got b_embedded_exact={'given' if embedded is not None else None} and "
+                f"embedded_order={order!r}"
+            )
+        if embedded is not None and len(embedded) != self.stages:
+            raise InputError(
+                f"tableau {self.name!r}: b_embedded_exact must have {self.stages} entries "
+                f"(stages), got {len(embedded)}"
+            )
+
+    def _check_fsal(self) -> None:
+        last = self.A_exact[-1]
+        if (
+            self.c_exact[-1] != 1
+            or self.b_exact[-1] != 0
+            or any(last[j] != self.b_exact[j] for j in range(self.stages - 1))
+        ):
+            raise InputError(
+                f"tableau {self.name!r} is not FSAL: that needs c_s = 1, b_s = 0 and the "
+                "last row of A_exact equal to b_exact"
+            )
+
+    @property
+    def is_pair(self) -> bool:
+        """Whether the tableau carries an embedded solution."""
+        return self.b_embedded_exact is not None
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """New evaluations of ``f`` per accepted step (``s - 1`` when FSAL)."""
+        return self.stages - 1 if self.fsal else self.stages
+
+
+def matrix_from_entries(
+    s: int, entries: Mapping[tuple[int, int], Coefficient], *, base: int = 1
+) -> tuple[tuple[Coefficient, ...], ...]:
+    """An ``s x s`` tuple matrix from ``{(i, j): a_ij}``; missing entries are
+    exact zeros.
+
+    ``base`` is the index of the first stage as printed in the source: 1 for
+    most papers (``a_21`` is the first coupling), 0 for Feagin's tables
+    (``a_10``).
+    """
+    rows = [[Fraction(0)] * s for _ in range(s)]
+    for (i, j), value in entries.items():
+        rows[i - base][j - base] = value
+    return tuple(tuple(row) for row in rows)
+
+
+def weights(s: int, entries: Mapping[int, Coefficient], *, base: int = 1) -> tuple:
+    """A length-``s`` tuple from ``{i: value}``; missing entries are exact zeros."""
+    values = [Fraction(0)] * s
+    for i, value in entries.items():
+        values[i - base] = value
+    return tuple(values)
 
 
 def _F(text: str) -> Fraction:
@@ -165,12 +298,8 @@ def _F(text: str) -> Fraction:
 
 
 def _square(s: int, entries: Mapping[tuple[int, int], Coefficient]) -> tuple:
-    """An ``s x s`` tuple matrix from ``{(i, j): a_ij}`` with 1-based indices
-    as printed in the papers; missing entries are exact zeros."""
-    rows = [[Fraction(0)] * s for _ in range(s)]
-    for (i, j), value in entries.items():
-        rows[i - 1][j - 1] = value
-    return tuple(tuple(row) for row in rows)
+    """:func:`matrix_from_entries` with 1-based indices, as printed in the papers."""
+    return matrix_from_entries(s, entries)
 
 
 RK3_KUTTA = ButcherTableau(
@@ -378,7 +507,95 @@ DOP853_RK8 = ButcherTableau(
     ),
 )
 """The 12-stage eighth-order formula of DOP853 (its 13th stage and embedded
-5th/3rd-order error estimators are not part of this tableau)."""
+5th/3rd-order error estimators are not part of this tableau; they are in
+:data:`DOP853_PAIR` and :data:`DOP853_BHH3`)."""
+
+RK34_PAIR = ButcherTableau(
+    name="rk34",
+    order=4,
+    stages=5,
+    reference=(
+        "Prentice's RK3(4) of the RKQ algorithm (J. S. C. Prentice, arXiv:1111.6996, "
+        "2011): Kutta's RK3 and the classical RK4 (W. Kutta, Z. Math. Phys. 46 (1901) "
+        "435-453) as one tableau; stages 1-4 are RK4's, stage 5 is Kutta's third stage"
+    ),
+    A_exact=_square(
+        5,
+        {
+            (2, 1): _F("1/2"),
+            (3, 2): _F("1/2"),
+            (4, 3): _F("1"),
+            (5, 1): _F("-1"),
+            (5, 2): _F("2"),
+        },
+    ),
+    b_exact=(_F("1/6"), _F("1/3"), _F("1/3"), _F("1/6"), _F("0")),
+    c_exact=(_F("0"), _F("1/2"), _F("1/2"), _F("1"), _F("1")),
+    b_embedded_exact=(_F("1/6"), _F("2/3"), _F("0"), _F("0"), _F("1/6")),
+    embedded_order=3,
+)
+"""The paper's RK3(4) pair as one 5-stage tableau: ``b`` are RK4's weights
+(the propagated, locally extrapolated solution), ``b_embedded`` Kutta's RK3
+(whose third stage, ``c = 1``, ``a = (-1, 2)``, is stage 5 here).  One step of
+both costs 5 evaluations of ``f``, as :data:`RK3_KUTTA` and :data:`RK4_CLASSIC`
+evaluated separately with ``k1``, ``k2`` shared."""
+
+# DOP853's error estimators, from dop853.f (Hairer & Wanner; the same
+# 28-30 digit decimals as the tableau): the 5th-order estimate is
+# h sum_i er_i k_i = y_8 - y_5 over the 12 stages, and the 3rd-order one is
+# h (sum_i b_i k_i - bhh_1 k_1 - bhh_2 k_9 - bhh_3 k_12) = y_8 - y_3.
+_DOP853_ER = {
+    1: "0.1312004499419488073250102996E-01",
+    6: "-0.1225156446376204440720569753E+01",
+    7: "-0.4957589496572501915214079952E+00",
+    8: "0.1664377182454986536961530415E+01",
+    9: "-0.3503288487499736816886487290E+00",
+    10: "0.3341791187130174790297318841E+00",
+    11: "0.8192320648511571246570742613E-01",
+    12: "-0.2235530786388629525884427845E-01",
+}
+
+
+def _minus_er(i: int, b: Coefficient) -> Coefficient:
+    """``b_i - er_i`` exactly (the published decimals have at most 30 digits)."""
+    if i not in _DOP853_ER:
+        return b
+    with localcontext() as ctx:
+        ctx.prec = 80  # enough for every digit of both: the difference is exact
+        return b - Decimal(_DOP853_ER[i])  # every such b_i is a published Decimal
+
+
+DOP853_PAIR = ButcherTableau(
+    name="dop853_85",
+    order=8,
+    stages=12,
+    reference=(
+        "E. Hairer, S. P. Norsett and G. Wanner, Solving Ordinary Differential "
+        "Equations I, 2nd ed., Springer (1993), Sec. II.10; the code DOP853 "
+        "(dop853.f): its 12-stage formula with the 5th-order estimator er_i"
+    ),
+    A_exact=DOP853_RK8.A_exact,
+    b_exact=DOP853_RK8.b_exact,
+    c_exact=DOP853_RK8.c_exact,
+    b_embedded_exact=tuple(_minus_er(i + 1, b) for i, b in enumerate(DOP853_RK8.b_exact)),
+    embedded_order=5,
+)
+"""DOP853's 8th-order formula with its 5th-order embedded solution
+``b - er`` (so ``b_error`` is Hairer's ``er``).  Not in the RKQ registry's
+pairs: DOP853 serves as a quencher, which needs no estimator."""
+
+#: The weights of DOP853's 3rd-order embedded solution (``bhh`` in dop853.f),
+#: on stages 1, 9 and 12 of :data:`DOP853_RK8`.
+DOP853_BHH3: tuple[Coefficient, ...] = tuple(
+    Decimal(
+        {
+            1: "0.244094488188976377952755905512E+00",
+            9: "0.733846688281611857341361741547E+00",
+            12: "0.220588235294117647058823529412E-01",
+        }.get(i, "0")
+    )
+    for i in range(1, 13)
+)
 
 #: Every tableau by name (read-only).
 TABLEAUS: Mapping[str, ButcherTableau] = MappingProxyType(
