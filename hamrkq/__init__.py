@@ -17,7 +17,6 @@ from hamrkq.symbolic.hamiltonian import Hamiltonian
 from . import errors
 from ._version import __version__
 
-
 __all__ = [
     "RK34Q8",
     "Diagnostics",

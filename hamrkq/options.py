@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,7 @@ from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
-from hamrkq.rkq.family import MEMBERS, Z_METHODS
+from hamrkq.rkq.family import MEMBERS, Z_METHODS, auto_member, get_member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -76,6 +76,7 @@ Z_METHOD_NAMES = tuple(Z_METHODS)
 BACKENDS = ("auto", "numba", "python")
 #: Every method name :func:`hamrkq.solve` accepts.
 METHOD_NAMES = (
+    "auto",
     *MEMBERS,
     *FIXED_STEP_METHODS,
     *(SCIPY_PREFIX + name for name in SCIPY_METHODS),
@@ -94,8 +95,9 @@ class SolveOptions:
     quench_threshold: float = 1.0
     safety: float = 0.9
     tolerance_rule: str = "componentwise"
-    global_error_estimate: str = "tangent"
+    global_error_estimate: str | None = None
     z_method: str = "dop853"
+    z_substeps: int | None = None
     first_step: float | None = None
     max_step: float = math.inf
     step: float | None = None
@@ -120,8 +122,42 @@ class SolveOptions:
             for key, value in source.items():
                 if key in names and value is not None:
                     values[key] = value
-        checked = {key: _check(key, value) for key, value in values.items()}
-        return cls(**checked)
+        checked = {
+            key: (None if value is None else _check(key, value)) for key, value in values.items()
+        }
+        options = cls(**checked)
+        if options.method in MEMBERS or options.method == "auto":
+            member = get_member(
+                auto_member(1.0)[0] if options.method == "auto" else options.method,
+                options.z_method,
+                options.z_substeps,
+            )
+            if options.gamma_name == "shadow" and member.z_substeps < 2:
+                raise OptionError(
+                    "global_error_estimate='shadow' compares the quencher with a track on a "
+                    f"mesh z_substeps times coarser: it needs z_substeps >= 2, got "
+                    f"{member.z_substeps}"
+                )
+        return options
+
+    def member(self):
+        """The RKQ family member these options run (:mod:`hamrkq.rkq.family`)."""
+        return get_member(self.method, self.z_method, self.z_substeps)
+
+    def with_auto(self, tightest_tolerance: float) -> SolveOptions:
+        """``method="auto"`` replaced by the member chosen for the tolerance."""
+        if self.method != "auto":
+            return self
+        name, substeps = auto_member(tightest_tolerance)
+        return replace(self, method=name, z_substeps=self.z_substeps or substeps)
+
+    @property
+    def gamma_name(self) -> str:
+        """The Gamma estimate: the option, or the method's default."""
+        if self.global_error_estimate is not None:
+            return self.global_error_estimate
+        member = MEMBERS.get(auto_member(1.0)[0] if self.method == "auto" else self.method)
+        return member.gamma if member is not None else "tangent"
 
     @property
     def is_fixed_step(self) -> bool:
@@ -133,7 +169,7 @@ class SolveOptions:
         return {
             "quench": QUENCH_MODES[self.quench],
             "rule": TOLERANCE_RULES[self.tolerance_rule],
-            "gamma": GAMMA_MODES[self.global_error_estimate],
+            "gamma": GAMMA_MODES[self.gamma_name],
         }
 
 
@@ -151,7 +187,7 @@ def _check(key: str, value: Any) -> Any:
         return positive(key, value, upper=1.0)
     if key == "quench_threshold":
         return positive(key, value)
-    if key in ("max_steps", "keep_every"):
+    if key in ("max_steps", "keep_every", "z_substeps"):
         return count(key, value)
     raise OptionError(f"unknown option {key!r}")  # pragma: no cover - fields are fixed
 

@@ -47,7 +47,7 @@ from hamrkq.options import (
 )
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import Integration, RunOutput, Settings, python_functions
-from hamrkq.rkq.family import MEMBERS, get_member
+from hamrkq.rkq.family import MEMBERS
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
@@ -101,8 +101,7 @@ class MethodSpec:
 
 
 def _member(task: Task):
-    o = task.options
-    return get_member(o.method, o.z_method)
+    return task.options.member()
 
 
 def _run_rk(task: Task, backend: str) -> RunOutput:
@@ -262,6 +261,7 @@ def solve(
     tolerance_rule: str | None = None,
     global_error_estimate: str | None = None,
     z_method: str | None = None,
+    z_substeps: int | None = None,
     first_step: float | None = None,
     max_step: float | None = None,
     step: float | None = None,
@@ -382,6 +382,7 @@ def solve(
         tolerance_rule=tolerance_rule,
         global_error_estimate=global_error_estimate,
         z_method=z_method,
+        z_substeps=z_substeps,
         first_step=first_step,
         max_step=max_step,
         step=step,
@@ -391,7 +392,6 @@ def solve(
         backend=backend,
     )
     options = SolveOptions.resolve(given, defaults)
-    spec = METHODS[options.method]
     # Everything is validated before a backend is chosen: choosing numba may compile.
     params = ham.parameter_values(parameters)
     y0 = ham.state_values(q0, p0)
@@ -399,6 +399,8 @@ def solve(
     t_eval_v = _t_eval(t_eval, t0, t_end)
     _step_rules(options, step, atol, rtol, first_step, t_eval_v, t0, t_end)
     atol_v, rtol_v = _tolerances(ham.dim, defaults, atol, rtol)
+    options = options.with_auto(float(np.min(np.maximum(atol_v, rtol_v * np.abs(y0)))))
+    spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
             f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
@@ -565,7 +567,7 @@ _STATUS_BY_CODE = {status.code: status for status in Status}
 def _solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solution:
     o = task.options
     member = _member(task)
-    gamma_mode = o.global_error_estimate if spec.rk8 else "off"
+    gamma_mode = o.gamma_name if spec.rk8 else "off"
     nfev_step, njev_step = member.evaluations_per_step(gamma_mode)
     stats = dict(out.stats)
     status = _STATUS_BY_CODE[out.status]
@@ -601,7 +603,7 @@ def _solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Sol
         options.update(
             quench=o.quench,
             quench_threshold=o.quench_threshold,
-            global_error_estimate=o.global_error_estimate,
+            global_error_estimate=o.gamma_name,
             z_method=o.z_method,
             z_substeps=member.z_substeps,
             gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,

@@ -21,6 +21,8 @@ from hamrkq.rkq import arith, loop
 from hamrkq.rkq.family import Member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
+    GAMMA_PAPER,
+    GAMMA_TANGENT,
     RET_BUFFER_FULL,
     RET_DONE,
     ST_INTERRUPTED,
@@ -299,7 +301,7 @@ class Integration:
         roundoff_steps where Gamma is estimated by Richardson)."""
         s = self.record
         stats = {key: int(s[key]) for key in ("steps", "rejected", "quenches", "nfev", "njev")}
-        if self.member.use_z and self.config[0]["gamma_mode"] != GAMMA_OFF:
+        if self.member.use_z and self.config[0]["gamma_mode"] in (GAMMA_TANGENT, GAMMA_PAPER):
             stats["roundoff_steps"] = int(s["roundoff_steps"])
         return stats
 

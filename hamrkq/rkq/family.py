@@ -9,12 +9,13 @@ the same steps (``z_substeps`` quencher steps per step of the pair).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
 
 from hamrkq.errors import OptionError
+from hamrkq.methods import registry
 from hamrkq.methods.tableaus import (
     COOPER_VERNER_RK8,
     DOP853_RK8,
@@ -24,7 +25,7 @@ from hamrkq.methods.tableaus import (
 )
 from hamrkq.rkq.layout import Tableaus
 
-__all__ = ["MEMBERS", "Member", "get_member", "merge_pair"]
+__all__ = ["MEMBERS", "Member", "auto_member", "get_member", "merge_pair"]
 
 
 def _read_only(values) -> np.ndarray:
@@ -100,6 +101,8 @@ class Member:
         The pair's last stage is ``f`` at the new node.
     beta : float
         Weight of the previous error in the PI step-size controller (0: plain).
+    gamma : str
+        The default ``global_error_estimate`` (how Gamma is estimated).
     """
 
     name: str
@@ -111,6 +114,7 @@ class Member:
     z_substeps: int = 1
     fsal: bool = False
     beta: float = 0.0
+    gamma: str = "tangent"
     tableaus: Tableaus = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -191,12 +195,47 @@ MEMBERS: dict[str, Member] = {
     ),
 }
 
-#: Quenchers ``z_method`` may name for ``rk34q8``.
+#: The higher-order members run the quencher in two steps per step of the pair,
+#: and estimate Gamma by global extrapolation from a shadow track on the pair's
+#: own mesh (one quencher step per step): the shadow's error is 2^z times the
+#: quencher's, so their difference over 2^z - 1 is the quencher's error.
+FAMILY_Z_SUBSTEPS = 2
+#: PI control of the higher-order pairs' steps (Hairer, Norsett & Wanner's beta).
+FAMILY_BETA = 0.04
+
+
+def _from_registry(spec: registry.FamilyMember) -> Member:
+    pair = spec.pair_tableau
+    quencher = spec.quencher_tableau
+    summary = (
+        f"RKQ: {pair.name} pair ({spec.r}({spec.v}), local extrapolation) with the "
+        f"{quencher.name} quencher (order {spec.z})"
+    )
+    return Member(
+        spec.name,
+        summary,
+        (pair.A, pair.b, pair.b_embedded, pair.c),
+        order=spec.v,
+        error_order=spec.r,
+        quencher=quencher,
+        z_substeps=FAMILY_Z_SUBSTEPS,
+        fsal=pair.fsal,
+        beta=FAMILY_BETA,
+        gamma="shadow",
+    )
+
+
+for _spec in registry.family_members():
+    if _spec.name not in MEMBERS:
+        MEMBERS[_spec.name] = _from_registry(_spec)
+
+#: Quenchers ``z_method`` may name for the order-8 members.
 Z_METHODS: dict[str, ButcherTableau] = {"dop853": DOP853_RK8, "cooper_verner": COOPER_VERNER_RK8}
 
 
-def get_member(name: str, z_method: str | None = None) -> Member:
-    """The family member ``name`` (with its quencher replaced by ``z_method``).
+def get_member(name: str, z_method: str | None = None, z_substeps: int | None = None) -> Member:
+    """The family member ``name`` (with its quencher replaced by ``z_method``
+    and its number of quencher steps per step by ``z_substeps``).
 
     Raises
     ------
@@ -207,18 +246,29 @@ def get_member(name: str, z_method: str | None = None) -> Member:
     if member is None:
         valid = ", ".join(repr(k) for k in MEMBERS)
         raise OptionError(f"method={name!r} is not an RKQ family member; valid: {valid}")
-    if z_method is not None and member.use_z:
-        quencher = Z_METHODS[z_method]
-        if quencher is not member.quencher:
-            member = Member(
-                member.name,
-                member.summary,
-                member.pair,
-                member.order,
-                member.error_order,
-                quencher,
-                member.z_substeps,
-                member.fsal,
-                member.beta,
-            )
-    return member
+    changes = {}
+    if z_method is not None and member.use_z and member.z_order == 8:
+        if Z_METHODS[z_method] is not member.quencher:
+            changes["quencher"] = Z_METHODS[z_method]
+    if z_substeps is not None and member.use_z and z_substeps != member.z_substeps:
+        changes["z_substeps"] = z_substeps
+    return replace(member, **changes) if changes else member
+
+
+#: ``method="auto"``: Verner's robust 8(7) pair with Feagin's 12th-order
+#: quencher, chosen by the measurements in ``benchmarks/family.py`` (the fewest
+#: evaluations that reach the tolerance with SUCCESS, every node within 1.05 of
+#: it, on prentice2011 and Kepler).  Its long steps leave the quencher too
+#: inaccurate at loose tolerances in two steps a step (prentice2011 at 1e-6
+#: stops at t = 530), so above AUTO_SWITCH_TOLERANCE it takes three.
+AUTO_MEMBER = "rk78q12"
+AUTO_SWITCH_TOLERANCE = 1e-7
+AUTO_SUBSTEPS_LOOSE, AUTO_SUBSTEPS_TIGHT = 3, 2
+
+
+def auto_member(tightest_tolerance: float) -> tuple[str, int]:
+    """The member and quencher steps per step ``method="auto"`` runs for a
+    tolerance (the smallest per-component ``max(atol, rtol |y0|)``)."""
+    if tightest_tolerance > AUTO_SWITCH_TOLERANCE:
+        return AUTO_MEMBER, AUTO_SUBSTEPS_LOOSE
+    return AUTO_MEMBER, AUTO_SUBSTEPS_TIGHT
