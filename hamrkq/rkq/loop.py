@@ -197,6 +197,17 @@ def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
 
 
 @jitable
+def first_bad_derivative(K):
+    """The component of the first stage whose derivative is not finite (the
+    later stages inherit the NaN through their arguments), or -1."""
+    for j in range(K.shape[0]):
+        index = arith.first_nonfinite(K[j])
+        if index >= 0:
+            return index
+    return -1
+
+
+@jitable
 def plan_step(c, s, t_eval):
     """The step to try: ``(h, h_free, clipped, target)``; ``h`` lands exactly on
     the target (the next ``t_eval`` time or the end) when it would reach or
@@ -222,7 +233,7 @@ def pair_phase(rhs, problem, tab, c, s, work, h):
     a rejected attempt shrinks the step and returns -1."""
     s["nfev"] += steps.pair_step(rhs, s["t"], h, tab, problem.params, work)
     if not (arith.all_finite(work.err) and arith.all_finite(work.w)):
-        s["bad_component"] = arith.first_nonfinite(work.w)
+        s["bad_component"] = first_bad_derivative(work.K)
         reject(s, h, MIN_FACTOR, 1)
         return -1.0
     arith.tolerance(
