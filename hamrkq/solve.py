@@ -245,7 +245,7 @@ METHODS: dict[str, MethodSpec] = {
 }
 
 
-def solve(
+def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented setting
     system_or_problem: Any,
     q0: Any = None,
     p0: Any = None,

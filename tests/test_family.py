@@ -42,7 +42,8 @@ def test_members_keep_every_node_within_the_tolerance(method, tol):
 
 
 def test_auto_picks_by_tolerance_and_reports_the_member():
-    assert auto_member(1e-6) == (AUTO_MEMBER, 3) and auto_member(1e-9) == (AUTO_MEMBER, 2)
+    assert auto_member(1e-4) == (AUTO_MEMBER, 4) and auto_member(1e-6) == (AUTO_MEMBER, 3)
+    assert auto_member(1e-8) == (AUTO_MEMBER, 3) and auto_member(1e-9) == (AUTO_MEMBER, 2)
     loose = hamrkq.solve(KEPLER, method="auto", atol=1e-6, t_span=(0, 1))
     tight = hamrkq.solve(KEPLER, method="auto", atol=1e-10, t_span=(0, 1))
     assert loose.method == tight.method == AUTO_MEMBER

@@ -245,6 +245,38 @@ def _cost_per_step(problem, method, t_span, h) -> float:
     return max(pilot.nfev / steps, 1.0)
 
 
+def _checked_methods(problem: Any, methods: Sequence[str] | None, match: str) -> list[str]:
+    """The methods to compare, the anchor first; bad names and splitting
+    methods on a non-separable H are refused."""
+    if match not in MATCH_MODES:
+        raise OptionError(f"match={match!r} is not valid; valid values: 'error', 'cost'")
+    methods = list(default_methods(problem) if methods is None else methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise OptionError(
+            f"unknown method(s) {', '.join(map(repr, unknown))}; valid: {', '.join(METHODS)}"
+        )
+    if not problem.hamiltonian.is_separable:
+        refused = [m for m in methods if m in SPLITTING_SCHEMES]
+        if refused:
+            raise OptionError(
+                f"{', '.join(map(repr, refused))} need a separable H = T(p) + V(q); "
+                f"problem {problem.name!r} is not separable"
+            )
+    return [ANCHOR, *[m for m in dict.fromkeys(methods) if m != ANCHOR]]
+
+
+def _factors(quick: bool, tol_factors, step_factors) -> tuple[tuple[float, ...], ...]:
+    """The sweeps: tolerance factors for RKQ and for the other adaptive
+    methods, step factors for the fixed-step ones."""
+    own = tuple(tol_factors or (QUICK_TOL_FACTORS if quick else TOL_FACTORS))
+    other = tuple(tol_factors or (QUICK_OTHER_TOL_FACTORS if quick else OTHER_TOL_FACTORS))
+    steps = tuple(step_factors or (QUICK_STEP_FACTORS if quick else STEP_FACTORS))
+    if any(not (f > 0 and math.isfinite(f)) for f in (*own, *other, *steps)):
+        raise InputError("sweep factors must be positive finite numbers")
+    return own, other, steps
+
+
 def compare(
     problem: Any,
     methods: Sequence[str] | None = None,
@@ -284,33 +316,13 @@ def compare(
     -------
     Comparison
     """
-    if match not in MATCH_MODES:
-        raise OptionError(f"match={match!r} is not valid; valid values: 'error', 'cost'")
-    methods = list(default_methods(problem) if methods is None else methods)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        raise OptionError(
-            f"unknown method(s) {', '.join(map(repr, unknown))}; valid: {', '.join(METHODS)}"
-        )
-    if not problem.hamiltonian.is_separable:
-        refused = [m for m in methods if m in SPLITTING_SCHEMES]
-        if refused:
-            raise OptionError(
-                f"{', '.join(map(repr, refused))} need a separable H = T(p) + V(q); "
-                f"problem {problem.name!r} is not separable"
-            )
-    methods = [ANCHOR, *[m for m in dict.fromkeys(methods) if m != ANCHOR]]
+    methods = _checked_methods(problem, methods, match)
     t0 = problem.t_span[0]
     t_span = (t0, problem.t_span[1] if t_end is None else float(t_end))
     span = abs(t_span[1] - t_span[0])
     if span == 0:
         raise InputError(f"the interval t_span={t_span} is empty: choose t_end != t0")
-    own_factors = tuple(tol_factors or (QUICK_TOL_FACTORS if quick else TOL_FACTORS))
-    other_factors = tuple(tol_factors or (QUICK_OTHER_TOL_FACTORS if quick else OTHER_TOL_FACTORS))
-    step_factors = tuple(step_factors or (QUICK_STEP_FACTORS if quick else STEP_FACTORS))
-    if any(not (f > 0 and math.isfinite(f)) for f in (*own_factors, *other_factors,
-                                                       *step_factors)):  # fmt: skip
-        raise InputError("sweep factors must be positive finite numbers")
+    own_factors, other_factors, step_factors = _factors(quick, tol_factors, step_factors)
     note = log or (lambda text: None)
     notes: list[str] = []
 

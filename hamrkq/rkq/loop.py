@@ -247,9 +247,10 @@ def pair_phase(rhs, problem, tab, c, s, work, h):
 
 
 @jitable
-def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h, h_free):
+def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     """The quencher over the step, the quench decision, and the promise at the
-    new node.  Returns 0 or 1 (the node is quenched), -1 (the attempt is
+    new node (``s["h"]`` holds the controller's free step, which a redo
+    retries).  Returns 0 or 1 (the node is quenched), -1 (the attempt is
     over: rejected, or restarted from the quencher's value) or ``-1 - RET_DONE``
     (the run ends at the current node)."""
     if not (s["z_cached"] and s["cached_h"] == h):
@@ -273,7 +274,6 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h, h_free):
         s["redo"] = 1
         s["quenches"] += 1
         s["k1_valid"] = 0
-        s["h"] = h_free
         return -1
     # The promise must hold at the new node: where the quencher can no longer
     # be trusted to within gamma_limit of the tolerance, the run ends at t,
@@ -321,7 +321,8 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
     # 2.-5. The quencher, the quench, the promise.
     quenched = 0
     if c["use_z"]:
-        quenched = quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h, h_free)
+        s["h"] = h_free  # what a redo retries; an accepted step sets the next one
+        quenched = quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h)
         if quenched < 0:
             return RET_DONE if quenched == -1 - RET_DONE else -1
     else:

@@ -173,7 +173,7 @@ class RK34Q8(OdeSolver):
 
     order = 3
 
-    def __init__(
+    def __init__(  # noqa: PLR0913 - the OdeSolver interface: SciPy passes these by keyword
         self,
         fun: Callable,
         t0: float,

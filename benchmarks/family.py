@@ -1,0 +1,119 @@
+"""Work and accuracy of every RKQ family member, side by side, in one run.
+
+For each problem and tolerance: status, steps, rejected steps, evaluations
+(f plus Jacobian products), wall time of the integration (compile time
+excluded), the maximum true error over the tolerance (against the exact
+solution, or a reference far more accurate than the tolerance), the
+quencher's true error, and how Gamma compares with it (median ratio).
+
+Run: ``python benchmarks/family.py [--quick]``; writes ``family.json`` and
+``family.md`` beside this file (docs/algorithm.md quotes the table).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import hamrkq
+from hamrkq.analysis.reference import periodic_reference
+from hamrkq.rkq.family import MEMBERS
+
+HERE = Path(__file__).resolve().parent
+
+
+def cases(quick: bool):
+    kepler = hamrkq.load_problem("kepler", e=0.6)
+    prentice = hamrkq.load_problem("prentice2011")
+    t_p = 400.0 if quick else 4000.0
+    yield "kepler e=0.6, 10 orbits", kepler, (0.0, 20 * np.pi), [1e-6, 1e-9, 1e-12]
+    yield f"prentice2011, t <= {t_p:g}", prentice, (0.0, t_p), [1e-6, 1e-8, 1e-10]
+
+
+def truth(problem, t):
+    if problem.exact is not None:
+        return problem.exact(t), 0.0
+    ref = periodic_reference(
+        problem.hamiltonian.numeric.rhs, problem.y0, t, problem.parameter_array
+    )
+    return ref.y, float(ref.estimated_error)
+
+
+def measure(problem, span, tol, method):
+    sol = hamrkq.solve(problem, method=method, atol=tol, rtol=0.0, t_span=span)
+    exact, ref_error = truth(problem, sol.t)
+    row = {
+        "method": sol.method,
+        "requested": method,
+        "status": sol.status.name,
+        "t_last": float(sol.t[-1]),
+        "steps": sol.stats["steps"],
+        "rejected": sol.stats["rejected"],
+        "work": sol.stats["nfev"] + sol.stats["njev"],
+        "integrate_s": sol.stats["integrate_s"],
+        "error_over_tol": float(np.abs(sol.y - exact).max() / tol),
+        "reference_error": ref_error,
+    }
+    if sol.z is not None:
+        z_error = np.abs(sol.z - exact)
+        row["z_error"] = float(z_error.max())
+        if sol.gamma is not None:
+            where = z_error > max(10 * ref_error, 1e-13)
+            ratio = np.abs(sol.gamma)[where] / z_error[where]
+            row["gamma_ratio_median"] = float(np.median(ratio)) if ratio.size else None
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="prentice2011 to t = 400 only")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    methods = ["auto", *[m for m in MEMBERS if m != "rk34"]]
+    results = []
+    for label, problem, span, tols in cases(args.quick):
+        hamrkq.solve(problem, t_span=(span[0], span[0] + 1e-3))  # compile outside the timings
+        for tol in tols:
+            for method in methods:
+                if method == "rk34q8" and tol < 1e-9:
+                    continue  # tens of millions of evaluations
+                row = measure(problem, span, tol, method)
+                row.update(problem=label, tol=tol)
+                results.append(row)
+                print(json.dumps(row), flush=True)
+    (HERE / "family.json").write_text(json.dumps(results, indent=1) + "\n")
+    lines = [
+        "| problem | tol | method | status | steps | rejected | work (f + Jv) | "
+        "x fewer than rk34q8 | time (s) | max true error / tol | quencher error | "
+        "Gamma / quencher error (median) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in results:
+        base = next(
+            (
+                r["work"]
+                for r in results
+                if r["problem"] == row["problem"]
+                and r["tol"] == row["tol"]
+                and r["requested"] == "rk34q8"
+            ),
+            None,
+        )
+        ratio = f"{base / row['work']:.1f}" if base else "-"
+        gamma = row.get("gamma_ratio_median")
+        name = row["requested"] if row["requested"] != "auto" else f"auto ({row['method']})"
+        lines.append(
+            f"| {row['problem']} | {row['tol']:.0e} | {name} | {row['status']} | {row['steps']} | "
+            f"{row['rejected']} | {row['work']} | {ratio} | {row['integrate_s']:.3f} | "
+            f"{row['error_over_tol']:.3f} | {row.get('z_error', float('nan')):.1e} | "
+            f"{'-' if gamma is None else f'{gamma:.2f}'} |"
+        )
+    (HERE / "family.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
