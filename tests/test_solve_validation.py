@@ -36,7 +36,7 @@ def call(**changes):
         ({"atol": np.nan}, InputError, "atol must be finite"),
         ({"atol": "1e-6"}, InputTypeError, "atol.*'1e-6'"),
         ({"rtol": -1.0}, InputError, "rtol must be finite and zero or positive"),
-        ({"method": "rk45"}, OptionError, "method='rk45'.*'rk34q8', 'rk34'"),
+        ({"method": "rk45"}, OptionError, "method='rk45'.*'auto', 'rk34q8', 'rk34'"),
         ({"quench": "always"}, OptionError, "quench='always'.*'node', 'redo'"),
         ({"tolerance_rule": "mixed"}, OptionError, "'componentwise', 'prentice'"),
         ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'shadow', 'off'"),
