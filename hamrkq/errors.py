@@ -26,6 +26,7 @@ __all__ = [
     "OptionError",
     "ProblemFileError",
     "ProblemNotFoundError",
+    "SolutionFileError",
     "UndeclaredSymbolError",
 ]
 
@@ -137,6 +138,23 @@ class ExpressionError(ProblemFileError):
 
 class ProblemNotFoundError(InputError, LookupError):
     """Neither a catalogue entry nor a file of that name exists."""
+
+
+class SolutionFileError(InputError):
+    """A file given to :meth:`hamrkq.Solution.load` is not a solution file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    message : str
+        What is wrong with it.
+    """
+
+    def __init__(self, path: str | Path, message: str):
+        self.path = str(path)
+        self.detail = message
+        super().__init__(f"{self.path}: {message}")
 
 
 class IntegrationError(HamrkqError, RuntimeError):

@@ -11,16 +11,19 @@ from __future__ import annotations
 import enum
 import json
 import os
+import pickle
 import tempfile
-from collections.abc import Mapping
+import zipfile
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
-__all__ = ["Solution", "Status"]
+from hamrkq.errors import SolutionFileError
+
+__all__ = ["FrozenDict", "Solution", "Status"]
 
 #: Version of the ``.npz`` layout written by :meth:`Solution.save`.
 FILE_FORMAT_VERSION = 1
@@ -51,6 +54,37 @@ class Status(enum.Enum):
     def success(self) -> bool:
         """True only for :attr:`SUCCESS`."""
         return self is Status.SUCCESS
+
+
+class FrozenDict(Mapping):
+    """A read-only mapping that pickles (``types.MappingProxyType`` does not).
+
+    Holds a private copy of the items it was made from; compares equal to any
+    mapping with the same items.
+    """
+
+    __slots__ = ("_data",)
+
+    def __init__(self, items: Mapping[str, Any] | None = None):
+        object.__setattr__(self, "_data", dict(items or {}))
+
+    def __getitem__(self, key: str) -> Any:
+        return self._data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __setattr__(self, key: str, value: Any) -> None:
+        raise AttributeError("FrozenDict is read-only")
+
+    def __repr__(self) -> str:
+        return f"FrozenDict({self._data!r})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (FrozenDict, (self._data,))
 
 
 _ARRAY_FIELDS = ("t", "y", "z", "global_error", "gamma", "energy", "quenched")
@@ -131,8 +165,8 @@ class Solution:
             set_(self, name, _readonly(getattr(self, name), dtype))
         set_(self, "atol", _readonly(np.broadcast_to(self.atol, (2 * self.n,))))
         set_(self, "rtol", _readonly(np.broadcast_to(self.rtol, (2 * self.n,))))
-        set_(self, "stats", MappingProxyType(dict(self.stats)))
-        set_(self, "options", MappingProxyType(dict(self.options)))
+        set_(self, "stats", FrozenDict(self.stats))
+        set_(self, "options", FrozenDict(self.options))
         set_(self, "names", tuple(self.names))
         if self.y.ndim != 2 or self.y.shape != (self.t.size, 2 * self.n):
             raise ValueError(f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})")
@@ -166,6 +200,11 @@ class Solution:
     def __len__(self) -> int:
         return int(self.t.size)
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Rebuild through the constructor: pickle's default would restore the
+        # arrays writeable (the flag is not pickled) and skip the checks.
+        return (_rebuild, (type(self), {f.name: getattr(self, f.name) for f in fields(self)}))
+
     def __repr__(self) -> str:
         return (
             f"Solution(method={self.method!r}, nodes={self.t.size}, n={self.n}, "
@@ -179,10 +218,22 @@ class Solution:
         The file is written to a temporary name in the same directory and
         renamed, so a crash never leaves a half-written file.  Loading it with
         :meth:`load` gives back an equal solution, bit for bit.
+
+        Parameters
+        ----------
+        path : str or path-like
+            Where to write.  A path without a suffix gets ``.npz``; any other
+            path is used as given.
+
+        Returns
+        -------
+        Path
+            The file written.  Its permissions are those of any new file
+            (``0666`` less the umask), as for the files of ``hamrkq run``.
         """
         path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_suffix(path.suffix + ".npz")
+        if not path.suffix:
+            path = path.with_suffix(".npz")
         arrays = {
             name: getattr(self, name) for name in _ARRAY_FIELDS if getattr(self, name) is not None
         }
@@ -203,6 +254,8 @@ class Solution:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         try:
+            # mkstemp makes the file private (0600); a result is an ordinary file.
+            os.fchmod(fd, 0o666 & ~_umask())
             with os.fdopen(fd, "wb") as handle:
                 np.savez_compressed(handle, **arrays)
             os.replace(tmp, path)
@@ -213,29 +266,83 @@ class Solution:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Solution:
-        """Read a solution written by :meth:`save`."""
-        with np.load(Path(path), allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {name: data[name] for name in _ARRAY_FIELDS if name in data.files}
-            atol, rtol = data["atol"], data["rtol"]
-        return cls(
-            status=Status[meta["status"]],
-            message=meta["message"],
-            method=meta["method"],
-            n=int(meta["n"]),
-            names=tuple(meta["names"]),
-            stats=meta["stats"],
-            options=meta["options"],
-            atol=atol,
-            rtol=rtol,
-            **arrays,
-        )
+        """Read a solution written by :meth:`save`.
+
+        Raises
+        ------
+        FileNotFoundError
+            No file at ``path``.
+        SolutionFileError
+            The file is not a solution written by :meth:`save` (another
+            ``.npz``, a damaged or truncated file, a newer format).  Nothing in
+            the file is unpickled or executed.
+        """
+        path = Path(path)
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (FileNotFoundError, IsADirectoryError, PermissionError):
+            raise
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as exc:
+            raise SolutionFileError(path, f"not an .npz file ({exc})") from None
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise SolutionFileError(path, "not an .npz file (a single .npy array)")
+        try:
+            with data:
+                meta = json.loads(str(data["meta"][()]))
+                version = meta.get("format_version")
+                if not isinstance(version, int) or version > FILE_FORMAT_VERSION:
+                    raise SolutionFileError(
+                        path,
+                        f"format version {version!r}; this hamrkq reads up to "
+                        f"{FILE_FORMAT_VERSION}",
+                    )
+                arrays = {name: data[name] for name in _ARRAY_FIELDS if name in data.files}
+                atol, rtol = data["atol"], data["rtol"]
+                return cls(
+                    status=Status[meta["status"]],
+                    message=str(meta["message"]),
+                    method=str(meta["method"]),
+                    n=int(meta["n"]),
+                    names=tuple(meta["names"]),
+                    stats=dict(meta["stats"]),
+                    options=dict(meta["options"]),
+                    atol=atol,
+                    rtol=rtol,
+                    **arrays,
+                )
+        except SolutionFileError:
+            raise
+        except (
+            KeyError,
+            ValueError,
+            TypeError,
+            AttributeError,
+            IndexError,
+            EOFError,
+            OSError,
+            zipfile.BadZipFile,
+        ) as exc:
+            # A foreign .npz (no "meta"), a damaged member, object arrays that
+            # would need pickle, metadata of the wrong shape: all one answer.
+            what = f"missing entry {exc}" if isinstance(exc, KeyError) else str(exc)
+            raise SolutionFileError(path, f"not a hamrkq solution file ({what})") from None
 
     def replace(self, **changes: Any) -> Solution:
         """A copy with some fields changed (like :func:`dataclasses.replace`)."""
         values = {f.name: getattr(self, f.name) for f in fields(self)}
         values.update(changes)
         return type(self)(**values)
+
+
+def _rebuild(cls: type[Solution], values: dict[str, Any]) -> Solution:
+    """Unpickle a :class:`Solution` through its constructor (read-only arrays)."""
+    return cls(**values)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)  # reading the umask means setting it; restore at once
+    os.umask(mask)
+    return mask
 
 
 def _jsonable(value: Any) -> Any:

@@ -27,7 +27,9 @@ from typing import Any
 import numpy as np
 
 from hamrkq.analysis.reference import Reference, hamiltonian_reference
-from hamrkq.errors import InputError, OptionError
+from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.result import Solution
+from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
     "REFERENCE_KINDS",
@@ -378,6 +380,27 @@ class Diagnostics:
         return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)
 
 
+def _check_arguments(solution: Any, problem: Any) -> None:
+    """Typed errors for arguments of the wrong kind or for another system."""
+    if not isinstance(solution, Solution):
+        raise InputTypeError(
+            f"diagnose: solution must be a hamrkq.Solution, got {type(solution).__name__}"
+        )
+    if problem is None:
+        return
+    ham = getattr(problem, "hamiltonian", problem)
+    if not isinstance(ham, Hamiltonian):
+        raise InputTypeError(
+            "diagnose: problem must be a hamrkq.Problem or a hamrkq.Hamiltonian, "
+            f"got {type(problem).__name__}"
+        )
+    if ham.names != tuple(solution.names):
+        raise InputError(
+            "diagnose: the solution is not of this problem: its state is "
+            f"({', '.join(solution.names)}), the problem's is ({', '.join(ham.names)})"
+        )
+
+
 def _system(problem: Any, params: Any):
     """(hamiltonian, params array) from a Problem, a Hamiltonian or nothing."""
     if problem is None:
@@ -465,7 +488,17 @@ def diagnose(
     Returns
     -------
     Diagnostics
+
+    Raises
+    ------
+    InputTypeError
+        ``solution`` is not a :class:`~hamrkq.result.Solution`, or ``problem``
+        is neither a Problem nor a Hamiltonian.
+    InputError
+        ``problem`` is not the system ``solution`` was computed for (another
+        number or other names of state components).
     """
+    _check_arguments(solution, problem)
     sol = solution
     ham, params = _system(problem, params)
     if ham is not None:

@@ -18,12 +18,15 @@ comparisons, unlisted functions, dunder names, ...) is rejected with an
 from __future__ import annotations
 
 import ast
+import io
 import keyword
 import math
+import tokenize
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 
 from hamrkq.errors import ExpressionError
@@ -33,6 +36,7 @@ __all__ = [
     "FUNCTIONS",
     "MAX_DEPTH",
     "MAX_LENGTH",
+    "MAX_MAGNITUDE",
     "RESERVED_NAMES",
     "check_name",
     "parse_expression",
@@ -43,8 +47,11 @@ __all__ = [
 #: make parsing itself a denial of service.
 MAX_LENGTH = 50_000
 
-#: Deepest nesting of the syntax tree accepted.  Python's own parser gives up
-#: near 200 nested parentheses; we stop well before any recursion limit.
+#: Deepest nesting accepted.  Python's own parser gives up near 200 nested
+#: parentheses; we stop well before any recursion limit.  A chain of the same
+#: kind of operation (``a + b - c + ...``, ``a * b / c * ...``) is one level,
+#: however many terms it has: nesting is measured as nesting, and a long flat
+#: sum (an N-body Hamiltonian) is limited only by :data:`MAX_LENGTH`.
 MAX_DEPTH = 60
 
 #: Largest magnitude of a numeric exponent: SymPy evaluates ``2**2**100``
@@ -60,6 +67,12 @@ MAX_DIGITS = 100
 #: product of a few hundred long literals a number that Python refuses to
 #: print (more than 4 300 digits), failing far from the file.
 MAX_NUMBER_BITS = 4096
+
+#: Largest magnitude a constant subexpression may have: the largest double.
+#: Constants are evaluated in double precision when a file is read, so that
+#: ``exp(exp(exp(1000)))`` is refused there (and not left to overflow, or to
+#: run SymPy's arbitrary-precision arithmetic out of memory, in a run).
+MAX_MAGNITUDE = float(np.finfo(float).max)
 
 #: Values that mean the text is undefined (``1/0``, ``0/0``, ``log(0)``) or
 #: not real (``sqrt(-1)``): a problem file has no use for them, and they would
@@ -97,6 +110,21 @@ _BINARY = {
     ast.Div: lambda a, b: a / b,
     ast.Pow: lambda a, b: a**b,
 }
+
+#: Operators that form one chain (one level of nesting) with their own kind.
+_FAMILY = {ast.Add: "sum", ast.Sub: "sum", ast.Mult: "product", ast.Div: "product"}
+_SYMBOL = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+
+
+def _combine(first: sp.Expr, rest: list[tuple[str, sp.Expr]]) -> sp.Expr:
+    """``first op1 term1 op2 term2 ...`` built at once (``sp.Add(*terms)``):
+    adding term by term would cost time quadratic in the number of terms."""
+    if not rest:
+        return first
+    if rest[0][0] in "+-":
+        return sp.Add(first, *(term if op == "+" else -term for op, term in rest))
+    return sp.Mul(first, *(term if op == "*" else 1 / term for op, term in rest))
+
 
 _UNARY = {ast.USub: lambda a: -a, ast.UAdd: lambda a: a}
 
@@ -188,14 +216,8 @@ def parse_expression(
         raise ExpressionError("empty expression", piece=text, **where)
     if "\n" in text.strip() or "\r" in text:
         raise ExpressionError("an expression must be on one line", piece=text[:60], **where)
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError as exc:
-        raise ExpressionError(f"not a valid expression ({exc.msg})", piece=text, **where) from None
-    except (ValueError, RecursionError, MemoryError):
-        raise ExpressionError("expression cannot be parsed", piece=text[:60], **where) from None
     builder = _Builder(text.strip(), symbols, where)
-    result = builder.build(tree.body, depth=0)
+    result = builder.parse(text.strip(), depth=0)
     if any(_bits(number) > MAX_NUMBER_BITS for number in result.atoms(sp.Rational)):
         raise ExpressionError(
             f"a number in the expression exceeds {MAX_NUMBER_BITS} bits",
@@ -208,7 +230,152 @@ def parse_expression(
             piece=text.strip()[:60],
             **where,
         )
+    _check_constants(result, where)
     return result
+
+
+# -- constants, evaluated in double precision -----------------------------------
+_FLOAT_FUNCTIONS: Mapping[type, Callable[..., float]] = {
+    sp.sin: math.sin,
+    sp.cos: math.cos,
+    sp.tan: math.tan,
+    sp.asin: math.asin,
+    sp.acos: math.acos,
+    sp.atan: math.atan,
+    sp.atan2: math.atan2,
+    sp.sinh: math.sinh,
+    sp.cosh: math.cosh,
+    sp.tanh: math.tanh,
+    sp.exp: math.exp,
+    sp.log: math.log,
+    sp.Abs: abs,
+}
+
+
+def _float_value(expr: sp.Expr) -> float:
+    """``expr`` (no free symbols) in double precision, bottom-up, with Python floats.
+
+    Raises OverflowError, ValueError or ZeroDivisionError where double
+    precision cannot represent a value (never calls SymPy's arbitrary-precision
+    evaluation, which ``exp(exp(1000))`` would run out of memory).
+    """
+    if expr.is_Rational:
+        value = expr.p / expr.q  # int / int: exact rounding, OverflowError if too large
+    elif expr.is_Float:
+        value = float(expr)
+    elif expr is sp.pi:
+        value = math.pi
+    elif expr is sp.E:
+        value = math.e
+    elif expr.is_Add:
+        value = math.fsum(_float_value(arg) for arg in expr.args)
+    elif expr.is_Mul:
+        value = 1.0
+        for arg in expr.args:
+            value *= _float_value(arg)
+    elif expr.is_Pow:
+        base, exponent = (_float_value(arg) for arg in expr.args)
+        if base == 0 and exponent < 0:
+            raise ZeroDivisionError("0 to a negative power")
+        value = base**exponent
+        if isinstance(value, complex):
+            raise ValueError("not real")
+    elif type(expr) is sp.exp:  # exp(x) is a Pow in some SymPy versions, a function in others
+        value = math.exp(_float_value(expr.args[0]))
+    elif type(expr) in _FLOAT_FUNCTIONS:
+        value = _FLOAT_FUNCTIONS[type(expr)](*(_float_value(arg) for arg in expr.args))
+    else:
+        value = complex(sp.N(expr, 17))  # anything else SymPy built: a small known constant
+        if value.imag != 0:
+            raise ValueError("not real")
+        value = value.real
+    value = float(value)
+    if not math.isfinite(value):
+        raise OverflowError("not finite")
+    return value
+
+
+def _check_constants(expr: sp.Expr, where: dict) -> None:
+    """Refuse a constant subexpression that is not a finite real double."""
+    if expr.is_Number or not expr.args:
+        return
+    if expr.free_symbols:
+        for arg in expr.args:
+            _check_constants(arg, where)
+        return
+    try:
+        value = _float_value(expr)
+    except (OverflowError, ValueError, ZeroDivisionError, TypeError):
+        value = None
+    if value is None or abs(value) > MAX_MAGNITUDE:
+        raise ExpressionError(
+            "a constant in the expression is not a finite real number in double precision "
+            "(overflow, or outside the function's domain)",
+            piece=str(expr)[:60],
+            **where,
+        )
+
+
+# -- long flat chains, which Python's parser cannot take in one piece ------------
+def _wrapped(text: str) -> bool:
+    """True when the whole of ``text`` is inside one pair of parentheses."""
+    if not (text.startswith("(") and text.endswith(")")):
+        return False
+    depth = 0
+    for index, char in enumerate(text):
+        depth += {"(": 1, ")": -1}.get(char, 0)
+        if depth == 0:
+            return index == len(text) - 1
+    return False
+
+
+def _split_chain(text: str) -> tuple[list[str], list[str]] | None:
+    """Split ``text`` at its outermost binary ``+``/``-`` (or, failing that,
+    ``*``/``/``): ``(pieces, operators)``; ``None`` when there is no such split.
+
+    Python's :func:`ast.parse` builds ``a + b + c + ...`` as a left-nested
+    tree and gives up (a RecursionError) after about a thousand terms.  The
+    tokenizer works in a loop, so the text is cut into its terms here and each
+    term parsed on its own.
+    """
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
+    except (tokenize.TokenError, SyntaxError, IndentationError):
+        return None
+    lines = text.split("\n")
+    if len(lines) != 1:
+        return None
+    for ops in (("+", "-"), ("*", "/")):
+        depth = 0
+        previous = None
+        cuts: list[tuple[int, int, str]] = []  # (start, end) columns of the operator
+        for tok in tokens:
+            if tok.type == tokenize.OP and tok.string in "([{":
+                depth += 1
+            elif tok.type == tokenize.OP and tok.string in ")]}":
+                depth -= 1
+            elif (
+                depth == 0
+                and tok.type == tokenize.OP
+                and tok.string in ops
+                and previous is not None
+                and (
+                    previous.type in (tokenize.NAME, tokenize.NUMBER)
+                    or previous.string in (")", "]", "}")
+                )
+            ):
+                cuts.append((tok.start[1], tok.end[1], tok.string))
+            if tok.type not in (tokenize.NL, tokenize.NEWLINE, tokenize.ENDMARKER):
+                previous = tok
+        if cuts:
+            pieces, operators, start = [], [], 0
+            for begin, end, op in cuts:
+                pieces.append(text[start:begin])
+                operators.append(op)
+                start = end
+            pieces.append(text[start:])
+            return pieces, operators
+    return None
 
 
 def _bits(number: sp.Rational) -> int:
@@ -237,6 +404,44 @@ class _Builder:
         piece = ast.get_source_segment(self.text, node) or type(node).__name__
         return ExpressionError(message, piece=piece, **self.where)
 
+    def parse(self, text: str, depth: int) -> sp.Expr:
+        """Parse ``text`` (a whole expression, or one term of a long chain)."""
+        try:
+            tree = ast.parse(text, mode="eval")
+        except SyntaxError as exc:
+            raise ExpressionError(
+                f"not a valid expression ({exc.msg})", piece=text, **self.where
+            ) from None
+        except (ValueError, RecursionError, MemoryError):
+            # Too long a chain for Python's parser: parse it term by term.
+            split = _split_chain(text)
+            if split is None and _wrapped(text):
+                return self.parse(text[1:-1].strip(), depth + 1)
+            if split is None:
+                raise ExpressionError(
+                    "expression cannot be parsed", piece=text[:60], **self.where
+                ) from None
+            pieces, operators = split
+            terms = [self.parse(piece.strip(), depth + 1) for piece in pieces]
+            return _combine(terms[0], list(zip(operators, terms[1:], strict=True)))
+        saved, self.text = self.text, text
+        try:
+            return self.build(tree.body, depth)
+        finally:
+            self.text = saved
+
+    def chain(self, node: ast.BinOp, depth: int) -> sp.Expr:
+        """A chain ``a + b - c ...`` (or ``a * b / c ...``) as one level: the
+        left spine of the tree is walked in a loop, not by recursion."""
+        family = _FAMILY[type(node.op)]
+        rest: list[tuple[str, ast.AST]] = []
+        while isinstance(node, ast.BinOp) and _FAMILY.get(type(node.op)) == family:
+            rest.append((_SYMBOL[type(node.op)], node.right))
+            node = node.left
+        first = self.build(node, depth + 1)
+        others = [(op, self.build(right, depth + 1)) for op, right in reversed(rest)]
+        return _combine(first, others)
+
     def build(self, node: ast.AST, depth: int) -> sp.Expr:
         if depth > MAX_DEPTH:
             raise self.fail(f"expression nested deeper than {MAX_DEPTH} levels", node)
@@ -244,6 +449,8 @@ class _Builder:
             return self.constant(node)
         if isinstance(node, ast.Name):
             return self.name(node)
+        if isinstance(node, ast.BinOp) and type(node.op) in _FAMILY:
+            return self.chain(node, depth)
         if isinstance(node, ast.BinOp):
             op = _BINARY.get(type(node.op))
             if op is None:

@@ -83,6 +83,52 @@ def _as_number(value: Any, what: str) -> float:
     return value
 
 
+#: Assumptions a symbol may carry that a real number can be checked against.
+#: SymPy simplifies H under them (``sqrt(q**2)`` is ``q`` for a positive
+#: ``q``), so a value that breaks one gives a silently wrong answer.  Others
+#: (``rational``, ``algebraic``, ...) say nothing a float can honestly decide.
+CHECKED_ASSUMPTIONS = (
+    "positive",
+    "negative",
+    "nonnegative",
+    "nonpositive",
+    "zero",
+    "nonzero",
+    "integer",
+    "noninteger",
+    "even",
+    "odd",
+    "prime",
+    "composite",
+    "extended_positive",
+    "extended_negative",
+    "extended_nonnegative",
+    "extended_nonpositive",
+    "extended_nonzero",
+)
+
+
+def _assumption_conflict(symbol: Any, value: float) -> str | None:
+    """Why ``value`` contradicts an assumption declared on ``symbol``, or None."""
+    declared = getattr(symbol, "assumptions0", {})
+    if not any(name in declared for name in CHECKED_ASSUMPTIONS):
+        return None
+    number = sp.Rational(*float(value).as_integer_ratio())  # the float, exactly
+    for name in CHECKED_ASSUMPTIONS:
+        wanted = declared.get(name)
+        if wanted is None:
+            continue
+        actual = getattr(number, f"is_{name}")
+        if actual is not None and actual != wanted:
+            return (
+                f"{symbol} is declared {name}={wanted} but is given the value {value!r}; "
+                "SymPy has already simplified H under that assumption, so the result "
+                "would be wrong. Give a value that satisfies it, or declare the symbol "
+                "without the assumption"
+            )
+    return None
+
+
 class Hamiltonian:
     """A Hamiltonian ``H(q, p)``, validated, with derived quantities on demand.
 
@@ -336,6 +382,9 @@ class Hamiltonian:
                 known = ", ".join(by_name) or "none"
                 raise InputError(f"unknown parameter {key!s} (parameters: {known})")
             chosen[symbol] = _as_number(value, f"parameter {symbol}")
+            conflict = _assumption_conflict(symbol, chosen[symbol])
+            if conflict is not None:
+                raise InputError(f"parameter {conflict}")
         missing = [s.name for s in self._params if s not in chosen]
         if missing:
             raise InputError(f"no value for parameter(s): {', '.join(missing)}")
@@ -372,6 +421,15 @@ class Hamiltonian:
                     f"degree{'s' if self.n != 1 else ''} of freedom"
                 )
             parts.extend(_as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
+        for symbol, value, label in zip(
+            self.state,
+            parts,
+            [f"q0[{i}]" for i in range(self.n)] + [f"p0[{i}]" for i in range(self.n)],
+            strict=True,
+        ):
+            conflict = _assumption_conflict(symbol, value)
+            if conflict is not None:
+                raise InputError(f"{label}: {conflict}")
         return np.array(parts, dtype=float)
 
 
@@ -441,4 +499,8 @@ def _parameters(
                 defaults[symbol] = _as_number(value, f"parameter {symbol}")
             except (InputError, InputTypeError) as exc:
                 problems.append(str(exc))
+                continue
+            conflict = _assumption_conflict(symbol, defaults[symbol])
+            if conflict is not None:
+                problems.append(f"parameter {conflict}")
     return tuple(sorted(symbols, key=lambda s: s.name)), defaults
