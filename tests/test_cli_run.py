@@ -273,12 +273,16 @@ def test_progress_bar_only_on_a_terminal_and_after_the_delay():
 
 
 def test_output_dir_writes_strict_json_atomically(tmp_path):
+    unused = OutputDir(tmp_path / "unused")
+    assert [p.name for p in (tmp_path / "unused").iterdir()] == [".hamrkq.lock"]  # claimed
+    unused.close()
+    assert not (tmp_path / "unused").exists()  # nothing written: nothing left behind
     out = OutputDir(tmp_path / "new")
-    assert not (tmp_path / "new").exists()  # created on the first write only
     out.json("a.json", {"x": float("nan"), "y": np.float64(1.5), "z": np.arange(3)})
     assert json.loads((tmp_path / "new" / "a.json").read_text()) == {
         "x": None, "y": 1.5, "z": [0, 1, 2]
     }  # fmt: skip
+    out.close()
     assert [p.name for p in (tmp_path / "new").iterdir()] == ["a.json"]  # no temp files
     with pytest.raises(hamrkq.errors.InputError, match="not a directory"):
         OutputDir(tmp_path / "new" / "a.json")

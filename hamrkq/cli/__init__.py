@@ -1,8 +1,11 @@
 """The command line: ``hamrkq list|show|run|reproduce|compare``.
 
 Thin by design: each subcommand parses its arguments, calls the library and
-turns the outcome into an exit status (0 success, 1 the integration failed,
-2 bad usage or bad input).  Subcommands other than ``list`` and ``show`` live
+turns the outcome into an exit status (0 success, 1 the integration failed or
+was interrupted, 2 bad usage or bad input, 3 the results could not be
+written).  SIGTERM (sent by ``timeout``, batch schedulers, ``docker stop``) is
+handled like Ctrl-C: the run stops, its partial results are written and
+marked partial, and the exit status is 1.  Subcommands other than ``list`` and ``show`` live
 in modules of their own (``hamrkq/commands/``) that register themselves through
 :data:`COMMAND_MODULES`.
 """
@@ -10,21 +13,60 @@ in modules of their own (``hamrkq/commands/``) that register themselves through
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 
 import sympy as sp
 
 from hamrkq._version import __version__
 from hamrkq.catalogue.problems import list_problems, load_problem
 from hamrkq.errors import HamrkqError
+from hamrkq.io.report import close_all
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_OK", "main"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_FAILED",
+    "EXIT_OK",
+    "EXIT_WRITE_FAILED",
+    "Terminated",
+    "main",
+]
 
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+#: The results could not be written (disk full, permissions changed mid-run):
+#: not "the integration failed", which is 1.
+EXIT_WRITE_FAILED = 3
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the signal lands, so that every ``except
+    KeyboardInterrupt`` (the step loop, atomic writes, the report) treats it
+    like Ctrl-C."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(f"signal {signal.Signals(signum).name}")
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Handle SIGTERM like SIGINT while a command runs (main thread only:
+    Python delivers signals there, and elsewhere cannot install handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
 
 #: Modules providing further subcommands: each has ``register(subparsers)``
 #: which adds its parser and sets ``func`` (args -> exit status).
@@ -80,23 +122,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv : sequence of str, optional
         The arguments, without the program name (default: ``sys.argv[1:]``).
     """
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    try:
-        return int(args.func(args))
-    except HamrkqError as exc:
-        print(f"hamrkq: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("hamrkq: interrupted", file=sys.stderr)
-        return EXIT_FAILED
-    except OSError as exc:
-        # Writing results failed (disk full, permissions changed mid-run).
-        print(f"hamrkq: error: cannot write output: {exc}", file=sys.stderr)
-        return EXIT_FAILED
+    with _sigterm_as_interrupt():
+        try:
+            parser = build_parser()
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as exc:
+                return int(exc.code or 0)
+            return int(args.func(args))
+        except HamrkqError as exc:
+            print(f"hamrkq: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt as exc:
+            # Before the step loop started (deriving, compiling) or in a
+            # command without partial results: nothing to keep.
+            what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+            print(f"hamrkq: {what}", file=sys.stderr)
+            return EXIT_FAILED
+        except OSError as exc:
+            # Writing results failed (disk full, permissions changed mid-run).
+            print(f"hamrkq: error: cannot write output: {exc}", file=sys.stderr)
+            return EXIT_WRITE_FAILED
+        finally:
+            close_all()  # release every --out claimed, however the command ended
 
 
 def _cmd_list(args: argparse.Namespace) -> int:

@@ -34,8 +34,7 @@ import numpy as np
 
 from hamrkq.analysis.comparison import MATCH_MODES, Comparison, compare, default_methods
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.errors import InputError
-from hamrkq.io.report import OutputDir, package_versions
+from hamrkq.io.report import OutputDir, check_dpi, package_versions
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -108,7 +107,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-compare/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--no-plots", action="store_true", help="do not draw the figures")
-    p.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
+    p.add_argument(
+        "--dpi", type=int, default=120, help="resolution of the PNGs (10 to 600, default 120)"
+    )
     p.set_defaults(func=compare_command)
 
 
@@ -278,8 +279,7 @@ def compare_command(args: argparse.Namespace) -> int:
     problem = load_problem(args.problem)
     if args.param:
         problem = problem.with_parameters(**parse_parameters(args.param))
-    if args.dpi < 10:
-        raise InputError(f"--dpi must be at least 10, got {args.dpi}")
+    check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
     methods = args.methods or default_methods(problem)
     result = compare(

@@ -31,8 +31,7 @@ import numpy as np
 from hamrkq.analysis.diagnostics import diagnose, error_summary, tolerance
 from hamrkq.analysis.reference import hamiltonian_reference
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.errors import InputError
-from hamrkq.io.report import OutputDir, ProgressBar, format_table, summary_dict
+from hamrkq.io.report import OutputDir, ProgressBar, check_dpi, format_table, summary_dict
 from hamrkq.result import Status
 
 __all__ = ["EXPERIMENTS", "register", "reproduce_command"]
@@ -69,14 +68,15 @@ def register(subparsers: Any) -> None:
         help="stop at T instead of the paper's end (a quick look; the numbers then "
         "do not compare with the paper's)",
     )  # fmt: skip
-    p.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
+    p.add_argument(
+        "--dpi", type=int, default=120, help="resolution of the PNGs (10 to 600, default 120)"
+    )
     p.set_defaults(func=reproduce_command)
 
 
 def reproduce_command(args: argparse.Namespace) -> int:
     """The ``reproduce`` subcommand; returns the exit status."""
-    if args.dpi < 10:
-        raise InputError(f"--dpi must be at least 10, got {args.dpi}")
+    check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / args.experiment, force=args.force)
     return EXPERIMENTS[args.experiment](args, out)
 

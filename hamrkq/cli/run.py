@@ -11,22 +11,32 @@ atomically:
 - the figures (PNG) of :mod:`hamrkq.plotting.figures`, unless ``--no-plots``.
 
 The summary table goes to stdout, a progress bar to stderr on a terminal.
-Exit status: 0 success, 1 the integration failed or was interrupted (the
-partial results are still written), 2 bad input.
+Exit status: 0 success, 1 the integration failed or was interrupted (Ctrl-C
+or SIGTERM; the partial results are still written), 2 bad input, 3 the
+results could not be written (the table is still printed).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.catalogue.problems import load_problem
+from hamrkq.cli import EXIT_WRITE_FAILED
 from hamrkq.errors import HamrkqError, InputError, OptionError
-from hamrkq.io.report import OutputDir, ProgressBar, format_table, summary_dict, summary_rows
+from hamrkq.io.report import (
+    OutputDir,
+    ProgressBar,
+    check_dpi,
+    format_table,
+    summary_dict,
+    summary_rows,
+)
 from hamrkq.solve import BACKENDS, METHODS, solve
 
 __all__ = ["REFERENCE_CHOICES", "register", "run_command"]
@@ -91,7 +101,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-run/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--no-plots", action="store_true", help="do not draw the figures")
-    p.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
+    p.add_argument(
+        "--dpi", type=int, default=120, help="resolution of the PNGs (10 to 600, default 120)"
+    )
     p.set_defaults(func=run_command)
 
 
@@ -191,23 +203,27 @@ def run_command(args: argparse.Namespace) -> int:
     kwargs = solve_arguments(args, problem)
     method = kwargs.get("method", problem.integration.get("method", "rk34q8"))
     reference = resolve_reference(args.reference, problem, method)
-    if args.dpi < 10:
-        raise InputError(f"--dpi must be at least 10, got {args.dpi}")
+    check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
 
     started = time.perf_counter()
+    announce_preparation(problem)
     with ProgressBar(f"{problem.name} {method}") as bar:
         sol = solve(problem, progress=bar, **kwargs)
     solve_time = time.perf_counter() - started
-    out.solution("solution.npz", sol)
+    write_failed = _attempt(lambda: out.solution("solution.npz", sol))
 
     notes: list[str] = []
     diag = None
     try:
         diag, more = diagnose_safely(sol, problem, reference)
         notes += more
-        if not args.no_plots:
-            notes += write_figures(out, sol, diag, title=problem.name, dpi=args.dpi)
+        if not args.no_plots and write_failed is None:
+            write_failed = _attempt(
+                lambda: notes.extend(
+                    write_figures(out, sol, diag, title=problem.name, dpi=args.dpi)
+                )
+            )
         interrupted = False
     except KeyboardInterrupt:
         notes.append("interrupted during diagnostics or plotting; report incomplete")
@@ -232,7 +248,8 @@ def run_command(args: argparse.Namespace) -> int:
         notes=notes,
     )
     summary["files"] = [*out.written, "summary.json"]
-    out.json("summary.json", summary)
+    if write_failed is None:
+        write_failed = _attempt(lambda: out.json("summary.json", summary))
 
     print(f"{problem.name}: {problem.title}")
     print(format_table(summary_rows(sol, diag, wall_time=solve_time)))
@@ -240,5 +257,46 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"message: {sol.message}")
     for note in [*(diag.notes if diag is not None else ()), *notes]:
         print(f"note: {note}")
+    if write_failed is not None:
+        # The table above is all that is left of the run: say so, distinctly
+        # from a failed integration.
+        print(f"hamrkq: error: cannot write output: {write_failed}", file=sys.stderr)
+        if out.written:
+            print(f"wrote only {out.path}/: {', '.join(out.written)}")
+        return EXIT_WRITE_FAILED
     print(f"wrote {out.path}/: {', '.join(out.written)}")
     return 0 if sol.success and not interrupted else 1
+
+
+#: Degrees of freedom from which deriving and compiling takes long enough
+#: (tens of seconds and more) to be announced even when stderr is not a terminal.
+LARGE_SYSTEM = 50
+
+
+def announce_preparation(problem: Any, stream: Any = None) -> None:
+    """Say on stderr that the equations are being derived and compiled.
+
+    The first step of a large system comes only after SymPy has derived
+    Hamilton's equations and the Jacobian and numba has compiled them (about
+    five minutes for a 200-degree-of-freedom chain); without a word the run
+    would look hung.  Said on a terminal, and for large systems everywhere.
+    """
+    stream = sys.stderr if stream is None else stream
+    n = problem.hamiltonian.n
+    isatty = getattr(stream, "isatty", None)
+    if n >= LARGE_SYSTEM or (isatty is not None and isatty()):
+        stream.write(
+            f"{problem.name}: deriving and compiling Hamilton's equations "
+            f"({n} degree{'s' if n != 1 else ''} of freedom)"
+            f"{'; this can take minutes' if n >= LARGE_SYSTEM else ''} ...\n"
+        )
+        stream.flush()
+
+
+def _attempt(write: Any) -> OSError | None:
+    """Run ``write``; return the OSError it raised (disk full, ...), or None."""
+    try:
+        write()
+    except OSError as exc:
+        return exc
+    return None
