@@ -12,6 +12,9 @@ raised only where a caller asked for it explicitly.
 
 from __future__ import annotations
 
+import os
+import sys
+import warnings
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -28,6 +31,7 @@ __all__ = [
     "ProblemNotFoundError",
     "SolutionFileError",
     "UndeclaredSymbolError",
+    "warn",
 ]
 
 
@@ -163,3 +167,33 @@ class IntegrationError(HamrkqError, RuntimeError):
 
 class HamrkqWarning(UserWarning):
     """Warnings issued by hamrkq (tolerance clamped, backend fallback, ...)."""
+
+
+#: Directories whose frames a warning never points into: hamrkq itself and
+#: SciPy's integrators (``solve_ivp(..., method=RK34Q8)`` is the user's call).
+_INTERNAL = (
+    os.path.dirname(os.path.abspath(__file__)) + os.sep,
+    os.path.join("scipy", "integrate", ""),
+)
+
+
+def warn(message: str, category: type[Warning] = HamrkqWarning) -> None:
+    """Issue a warning that points at the first caller outside hamrkq.
+
+    A fixed ``stacklevel`` is right for one call path only (``solve`` calls
+    the backend chooser, which warns; ``solve_ivp`` constructs ``RK34Q8``,
+    which warns): this walks the stack instead, past every frame in hamrkq's
+    package and in ``scipy.integrate``, so the warning names the user's line.
+
+    Parameters
+    ----------
+    message : str
+    category : Warning subclass
+        Default :class:`HamrkqWarning`.
+    """
+    level = 2  # 1 would be this function, 2 its caller
+    frame = sys._getframe(1)
+    while frame is not None and any(part in frame.f_code.co_filename for part in _INTERNAL):
+        frame = frame.f_back
+        level += 1
+    warnings.warn(message, category, stacklevel=level)

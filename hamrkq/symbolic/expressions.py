@@ -297,8 +297,8 @@ def _float_value(expr: sp.Expr) -> float:
 
 def _check_constants(expr: sp.Expr, where: dict) -> None:
     """Refuse a constant subexpression that is not a finite real double."""
-    if expr.is_Number or not expr.args:
-        return
+    if not expr.args and not expr.is_Number:
+        return  # a symbol, or a named constant (pi, E)
     if expr.free_symbols:
         for arg in expr.args:
             _check_constants(arg, where)
