@@ -135,7 +135,7 @@ def test_2_sigterm_while_figures_are_written_leaves_no_temporary_file(tmp_path, 
 
     monkeypatch.setattr(Figure, "savefig", savefig_then_sigterm)
     out = tmp_path / "run"
-    status, stdout, _ = _cli(["run", "harmonic", "--t-end", "6", "--out", str(out)])
+    status, _, _ = _cli(["run", "harmonic", "--t-end", "6", "--out", str(out)])
     assert status == EXIT_FAILED
     assert len(calls) == 2 and not list(out.glob(".*.tmp"))
     summary = json.loads((out / "summary.json").read_text())
@@ -308,9 +308,11 @@ def test_10_diagnose_with_another_problem_or_no_solution(oscillator_solution):
     """Before: "not enough values to unpack" (a ValueError from deep inside)."""
     with pytest.raises(InputError, match="the solution is not of this problem"):
         diagnose(oscillator_solution, hamrkq.load_problem("kepler"))
-    with pytest.raises(InputTypeError, match="must be a hamrkq.Solution"):
+    with pytest.raises(InputTypeError, match=r"must be a hamrkq\.Solution"):
         diagnose(hamrkq.load_problem("harmonic"), oscillator_solution)
-    with pytest.raises(InputTypeError, match="must be a hamrkq.Problem or a hamrkq.Hamiltonian"):
+    with pytest.raises(
+        InputTypeError, match=r"must be a hamrkq\.Problem or a hamrkq\.Hamiltonian"
+    ):
         diagnose(oscillator_solution, "harmonic")
 
 
@@ -425,7 +427,9 @@ def test_11_large_systems_say_they_are_being_derived(tmp_path):
         "harmonic: deriving and compiling Hamilton's equations (1 degree of freedom) ...\n"
     )
     qs, ps = sp.symbols(f"x0:{LARGE_SYSTEM}"), sp.symbols(f"v0:{LARGE_SYSTEM}")
-    chain = hamrkq.Hamiltonian(sum(v**2 / 2 + x**2 / 2 for x, v in zip(qs, ps)), qs, ps)
+    chain = hamrkq.Hamiltonian(
+        sum(v**2 / 2 + x**2 / 2 for x, v in zip(qs, ps, strict=True)), qs, ps
+    )
 
     class Large:
         name, hamiltonian = "chain", chain
