@@ -43,12 +43,19 @@ def real(name: str, value: Any) -> float:
         value = value.real
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InputTypeError(f"{name} must be a real number, got {show(value)}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an int beyond the float range
+        raise InputError(f"{name} is too large for a float, got {show(value)}") from None
 
 
 def span(t_span: Any) -> tuple[float, float]:
     """``t_span`` as two finite floats ``(t0, t_end)``."""
-    if isinstance(t_span, str | bytes) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+    try:
+        length = None if isinstance(t_span, str | bytes) else len(t_span)
+    except TypeError:  # a 0-d array has __len__ but no length
+        length = None
+    if length != 2:
         raise InputError(f"t_span must be two numbers (t0, t_end), got {show(t_span)}")
     t0, t_end = (real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
     if not (math.isfinite(t0) and math.isfinite(t_end)):

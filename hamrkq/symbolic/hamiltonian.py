@@ -444,7 +444,7 @@ def _check_scalar(H: Any, problems: list[str]) -> sp.Expr | None:
         shape = getattr(H, "shape", (len(H),))
         problems.append(f"H must be a scalar expression, got an array of shape {shape}")
         return None
-    if isinstance(H, numbers.Number) and not isinstance(H, bool):
+    if isinstance(H, numbers.Number) and not isinstance(H, bool | sp.Basic):
         return sp.Float(H) if isinstance(H, float) else sp.Integer(H)
     if not isinstance(H, sp.Expr):
         problems.append(f"H must be a SymPy expression, got {type(H).__name__}")
@@ -455,10 +455,15 @@ def _check_scalar(H: Any, problems: list[str]) -> sp.Expr | None:
     return H
 
 
+def _scalar_array(value: Any) -> bool:
+    """A 0-d NumPy array: Iterable by type, but not iterable."""
+    return isinstance(value, np.ndarray) and value.ndim == 0
+
+
 def _symbol_tuple(symbols: Any, label: str, problems: list[str]) -> tuple[sp.Symbol, ...]:
     if isinstance(symbols, sp.Symbol):
         symbols = [symbols]
-    if isinstance(symbols, str) or not isinstance(symbols, Iterable):
+    if isinstance(symbols, str) or not isinstance(symbols, Iterable) or _scalar_array(symbols):
         problems.append(f"{label} must be a sequence of SymPy symbols, got {symbols!r}")
         return ()
     result = []
@@ -478,7 +483,7 @@ def _parameters(
     items: Iterable[tuple[Any, Any]]
     if isinstance(spec, Mapping):
         items = spec.items()
-    elif isinstance(spec, str) or not isinstance(spec, Iterable):
+    elif isinstance(spec, str) or not isinstance(spec, Iterable) or _scalar_array(spec):
         problems.append(f"parameters must be a mapping or a sequence of symbols, got {spec!r}")
         return (), {}
     else:
