@@ -21,6 +21,7 @@ import ast
 import io
 import keyword
 import math
+import re
 import tokenize
 from collections.abc import Callable, Mapping
 from fractions import Fraction
@@ -317,6 +318,9 @@ def _check_constants(expr: sp.Expr, where: dict) -> None:
 
 
 # -- long flat chains, which Python's parser cannot take in one piece ------------
+_CALL = re.compile(r"([A-Za-z]\w*)\s*\(")
+
+
 def _wrapped(text: str) -> bool:
     """True when the whole of ``text`` is inside one pair of parentheses."""
     if not (text.startswith("(") and text.endswith(")")):
@@ -417,6 +421,23 @@ class _Builder:
             split = _split_chain(text)
             if split is None and _wrapped(text):
                 return self.parse(text[1:-1].strip(), depth + 1)
+            call = _CALL.match(text)
+            if split is None and call and _wrapped(text[call.end() - 1 :]):
+                # f(<long chain>): a listed one-argument function of a long sum.
+                name = call.group(1)
+                if name not in FUNCTIONS:
+                    raise ExpressionError(
+                        f"function {name!r} is not allowed", piece=name, **self.where
+                    ) from None
+                if FUNCTIONS[name][1] != 1:
+                    raise ExpressionError(
+                        f"{name} of a chain this long cannot be parsed (only one-argument "
+                        "functions can take one)",
+                        piece=name,
+                        **self.where,
+                    ) from None
+                argument = self.parse(text[call.end() : -1].strip(), depth + 1)
+                return FUNCTIONS[name][0](argument)
             if split is None:
                 raise ExpressionError(
                     "expression cannot be parsed", piece=text[:60], **self.where
