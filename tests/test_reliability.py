@@ -141,6 +141,7 @@ def test_2_sigterm_while_figures_are_written_leaves_no_temporary_file(tmp_path, 
     assert len(calls) == 2 and not list(out.glob(".*.tmp"))
     summary = json.loads((out / "summary.json").read_text())
     assert any("interrupted during diagnostics or plotting" in n for n in summary["notes"])
+    assert "stopped by SIGTERM (handled like Ctrl-C)" in summary["notes"]
     assert summary["files"] == ["solution.npz", "figure1_solution.png", "summary.json"]
     assert sorted(p.name for p in out.iterdir()) == sorted(summary["files"])
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # restored after main
@@ -162,6 +163,7 @@ def test_2_sigterm_during_the_run_writes_partial_results_and_exits_1(tmp_path):
     assert "Traceback" not in stderr + child.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["partial"] is True and summary["status"] == "INTERRUPTED"
+    assert "stopped by SIGTERM (handled like Ctrl-C)" in summary["notes"]
     saved = Solution.load(out / "solution.npz")
     assert saved.status is Status.INTERRUPTED and len(saved) == summary["nodes"] > 10
     assert saved.t[-1] < 4000 and np.all(np.isfinite(saved.y))

@@ -34,6 +34,7 @@ __all__ = [
     "EXIT_WRITE_FAILED",
     "Terminated",
     "main",
+    "signals_received",
 ]
 
 EXIT_OK = 0
@@ -50,7 +51,19 @@ class Terminated(KeyboardInterrupt):
     like Ctrl-C."""
 
 
+#: Names of the signals received while the current command ran (see
+#: :func:`signals_received`).
+_RECEIVED: list[str] = []
+
+
+def signals_received() -> tuple[str, ...]:
+    """The signals (``"SIGTERM"``) the current command has received so far: a
+    command says in its report that it was stopped by one, not by Ctrl-C."""
+    return tuple(_RECEIVED)
+
+
 def _raise_terminated(signum: int, frame: object) -> None:
+    _RECEIVED.append(signal.Signals(signum).name)
     raise Terminated(f"signal {signal.Signals(signum).name}")
 
 
@@ -61,6 +74,7 @@ def _sigterm_as_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    _RECEIVED.clear()
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         yield

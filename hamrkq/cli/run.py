@@ -27,7 +27,7 @@ from typing import Any
 
 from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import EXIT_WRITE_FAILED
+from hamrkq.cli import EXIT_WRITE_FAILED, signals_received
 from hamrkq.errors import HamrkqError, InputError, OptionError
 from hamrkq.io.report import (
     OutputDir,
@@ -228,6 +228,8 @@ def run_command(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         notes.append("interrupted during diagnostics or plotting; report incomplete")
         interrupted = True
+    if signals_received():  # the status says "KeyboardInterrupt"; say what it was
+        notes.append(f"stopped by {', '.join(signals_received())} (handled like Ctrl-C)")
     total = time.perf_counter() - started
     settings = {
         "command": "run",
