@@ -15,13 +15,7 @@ import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError, OptionError
 
-__all__ = ["MIN_ATOL", "choice", "count", "positive", "real", "show", "span", "tolerance"]
-
-#: Smallest absolute tolerance accepted: the smallest normal double.  Below it
-#: (the subnormals, down to 5e-324) a number has fewer than 53 significant
-#: bits, an error test against it cannot pass, and a run would only burn its
-#: step limit on rejected steps before reporting MAX_STEPS.
-MIN_ATOL = float(np.finfo(float).tiny)
+__all__ = ["choice", "count", "positive", "real", "show", "span", "tolerance"]
 
 
 def show(value: Any) -> str:
@@ -64,11 +58,7 @@ def span(t_span: Any) -> tuple[float, float]:
 
 
 def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
-    """A tolerance as an array of ``dim`` finite values (> 0, or >= 0 if not ``positive``).
-
-    A ``positive`` tolerance (``atol``) must also be at least :data:`MIN_ATOL`:
-    double precision cannot resolve a smaller one.
-    """
+    """A tolerance as an array of ``dim`` finite values (> 0, or >= 0 if not ``positive``)."""
     if isinstance(value, str | bytes):
         raise InputTypeError(f"{name} must be a number or {dim} numbers, got {value!r}")
     items = np.ravel(np.asarray(value, dtype=object)) if np.ndim(value) else [value]
@@ -79,11 +69,6 @@ def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
     if np.any(bad):
         need = "positive" if positive else "zero or positive"
         raise InputError(f"{name} must be finite and {need}, got {show(value)}")
-    if positive and np.any(array < MIN_ATOL):
-        raise InputError(
-            f"{name} must be at least {MIN_ATOL:.4g} (the smallest normal double; "
-            f"double precision cannot resolve less), got {show(value)}"
-        )
     return np.broadcast_to(array, (dim,)).copy()
 
 

@@ -16,8 +16,8 @@ import pytest
 
 import hamrkq.cli
 from hamrkq import errors
-from hamrkq._validate import MIN_ATOL
 from hamrkq.io.report import MAX_DPI, MAX_FIGURE_PIXELS, MIN_DPI
+from hamrkq.options import MIN_ATOL
 from hamrkq.result import Status
 from hamrkq.symbolic import expressions
 
@@ -85,7 +85,7 @@ def test_every_exit_status_is_documented():
 @pytest.mark.parametrize(
     "text",
     [
-        f"{MIN_ATOL:.4g}",
+        f"below {MIN_ATOL:g}",
         f"between {MIN_DPI} and {MAX_DPI}",
         f"{MIN_DPI}..{MAX_DPI}",
         f"{MAX_FIGURE_PIXELS // 1_000_000} megapixels",
