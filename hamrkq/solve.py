@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 import sys
 import time
-import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +30,7 @@ from hamrkq._validate import tolerance as _tolerance
 from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
 from hamrkq.catalogue.problems import Problem
-from hamrkq.errors import HamrkqWarning, InputError, InputTypeError, OptionError
+from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import (
     BACKENDS,
@@ -482,11 +481,7 @@ def _tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
             "step can resolve; use a larger atol (or rtol for relative control)"
         )
     if np.any((rtol_v > 0) & (rtol_v < MIN_RTOL)):
-        warnings.warn(
-            f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}",
-            HamrkqWarning,
-            stacklevel=3,
-        )
+        warn(f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}")
         rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
     return atol_v, rtol_v
 

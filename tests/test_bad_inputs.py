@@ -90,7 +90,8 @@ LIBRARY = [
     pytest.param(lambda: solve1(rtol="1e-6"), InputTypeError, r"rtol.*'1e-6'", id="rtol-string"),
     # methods, options and keywords
     pytest.param(lambda: solve1(method="rk45"), OptionError,
-                 r"method='rk45' is not valid; valid values: 'auto', 'rk34q8', 'rk34'", id="method"),
+                 r"method='rk45' is not valid; valid values: 'auto', 'rk34q8', 'rk34'",
+                 id="method"),
     pytest.param(lambda: solve1(method="RK34Q8"), OptionError, r"method='RK34Q8'",
                  id="method-case"),
     pytest.param(lambda: solve1(quench="always"), OptionError, r"quench='always'.*'node', 'redo'",

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hamrkq.backends import codegen
-from hamrkq.errors import HamrkqError, HamrkqWarning, OptionError
+from hamrkq.errors import HamrkqError, OptionError, warn
 
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -139,12 +139,10 @@ def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
         return "numba"
     if backend == "numba":
         raise OptionError(f"backend='numba' cannot be used: {reason}")
-    warnings.warn(
+    warn(
         f"hamrkq: the compiled (numba) backend is not used because {reason}; "
         "running the pure-Python loop, which is about 100 times slower. "
-        "Pass backend='python' to choose it explicitly and silence this warning.",
-        HamrkqWarning,
-        stacklevel=3,
+        "Pass backend='python' to choose it explicitly and silence this warning."
     )
     return "python"
 

@@ -39,7 +39,6 @@ size of the tolerance rather than far below it (measured in
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -47,7 +46,7 @@ import numpy as np
 from scipy.integrate import DenseOutput, OdeSolver
 
 from hamrkq._validate import choice, tolerance
-from hamrkq.errors import HamrkqWarning, InputError, OptionError
+from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.result import Status
 from hamrkq.rkq import layout
 from hamrkq.rkq.driver import Integration, Settings, initial_step, python_functions
@@ -196,22 +195,16 @@ class RK34Q8(OdeSolver):
         **extraneous: Any,
     ):
         if extraneous:
-            warnings.warn(
+            warn(
                 "The following arguments have no effect for RK34Q8: "
-                + ", ".join(f"`{name}`" for name in extraneous),
-                HamrkqWarning,
-                stacklevel=2,
+                + ", ".join(f"`{name}`" for name in extraneous)
             )
         super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=False)
         n = self.n
         atol = tolerance("atol", atol, n, positive=True)
         rtol = tolerance("rtol", rtol, n, positive=False)
         if np.any((rtol > 0) & (rtol < MIN_RTOL)):
-            warnings.warn(
-                f"rtol is below 100 eps and is raised to {MIN_RTOL:.3g}",
-                HamrkqWarning,
-                stacklevel=2,
-            )
+            warn(f"rtol is below 100 eps and is raised to {MIN_RTOL:.3g}")
             rtol = np.where((rtol > 0) & (rtol < MIN_RTOL), MIN_RTOL, rtol)
         max_step = float(max_step)
         if not max_step > 0:
@@ -229,13 +222,11 @@ class RK34Q8(OdeSolver):
         if global_error_estimate is None:
             global_error_estimate = "off" if self._jac is None else "tangent"
             if self._jac is None:
-                warnings.warn(
+                warn(
                     "RK34Q8 without jac cannot estimate the RK8 track's own global error "
                     "(Gamma), so the safeguard that stops a run whose tolerance cannot be "
                     "certified is off; pass jac= to keep it (or "
-                    "global_error_estimate='off' to silence this warning)",
-                    HamrkqWarning,
-                    stacklevel=2,
+                    "global_error_estimate='off' to silence this warning)"
                 )
         gamma = _GAMMA[choice("global_error_estimate", global_error_estimate, _GAMMA)]
         if gamma != layout.GAMMA_OFF and self._jac is None:
