@@ -66,7 +66,7 @@ __all__ = [
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 7
+CODEGEN_VERSION = 8
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
 #: Largest dimension for which rhs_jvp repeats the bodies of rhs and jac
@@ -245,15 +245,36 @@ class _ScalarPrinter(PythonCodePrinter):
         return repr(float(expr))
 
 
+def _is_half_integer_power(expr: sp.Expr) -> bool:
+    return expr.is_Pow and expr.exp.is_Rational and expr.exp.q == 2
+
+
 def _hoist_power_bases(replacements, reduced, temps):
-    """Give every compound base of an integer power its own temporary.
+    """Give every compound base of an integer power its own temporary, and
+    every base of a half-integer power its square root.
 
     The printer spells ``b**3`` as ``b*b*b``; without this, a base such as
-    ``cos(q)`` would be computed three times.  Bases are hoisted just before
-    the temporary (or output) that uses them, so definitions still precede uses.
+    ``cos(q)`` would be computed three times.  A half-integer power
+    ``b**(k + 1/2)`` becomes ``b**k * s`` with ``s = sqrt(b)`` a temporary
+    shared by every power of ``b`` (``1/(b*s)`` for ``b**(-3/2)``): one
+    square root and a few products per particle pair of an N-body force and
+    its Jacobian, instead of a ``pow`` call for each of ``r**-3`` and
+    ``r**-5``.  ``sqrt``, ``*`` and ``/`` are correctly rounded, so both
+    backends compute the same bits.  Bases are hoisted just before the
+    temporary (or output) that uses them, so definitions still precede uses.
     """
     known: dict[sp.Expr, sp.Symbol] = {}
+    roots: dict[sp.Expr, sp.Symbol] = {}
     ordered: list[tuple[sp.Symbol, sp.Expr]] = []
+
+    def hoist(base: sp.Expr) -> sp.Expr:
+        if base.is_Atom:
+            return base
+        symbol = known.get(base)
+        if symbol is None:
+            symbol = known[base] = next(temps)
+            ordered.append((symbol, base))
+        return symbol
 
     def visit(expr: sp.Expr) -> sp.Expr:
         if expr.is_Atom:
@@ -261,17 +282,22 @@ def _hoist_power_bases(replacements, reduced, temps):
         args = tuple(visit(arg) for arg in expr.args)
         if args != expr.args:
             expr = expr.func(*args, evaluate=False)
-        if (
-            expr.is_Pow
-            and expr.exp.is_Integer
-            and abs(int(expr.exp)) >= 2
-            and not expr.base.is_Atom
-        ):
-            symbol = known.get(expr.base)
-            if symbol is None:
-                symbol = known[expr.base] = next(temps)
-                ordered.append((symbol, expr.base))
-            return sp.Pow(symbol, expr.exp, evaluate=False)
+        if _is_half_integer_power(expr) and expr.exp != sp.S.Half:
+            base = hoist(expr.base)
+            root = roots.get(base)
+            if root is None:
+                root = roots[base] = next(temps)
+                ordered.append((root, sp.sqrt(base, evaluate=False)))
+            k = abs(expr.exp.p) // 2  # |exponent| = k + 1/2
+            if k == 0:
+                magnitude = root
+            elif k == 1:
+                magnitude = sp.Mul(base, root, evaluate=False)
+            else:
+                magnitude = sp.Mul(sp.Pow(base, k, evaluate=False), root, evaluate=False)
+            return magnitude if expr.exp > 0 else sp.Pow(magnitude, -1, evaluate=False)
+        if expr.is_Pow and expr.exp.is_Integer and abs(int(expr.exp)) >= 2:
+            return sp.Pow(hoist(expr.base), expr.exp, evaluate=False)
         return expr
 
     for symbol, value in replacements:
