@@ -204,7 +204,9 @@ class Solution:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         try:
             with os.fdopen(fd, "wb") as handle:
-                np.savez_compressed(handle, **arrays)
+                # Not savez_compressed: float arrays shrink by about 16 % and
+                # deflating them took 0.3-0.9 s of a 2 s `hamrkq run prentice2011`.
+                np.savez(handle, **arrays)
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
