@@ -141,7 +141,8 @@ def to_heyoka(expr, mapping):
                 return product if e.exp > 0 else 1.0 / product
             if e.exp == sp.S.Half:
                 return hy.sqrt(base)
-            return hy.pow(base, convert(e.exp))
+            exponent = float(e.exp) if e.exp.is_Number else convert(e.exp)
+            return base**exponent
         functions = {sp.sin: hy.sin, sp.cos: hy.cos, sp.tan: hy.tan, sp.exp: hy.exp,
                      sp.log: hy.log, sp.sinh: hy.sinh, sp.cosh: hy.cosh, sp.tanh: hy.tanh,
                      sp.asin: hy.asin, sp.acos: hy.acos, sp.atan: hy.atan}  # fmt: skip

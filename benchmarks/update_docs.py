@@ -1,0 +1,148 @@
+"""Copy the tables of the latest benchmark runs into ``docs/performance.md``.
+
+    python benchmarks/update_docs.py
+
+Replaces the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``
+markers in ``docs/performance.md`` with tables built from
+
+- ``benchmarks/peers.json`` (``benchmarks/peers.py``): ``peers``;
+- ``benchmarks/startup.json`` and ``benchmarks/startup_before.json``
+  (``benchmarks/startup.py`` on this checkout and on the one before this
+  round's changes): ``startup``;
+- ``benchmarks/nbody_rhs.json`` and ``benchmarks/nbody_rhs_before.json``
+  (``benchmarks/nbody_rhs.py``): ``nbody``.
+
+No number in those blocks is typed by hand.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import peers  # noqa: E402
+
+DOC = HERE.parent / "docs" / "performance.md"
+
+
+def _load(name: str) -> dict | None:
+    path = HERE / name
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def peers_block() -> str:
+    results = _load("peers.json")
+    if results is None:
+        return "(run `python benchmarks/peers.py`)"
+    m = results["machine"]
+    head = (
+        f"`benchmarks/peers.py --methods {' '.join(results['methods'])}`, run "
+        f"{results['started']} to {results['finished']}"
+        f"{' with --quick' if results['quick'] else ''}: {m['cpu']}, {m['cores']} cores, "
+        f"load average {m['load_average']} at the start and {results['load_average_end']} "
+        f"at the end; heyoka {results['heyoka']}, SciPy {m['scipy']}, numba {m['numba']}."
+    )
+    refs = [
+        f"- {c['case']} (t in [{c['t_span'][0]:g}, {c['t_span'][1]:g}], compared on "
+        f"{c['compared_on']}): {c['reference']['note']}."
+        for c in results["cases"]
+    ]
+    return "\n".join([head, "", peers.table(results), "", *refs])
+
+
+def startup_block() -> str:
+    after, before = _load("startup.json"), _load("startup_before.json")
+    if after is None:
+        return "(run `python benchmarks/startup.py`)"
+
+    def cell(results, path, scale=1.0, unit="s", digits=2):
+        if results is None:
+            return "-"
+        value = results
+        for key in path:
+            value = value[key]
+        return f"{value * scale:.{digits}f} {unit}"
+
+    rows = [
+        ("first call, empty cache, prentice2011 (`solve`, fresh process)",
+         ("first_call_prentice2011", "solve"), 1.0, "s", 2, "<= 3 s"),
+        ("first call, empty cache, outer_solar_system (`solve`, fresh process)",
+         ("first_call_outer_solar_system", "solve"), 1.0, "s", 2, "<= 10 s"),
+        ("outer_solar_system, loop already cached (`solve`)",
+         ("new_system_outer_solar_system", "solve"), 1.0, "s", 2, ""),
+        ("`import hamrkq` (in the prentice2011 process)",
+         ("first_call_prentice2011", "import"), 1.0, "s", 2, ""),
+        ("per call, cached tiny problem (`solve` of harmonic, 5 nodes, median)",
+         ("overhead", "solve_problem_ms"), 1.0, "ms", 3, "<= 0.3 ms"),
+        ("cache key, same Hamiltonian object", ("overhead", "cache_key_ms"), 1e3, "us", 1, ""),
+        ("`hamrkq run prentice2011 --no-plots`, fresh process, warm cache (wall, median)",
+         ("cli_warm", "median"), 1.0, "s", 2, "<= 1.2 s"),
+    ]  # fmt: skip
+    lines = [
+        "| what | before this round | now | target |",
+        "|---|---|---|---|",
+    ]
+    for label, path, scale, unit, digits, target in rows:
+        lines.append(
+            f"| {label} | {cell(before, path, scale, unit, digits)} | "
+            f"{cell(after, path, scale, unit, digits)} | {target} |"
+        )
+    notes = [
+        "",
+        f"Before: {before['label'] if before else '-'} ({before['started'] if before else ''},"
+        f" load average {before['machine']['load_average'] if before else '-'}); now: "
+        f"{after['label'] or 'this checkout'} ({after['started']}, load average "
+        f"{after['machine']['load_average']}).",
+    ]
+    return "\n".join(lines + notes)
+
+
+def nbody_block() -> str:
+    after, before = _load("nbody_rhs.json"), _load("nbody_rhs_before.json")
+    if after is None:
+        return "(run `python benchmarks/nbody_rhs.py`)"
+    lines = ["| outer_solar_system, numba | before | now |", "|---|---|---|"]
+    for label in after["ns_per_call"]:
+        b = f"{before['ns_per_call'][label]:.0f} ns" if before else "-"
+        lines.append(f"| {label}, per call | {b} | {after['ns_per_call'][label]:.0f} ns |")
+    for label in after["compile_seconds"]:
+        b = f"{before['compile_seconds'][label]:.2f} s" if before else "-"
+        lines.append(
+            f"| compile {label} (no cache) | {b} | {after['compile_seconds'][label]:.2f} s |"
+        )
+    for key, label in (("pow_calls_in_source", "`**` (pow) in the generated module"),
+                       ("sqrt_calls_in_source", "`math.sqrt` in the generated module"),
+                       ("source_lines", "lines of the generated module")):  # fmt: skip
+        b = str(before[key]) if before else "-"
+        lines.append(f"| {label} | {b} | {after[key]} |")
+    loads = f"before {before['load_average']}, " if before else ""
+    lines.append(
+        f"\nGenerated and hand-written rhs agree to "
+        f"{after['max_relative_difference_generated_vs_hand']:.1e} (relative to the largest "
+        f"component).  Load average during the runs: {loads}now {after['load_average']}."
+    )
+    return "\n".join(lines)
+
+
+def main() -> int:
+    text = DOC.read_text()
+    for name, block in (("peers", peers_block), ("startup", startup_block),
+                        ("nbody", nbody_block)):  # fmt: skip
+        pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(\n<!-- {name}:end -->)", re.S)
+        if not pattern.search(text):
+            print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)
+            return 1
+        body = block()
+        text = pattern.sub(lambda m, b=body: m.group(1) + b + m.group(2), text)
+    DOC.write_text(text)
+    print(f"updated {DOC}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
