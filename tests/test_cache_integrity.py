@@ -194,3 +194,32 @@ def test_the_interpreted_rhs_gives_the_compiled_values_where_math_raises():
     np.testing.assert_allclose(
         ham.numeric.rhs(0.0, y, np.empty(0)), [0.25, 0.5, -1.5 * 2.0, -1.0], rtol=1e-15
     )
+
+
+def test_is_cached_tells_a_missing_or_damaged_module_from_an_intact_one(tmp_path):
+    ham = _system(0.077)
+    assert not codegen.is_cached(ham, tmp_path)
+    module = codegen.load_module(ham, tmp_path)
+    path = Path(module.__file__)
+    assert path == codegen.module_path(codegen.cache_key(ham), tmp_path)
+    assert codegen.is_cached(ham, tmp_path)
+    path.write_text(path.read_text()[:-10])
+    assert not codegen.is_cached(ham, tmp_path)
+
+
+@pytest.mark.skipif(not compiled.available()[0], reason="compiled backend unavailable")
+def test_the_compiled_path_never_lambdifies(monkeypatch):
+    """lambdify is built on first use only: a compiled solve (generation, compilation,
+    energy) needs none of it (it cost 2-3 s on outer_solar_system when eager)."""
+    from hamrkq.backends import numeric
+
+    monkeypatch.setattr(numeric, "_lambdify", lambda *a, **k: pytest.fail("lambdified"))
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2", real=True)
+    H = (p1**2 + p2**2) / 2 - 1 / sp.sqrt(q1**2 + q2**2) + sp.Float(0.0031) * q1
+    ham = hamrkq.Hamiltonian(H, q=[q1, q2], p=[p1, p2])
+    sol = hamrkq.solve(ham, [1.0, 0.0], [0.0, 1.0], (0.0, 1.0), backend="numba")
+    assert sol.status is Status.SUCCESS
+    # Constructing the numerical functions lambdifies nothing either, and the
+    # interpreted rhs runs the generated scalar code, not a lambdified one.
+    f = ham.numeric.rhs(0.0, np.array([1.0, 0.0, 0.0, 1.0]), np.empty(0))
+    np.testing.assert_allclose(f, [0.0, 1.0, -1.0031, 0.0], rtol=1e-15)
