@@ -231,7 +231,9 @@ class Hamiltonian:
     @property
     def names(self) -> tuple[str, ...]:
         """Names of the state components."""
-        return tuple(str(s) for s in self.state)
+        # s.name, not str(s): printing a symbol through SymPy costs ~50 us a call,
+        # and solve asks for the names every time.
+        return tuple(s.name if type(s) is sp.Symbol else str(s) for s in self.state)
 
     @property
     def time_dependent(self) -> bool:
