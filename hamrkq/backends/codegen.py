@@ -59,14 +59,16 @@ __all__ = [
     "cache_key",
     "check_supported",
     "generate_source",
+    "is_cached",
     "load_module",
+    "module_path",
 ]
 
 #: Environment variable that overrides the cache directory.
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 8
+CODEGEN_VERSION = 9
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
 #: Largest dimension for which rhs_jvp repeats the bodies of rhs and jac
@@ -570,9 +572,9 @@ def load_source(key: str, make_source, directory: Path | None = None) -> ModuleT
     processes that race to create it both end up importing a complete file.
     Imported modules are remembered for the rest of the process.
     """
-    name = MODULE_PREFIX + key[:32]
     directory = cache_dir() if directory is None else directory
-    path = directory / f"{name}.py"
+    path = module_path(key, directory)
+    name = path.stem
     with _MODULE_LOCK:
         module = _LOADED.get(str(path))
         if module is not None:
@@ -605,6 +607,24 @@ def _caller_level() -> int:
         frame = frame.f_back
         level += 1
     return level
+
+
+def module_path(key: str, directory: Path | None = None) -> Path:
+    """Where the module cached under ``key`` lives (whether or not it exists)."""
+    directory = cache_dir() if directory is None else directory
+    return directory / f"{MODULE_PREFIX}{key[:32]}.py"
+
+
+def is_cached(ham: Hamiltonian, directory: Path | None = None) -> bool:
+    """True if the generated module of ``ham`` is on disk and intact (its
+    checksum matches), so :func:`load_module` will neither derive nor print
+    anything.  A caller can use it to announce a slow first use (generation,
+    then compilation) before it starts."""
+    path = module_path(cache_key(ham), directory)
+    try:
+        return path.exists() and _damage(path) is None
+    except OSError:
+        return False
 
 
 def load_module(ham: Hamiltonian, directory: Path | None = None) -> ModuleType:
