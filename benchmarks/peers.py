@@ -509,6 +509,15 @@ def figure(results: dict, path: Path) -> None:
     plt.close(fig)
 
 
+FOOTNOTE = (
+    "(*) no tolerance gave an error within 15 % of hamrkq's: heyoka's row is the "
+    "loosest tolerance (Taylor order) whose error is at or below it, SciPy's the "
+    "closest found.  heyoka's compile time is its integrator's construction "
+    "(LLVM); a later construction of the same system may reuse heyoka's in-memory "
+    "cache.  hamrkq's first call includes loading (or compiling) its code."
+)
+
+
 def markdown(results: dict) -> str:
     m = results["machine"]
     lines = [
@@ -523,11 +532,7 @@ def markdown(results: dict) -> str:
         "",
         table(results),
         "",
-        "(*) no tolerance gave an error within 15 % of hamrkq's: heyoka's row is the "
-        "loosest tolerance (Taylor order) whose error is at or below it, SciPy's the "
-        "closest found.  heyoka's compile time is its integrator's construction "
-        "(LLVM); a later construction of the same system may reuse heyoka's in-memory "
-        "cache.  hamrkq's first call includes loading (or compiling) its code.",
+        FOOTNOTE,
         "",
         "References:",
         "",

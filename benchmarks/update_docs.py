@@ -52,7 +52,7 @@ def peers_block() -> str:
         f"{c['compared_on']}): {c['reference']['note']}."
         for c in results["cases"]
     ]
-    return "\n".join([head, "", peers.table(results), "", *refs])
+    return "\n".join([head, "", peers.table(results), "", peers.FOOTNOTE, "", *refs])
 
 
 def startup_block() -> str:
@@ -143,12 +143,12 @@ def main() -> int:
     text = DOC.read_text()
     for name, block in (("peers", peers_block), ("startup", startup_block),
                         ("nbody", nbody_block)):  # fmt: skip
-        pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(\n<!-- {name}:end -->)", re.S)
+        pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)
             return 1
         body = block()
-        text = pattern.sub(lambda m, b=body: m.group(1) + b + m.group(2), text)
+        text = pattern.sub(lambda m, b=body: f"{m.group(1)}\n{b}\n{m.group(2)}", text)
     DOC.write_text(text)
     print(f"updated {DOC}")
     return 0
