@@ -468,7 +468,16 @@ def figure(results: dict, path: Path) -> None:
         "SciPy DOP853, f in Python": ("v", "C3"),
     }
 
+    method_styles = {
+        f"hamrkq {m}": (marker, colour)
+        for m, marker, colour in zip(
+            results["methods"], "oDph*", ("C0", "C4", "C5", "C6", "C7"), strict=False
+        )
+    }
+
     def style(name: str):
+        if name in method_styles:
+            return method_styles[name]
         for key, value in styles.items():
             if name.startswith(key):
                 return value
@@ -490,7 +499,8 @@ def figure(results: dict, path: Path) -> None:
                 if r.get("method") == method
             )
             if len(pts) > 1:
-                ax.loglog(*zip(*pts, strict=True), "-", color="C0", alpha=0.5)
+                colour = style(f"hamrkq {method}")[1]
+                ax.loglog(*zip(*pts, strict=True), "-", color=colour, alpha=0.5)
         ax.set_title(case["case"], fontsize=10)
         ax.set_xlabel("max true error")
         ax.set_ylabel("time (s)")
@@ -561,7 +571,17 @@ def main(argv: list[str] | None = None) -> int:
         "--no-sweep", action="store_true", help="skip hamrkq at 10x and 0.1x the tolerance"
     )
     parser.add_argument("--out", type=Path, default=HERE, help="directory for the outputs")
+    parser.add_argument(
+        "--replot",
+        action="store_true",
+        help="measure nothing: redraw peers.md and peers.png from peers.json",
+    )
     args = parser.parse_args(argv)  # fmt: skip
+    if args.replot:
+        results = json.loads((args.out / "peers.json").read_text())
+        (args.out / "peers.md").write_text(markdown(results))
+        figure(results, args.out / "peers.png")
+        return 0
     try:
         import heyoka
     except ImportError:
