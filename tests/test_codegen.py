@@ -4,6 +4,7 @@ hostile names, unsupported expressions, the cache directory and the cache key.""
 from __future__ import annotations
 
 import ast
+import hashlib
 import math
 import re
 import sys
@@ -251,7 +252,7 @@ def test_cache_key_changes_with_the_versions(monkeypatch):
     before = codegen.cache_key(ham)
     monkeypatch.setattr(codegen, "CODEGEN_VERSION", codegen.CODEGEN_VERSION + 1)
     assert codegen.cache_key(ham) != before
-    monkeypatch.setattr(hamrkq, "__version__", "999.0")
+    monkeypatch.setattr(hamrkq._version, "__version__", "999.0")
     monkeypatch.setattr(codegen, "CODEGEN_VERSION", codegen.CODEGEN_VERSION - 1)
     assert codegen.cache_key(ham) != before
 
@@ -281,7 +282,9 @@ def test_load_module_writes_once_and_names_the_file_by_the_key(tmp_path):
     stamp = files[0].stat().st_mtime_ns
     assert codegen.load_module(ham, tmp_path) is module  # memoised in the process
     assert files[0].stat().st_mtime_ns == stamp  # and never rewritten
-    assert files[0].read_text() == codegen.generate_source(ham)
+    body, checksum = files[0].read_text().rstrip("\n").rsplit("\n", 1)
+    assert body + "\n" == codegen.generate_source(ham)
+    assert checksum == codegen.CHECKSUM_PREFIX + hashlib.sha256((body + "\n").encode()).hexdigest()
 
 
 def test_load_module_uses_the_environment_directory(monkeypatch, tmp_path):
@@ -295,7 +298,7 @@ def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
     """A second process finds the file: nothing is derived or printed again."""
     ham = hamrkq.load_problem("toda").hamiltonian
     path = tmp_path / f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"
-    path.write_text(codegen.generate_source(ham))
+    path.write_text(codegen._sealed(codegen.generate_source(ham)))
     monkeypatch.setattr(codegen, "generate_source", lambda ham: pytest.fail("regenerated"))
     module = codegen.load_module(ham, tmp_path)
     assert module.DIM == 6

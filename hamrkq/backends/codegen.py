@@ -28,12 +28,15 @@ are plain Python; :mod:`hamrkq.backends.compiled` compiles them.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
 import sys
 import tempfile
 import threading
+import warnings
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -43,7 +46,7 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
-from hamrkq.errors import HamrkqError
+from hamrkq.errors import HamrkqError, HamrkqWarning
 
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -56,14 +59,16 @@ __all__ = [
     "cache_key",
     "check_supported",
     "generate_source",
+    "is_cached",
     "load_module",
+    "module_path",
 ]
 
 #: Environment variable that overrides the cache directory.
 CACHE_ENV = "HAMRKQ_CACHE_DIR"
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 6
+CODEGEN_VERSION = 9
 #: Integer powers up to this are printed as products (see _ScalarPrinter).
 MAX_PRODUCT_POWER = 4
 #: Largest dimension for which rhs_jvp repeats the bodies of rhs and jac
@@ -87,6 +92,12 @@ _OPERATIONS = (sp.Add, sp.Mul, sp.Pow)
 _CONSTANTS = (type(sp.pi), type(sp.E))
 _MODULE_LOCK = threading.Lock()
 _LOADED: dict[str, ModuleType] = {}
+# cache_key's memo: one digest per Hamiltonian object, dropped with it.
+_KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: The last line of every cached file: ``CHECKSUM_PREFIX`` + the SHA-256 of
+#: the text before it.  A file whose last line does not match (truncated,
+#: emptied, edited) is rebuilt, not imported.
+CHECKSUM_PREFIX = "# hamrkq-checksum: sha256="
 
 
 class CodegenError(HamrkqError, ValueError):
@@ -118,19 +129,24 @@ def cache_dir() -> Path:
     return Path(base) / "hamrkq"
 
 
-def _versions() -> str:
-    from hamrkq._version import __version__
-
+@functools.cache
+def _tool_versions() -> str:
+    # Cached: importlib.metadata scans sys.path (about 1 ms a call), and these
+    # cannot change within a process.
     try:
         from importlib.metadata import version
 
         numba_version = version("numba")
     except Exception:  # numba absent or unreadable metadata: key on its absence
         numba_version = "none"
-    return (
-        f"codegen={CODEGEN_VERSION};hamrkq={__version__};sympy={sp.__version__};"
-        f"numba={numba_version};python={sys.version_info[:2]}"
-    )
+    return f"sympy={sp.__version__};numba={numba_version};python={sys.version_info[:2]}"
+
+
+def _versions() -> str:
+    # Read from the module each time (a dictionary lookup), not bound at import.
+    from hamrkq import _version
+
+    return f"codegen={CODEGEN_VERSION};hamrkq={_version.__version__};{_tool_versions()}"
 
 
 def cache_key(ham: Hamiltonian, extra: str = "") -> str:
@@ -142,18 +158,33 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
     derivation), numba and Python, and ``extra`` (for instance a method name).
     It does not need the derived equations, so a warm cache is found without
     differentiating anything.
+
+    The ``srepr`` text is printed and hashed once per Hamiltonian object (a
+    :class:`~hamrkq.symbolic.hamiltonian.Hamiltonian` is immutable) and the
+    digest remembered for as long as the object lives; a later call hashes
+    that digest with the versions and ``extra``, a few microseconds instead
+    of a printing of the expression tree.
     """
-    text = "\n".join(
-        [
-            sp.srepr(ham.H),
-            sp.srepr(tuple(ham.q)),
-            sp.srepr(tuple(ham.p)),
-            sp.srepr(tuple(ham.parameters)),
-            sp.srepr(ham.t),
-            _versions(),
-            extra,
-        ]
-    )
+    try:
+        expressions = _KEYS.get(ham)
+    except TypeError:  # not weak-referenceable or not hashable: no memo
+        expressions = None
+    if expressions is None:
+        text = "\n".join(
+            [
+                sp.srepr(ham.H),
+                sp.srepr(tuple(ham.q)),
+                sp.srepr(tuple(ham.p)),
+                sp.srepr(tuple(ham.parameters)),
+                sp.srepr(ham.t),
+            ]
+        )
+        expressions = hashlib.sha256(text.encode()).hexdigest()
+        try:
+            _KEYS[ham] = expressions
+        except TypeError:
+            pass
+    text = "\n".join([expressions, _versions(), extra])
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -216,15 +247,36 @@ class _ScalarPrinter(PythonCodePrinter):
         return repr(float(expr))
 
 
+def _is_half_integer_power(expr: sp.Expr) -> bool:
+    return expr.is_Pow and expr.exp.is_Rational and expr.exp.q == 2
+
+
 def _hoist_power_bases(replacements, reduced, temps):
-    """Give every compound base of an integer power its own temporary.
+    """Give every compound base of an integer power its own temporary, and
+    every base of a half-integer power its square root.
 
     The printer spells ``b**3`` as ``b*b*b``; without this, a base such as
-    ``cos(q)`` would be computed three times.  Bases are hoisted just before
-    the temporary (or output) that uses them, so definitions still precede uses.
+    ``cos(q)`` would be computed three times.  A half-integer power
+    ``b**(k + 1/2)`` becomes ``b**k * s`` with ``s = sqrt(b)`` a temporary
+    shared by every power of ``b`` (``1/(b*s)`` for ``b**(-3/2)``): one
+    square root and a few products per particle pair of an N-body force and
+    its Jacobian, instead of a ``pow`` call for each of ``r**-3`` and
+    ``r**-5``.  ``sqrt``, ``*`` and ``/`` are correctly rounded, so both
+    backends compute the same bits.  Bases are hoisted just before the
+    temporary (or output) that uses them, so definitions still precede uses.
     """
     known: dict[sp.Expr, sp.Symbol] = {}
+    roots: dict[sp.Expr, sp.Symbol] = {}
     ordered: list[tuple[sp.Symbol, sp.Expr]] = []
+
+    def hoist(base: sp.Expr) -> sp.Expr:
+        if base.is_Atom:
+            return base
+        symbol = known.get(base)
+        if symbol is None:
+            symbol = known[base] = next(temps)
+            ordered.append((symbol, base))
+        return symbol
 
     def visit(expr: sp.Expr) -> sp.Expr:
         if expr.is_Atom:
@@ -232,17 +284,22 @@ def _hoist_power_bases(replacements, reduced, temps):
         args = tuple(visit(arg) for arg in expr.args)
         if args != expr.args:
             expr = expr.func(*args, evaluate=False)
-        if (
-            expr.is_Pow
-            and expr.exp.is_Integer
-            and abs(int(expr.exp)) >= 2
-            and not expr.base.is_Atom
-        ):
-            symbol = known.get(expr.base)
-            if symbol is None:
-                symbol = known[expr.base] = next(temps)
-                ordered.append((symbol, expr.base))
-            return sp.Pow(symbol, expr.exp, evaluate=False)
+        if _is_half_integer_power(expr) and expr.exp != sp.S.Half:
+            base = hoist(expr.base)
+            root = roots.get(base)
+            if root is None:
+                root = roots[base] = next(temps)
+                ordered.append((root, sp.sqrt(base, evaluate=False)))
+            k = abs(expr.exp.p) // 2  # |exponent| = k + 1/2
+            if k == 0:
+                magnitude = root
+            elif k == 1:
+                magnitude = sp.Mul(base, root, evaluate=False)
+            else:
+                magnitude = sp.Mul(sp.Pow(base, k, evaluate=False), root, evaluate=False)
+            return magnitude if expr.exp > 0 else sp.Pow(magnitude, -1, evaluate=False)
+        if expr.is_Pow and expr.exp.is_Integer and abs(int(expr.exp)) >= 2:
+            return sp.Pow(hoist(expr.base), expr.exp, evaluate=False)
         return expr
 
     for symbol, value in replacements:
@@ -467,27 +524,107 @@ def _import_file(name: str, path: Path) -> ModuleType:
     return module
 
 
+def _checksum_line(text: str) -> str:
+    return CHECKSUM_PREFIX + hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _sealed(text: str) -> str:
+    """``text`` followed by its checksum line."""
+    if not text.endswith("\n"):
+        text += "\n"
+    return text + _checksum_line(text) + "\n"
+
+
+def _damage(path: Path) -> str | None:
+    """Why the cached file at ``path`` cannot be trusted, or None if it is intact.
+
+    Intact means: readable as UTF-8, and its last line is the checksum of the
+    text before it (so an emptied, truncated or edited file is caught before
+    it is imported, or compiled by numba).
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        return "it is not valid UTF-8"
+    body, _, last = text.rstrip("\n").rpartition("\n")
+    if not text.strip():
+        return "it is empty"
+    if not last.startswith(CHECKSUM_PREFIX):
+        return "its checksum line is missing (truncated?)"
+    if last != _checksum_line(body + "\n"):
+        return "its checksum does not match its contents"
+    return None
+
+
 def load_source(key: str, make_source, directory: Path | None = None) -> ModuleType:
     """Import the module cached under ``key``, writing it first if needed.
 
-    ``make_source()`` is called only when the file does not exist yet.  The
-    file is written atomically (a temporary name, then a rename), so processes
-    that race to create it both end up importing a complete file.  Imported
-    modules are remembered for the rest of the process.
+    ``make_source()`` is called only when the file does not exist yet or is
+    damaged.  Every file ends with a checksum of its text
+    (:data:`CHECKSUM_PREFIX`), verified before the import: a damaged file
+    (emptied, truncated, edited) is rebuilt from ``make_source()`` with one
+    :class:`~hamrkq.errors.HamrkqWarning` that names it, instead of failing
+    to import, or to compile, on every later run.  The rewritten file has a
+    new modification time, so numba's index of machine code compiled from
+    the old text no longer matches it and is recompiled too.
+
+    The file is written atomically (a temporary name, then a rename), so
+    processes that race to create it both end up importing a complete file.
+    Imported modules are remembered for the rest of the process.
     """
-    name = MODULE_PREFIX + key[:32]
     directory = cache_dir() if directory is None else directory
-    path = directory / f"{name}.py"
+    path = module_path(key, directory)
+    name = path.stem
     with _MODULE_LOCK:
         module = _LOADED.get(str(path))
         if module is not None:
             return module
         directory.mkdir(parents=True, exist_ok=True)
         if not path.exists():
-            _write_atomically(path, make_source())
+            _write_atomically(path, _sealed(make_source()))
+        else:
+            damage = _damage(path)
+            if damage is not None:
+                warnings.warn(
+                    f"hamrkq: the cached file {path} is damaged ({damage}); "
+                    "rebuilding it (and the compiled code kept beside it)",
+                    HamrkqWarning,
+                    stacklevel=_caller_level(),
+                )
+                _write_atomically(path, _sealed(make_source()))
         module = _import_file(name, path)
         _LOADED[str(path)] = module
         return module
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` that points a warning at the first frame outside hamrkq
+    (load_source is reached through solve, compiled, numeric... at varying depths)."""
+    frame = sys._getframe(1)
+    level = 1
+    package = str(Path(__file__).resolve().parents[1])
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame = frame.f_back
+        level += 1
+    return level
+
+
+def module_path(key: str, directory: Path | None = None) -> Path:
+    """Where the module cached under ``key`` lives (whether or not it exists)."""
+    directory = cache_dir() if directory is None else directory
+    return directory / f"{MODULE_PREFIX}{key[:32]}.py"
+
+
+def is_cached(ham: Hamiltonian, directory: Path | None = None) -> bool:
+    """True if the generated module of ``ham`` is on disk and intact (its
+    checksum matches), so :func:`load_module` will neither derive nor print
+    anything.  A caller can use it to announce a slow first use (generation,
+    then compilation) before it starts."""
+    path = module_path(cache_key(ham), directory)
+    try:
+        return path.exists() and _damage(path) is None
+    except OSError:
+        return False
 
 
 def load_module(ham: Hamiltonian, directory: Path | None = None) -> ModuleType:

@@ -6,14 +6,24 @@ p) and the parameter values as an array ordered like
 never re-derives or re-generates anything.  The functions are built with
 :func:`sympy.lambdify` with common subexpressions eliminated, and with the
 symbols replaced by dummies so that no user-chosen name appears in the
-generated source.
+generated source.  Each is built on first use (``lambdify`` of an 18-body
+Jacobian takes seconds; the compiled backend never needs it).
+
+``rhs`` and ``jac`` evaluate the scalar code of
+:mod:`hamrkq.backends.codegen` (the same code the compiled backend compiles).
+Where Python's ``math`` raises (``sqrt(-1)``, ``exp(1000)``, ``1/0.0``) they
+return what the compiled code returns, NaN or an infinity, so the step loop
+reports ``Status.NON_FINITE`` on both backends instead of the interpreter
+raising.
 """
 
 from __future__ import annotations
 
+import math
+import types
 from collections.abc import Callable, Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
@@ -22,6 +32,45 @@ if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["NumericHamiltonian", "vectorized"]
+
+#: What Python's floating-point code raises where IEEE arithmetic (and numba's
+#: compiled code, ``error_model="numpy"``) gives NaN or an infinity.
+_FLOAT_ERRORS = (ValueError, OverflowError, ZeroDivisionError)
+
+
+def _ieee_math() -> types.SimpleNamespace:
+    """A stand-in for :mod:`math` whose functions return NaN or an infinity
+    instead of raising (NumPy's ufuncs on float64 scalars, warnings off)."""
+    names = {
+        "sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos,
+        "atan": np.arctan, "atan2": np.arctan2, "sinh": np.sinh, "cosh": np.cosh,
+        "tanh": np.tanh, "asinh": np.arcsinh, "acosh": np.arccosh, "atanh": np.arctanh,
+        "exp": np.exp, "log": np.log, "sqrt": np.sqrt, "copysign": np.copysign,
+        "fabs": np.fabs,
+    }  # fmt: skip
+    namespace = {name: getattr(math, name) for name in dir(math) if not name.startswith("_")}
+    for name, ufunc in names.items():
+        namespace[name] = lambda *args, _f=ufunc: np.float64(_f(*args))
+    return types.SimpleNamespace(**namespace)
+
+
+def _ieee_functions(module: types.ModuleType) -> dict[str, Any]:
+    """The generated ``rhs`` and ``jac`` re-bound to :func:`_ieee_math`.
+
+    The same code objects (so the same expressions, in the same order); only
+    ``math`` is replaced, and every number is a NumPy float64, whose
+    arithmetic divides by zero and overflows to infinities instead of raising.
+    """
+    namespace = {"math": _ieee_math(), "__name__": module.__name__}
+    functions = {}
+    for name in ("rhs", "jac"):
+        code = getattr(module, name).__code__
+        functions[name] = namespace[name] = types.FunctionType(code, namespace, name)
+    return functions
+
+
+def _as_float64(array: np.ndarray) -> np.ndarray:
+    return np.asarray(array, dtype=np.float64)
 
 
 def _lambdify(ham: Hamiltonian, exprs) -> Callable:
@@ -75,11 +124,42 @@ class NumericHamiltonian:
     def __init__(self, ham: Hamiltonian):
         self.dim = ham.dim
         self._ham = ham
-        self._rhs = _lambdify(ham, list(ham.rhs))
-        self._jac = _lambdify(ham, ham.jacobian.tolist())
-        self._energy = vectorized(ham, [ham.H])
-        self._gradient = vectorized(ham, list(ham.gradient))
-        self._rhs_many = vectorized(ham, list(ham.rhs))
+
+    # Built on first use: most runs need one or two of these, and lambdify of
+    # a large system's Jacobian costs seconds.
+    @cached_property
+    def _rhs(self) -> Callable:
+        return _lambdify(self._ham, list(self._ham.rhs))
+
+    @cached_property
+    def _jac(self) -> Callable:
+        return _lambdify(self._ham, self._ham.jacobian.tolist())
+
+    @cached_property
+    def _energy(self) -> Callable:
+        return vectorized(self._ham, [self._ham.H])
+
+    @cached_property
+    def _gradient(self) -> Callable:
+        return vectorized(self._ham, list(self._ham.gradient))
+
+    @cached_property
+    def _rhs_many(self) -> Callable:
+        return vectorized(self._ham, list(self._ham.rhs))
+
+    @cached_property
+    def _ieee(self) -> dict[str, Any]:
+        return _ieee_functions(self._scalar)
+
+    def _call_scalar(self, name: str, t, y, params, out: np.ndarray) -> None:
+        """The generated function ``name``; where the interpreter raises on a
+        float error, its NaN/infinity-returning twin (the compiled code's
+        values), so the caller sees non-finite numbers, never an exception."""
+        try:
+            getattr(self._scalar, name)(t, y, params, out)
+        except _FLOAT_ERRORS:
+            with np.errstate(all="ignore"):
+                self._ieee[name](np.float64(t), _as_float64(y), _as_float64(params), out)
 
     @cached_property
     def _scalar(self):
@@ -100,7 +180,7 @@ class NumericHamiltonian:
         if scalar is None:
             return np.array(self._rhs(t, y, params), dtype=float)
         out = np.empty(self.dim)
-        scalar.rhs(t, y, params, out)
+        self._call_scalar("rhs", t, y, params, out)
         return out
 
     def rhs_many(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
@@ -113,7 +193,7 @@ class NumericHamiltonian:
         if scalar is None:
             return np.array(self._jac(t, y, params), dtype=float).reshape(self.dim, self.dim)
         out = np.empty((self.dim, self.dim))
-        scalar.jac(t, y, params, out)
+        self._call_scalar("jac", t, y, params, out)
         return out
 
     def energy(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
