@@ -19,6 +19,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 __all__ = [
+    "CodegenError",
     "ExpressionError",
     "HamiltonianError",
     "HamrkqError",
@@ -175,6 +176,11 @@ _INTERNAL = (
     os.path.dirname(os.path.abspath(__file__)) + os.sep,
     os.path.join("scipy", "integrate", ""),
 )
+
+
+class CodegenError(HamrkqError, ValueError):
+    """An expression cannot be turned into scalar code (an unsupported
+    function, an infinity or NaN, or a symbol that is not part of the system)."""
 
 
 def warn(message: str, category: type[Warning] = HamrkqWarning) -> None:

@@ -46,7 +46,8 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
-from hamrkq.errors import HamrkqError, HamrkqWarning
+from hamrkq.errors import CodegenError, HamrkqWarning
+from hamrkq.symbolic.supported import check_supported
 
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -78,18 +79,6 @@ MAX_FUSED_DIM = 12
 #: Prefix of generated module names (``sys.modules`` keys and file stems).
 MODULE_PREFIX = "hamrkq_gen_"
 
-# Functions that may appear in an expression, and what they print to.  The
-# problem-file grammar allows sin cos tan asin acos atan atan2 sinh cosh tanh
-# exp log sqrt Abs; differentiation adds sign (from Abs) and nothing else that
-# the printer cannot handle.
-_FUNCTIONS = (
-    sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2,
-    sp.sinh, sp.cosh, sp.tanh, sp.asinh, sp.acosh, sp.atanh,
-    sp.exp, sp.log, sp.Abs, sp.sign,
-)  # fmt: skip
-_ATOMS = (sp.Integer, sp.Rational, sp.Float, sp.Symbol)
-_OPERATIONS = (sp.Add, sp.Mul, sp.Pow)
-_CONSTANTS = (type(sp.pi), type(sp.E))
 _MODULE_LOCK = threading.Lock()
 _LOADED: dict[str, ModuleType] = {}
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
@@ -98,11 +87,6 @@ _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 #: the text before it.  A file whose last line does not match (truncated,
 #: emptied, edited) is rebuilt, not imported.
 CHECKSUM_PREFIX = "# hamrkq-checksum: sha256="
-
-
-class CodegenError(HamrkqError, ValueError):
-    """An expression cannot be turned into scalar code (an unsupported
-    function, an infinity or NaN, or a symbol that is not part of the system)."""
 
 
 def cache_dir() -> Path:
@@ -186,31 +170,6 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
             pass
     text = "\n".join([expressions, _versions(), extra])
     return hashlib.sha256(text.encode()).hexdigest()
-
-
-def check_supported(exprs: Sequence[sp.Expr], allowed: set[sp.Symbol]) -> None:
-    """Raise :class:`CodegenError` unless every node of ``exprs`` can be printed.
-
-    Allowed nodes: integers, rationals, finite floats, ``pi`` and ``E``, the
-    symbols in ``allowed``, ``+ * **`` and the functions of the problem-file
-    grammar (plus ``sign``, the derivative of ``Abs``).  All offending nodes
-    are listed in one message.
-    """
-    bad: set[str] = set()
-    for expr in exprs:
-        for node in sp.preorder_traversal(expr):
-            if isinstance(node, sp.Symbol):
-                if node not in allowed:
-                    bad.add(f"symbol {node}")
-            elif isinstance(node, sp.Float):
-                if not node.is_finite:
-                    bad.add(f"non-finite number {node}")
-            elif isinstance(node, _ATOMS + _OPERATIONS + _CONSTANTS + _FUNCTIONS):
-                continue
-            else:
-                bad.add(f"{type(node).__name__} ({node})")
-    if bad:
-        raise CodegenError("cannot generate scalar code for: " + "; ".join(sorted(bad)))
 
 
 class _ScalarPrinter(PythonCodePrinter):

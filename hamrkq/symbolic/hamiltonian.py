@@ -17,8 +17,14 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from hamrkq.backends.codegen import CodegenError, check_supported
-from hamrkq.errors import HamiltonianError, InputError, InputTypeError, UndeclaredSymbolError
+from hamrkq.errors import (
+    CodegenError,
+    HamiltonianError,
+    InputError,
+    InputTypeError,
+    UndeclaredSymbolError,
+)
+from hamrkq.symbolic.supported import check_supported
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
 
