@@ -8,6 +8,7 @@ stepwise control of the *global* error (J.S.C. Prentice, arXiv:1111.6996).
 
 from hamrkq.analysis.diagnostics import Diagnostics, diagnose
 from hamrkq.catalogue.problems import Problem, list_problems, load_problem
+from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.scipy_solver import RK34Q8
 from hamrkq.solve import solve
@@ -20,12 +21,14 @@ from ._version import __version__
 __all__ = [
     "RK34Q8",
     "Diagnostics",
+    "EnsembleSolution",
     "Hamiltonian",
     "Problem",
     "Solution",
     "Status",
     "__version__",
     "diagnose",
+    "ensemble",
     "errors",
     "list_problems",
     "load_problem",

@@ -31,6 +31,7 @@ __all__ = [
     "ProblemFileError",
     "ProblemNotFoundError",
     "SolutionFileError",
+    "ResultFileError",
     "UndeclaredSymbolError",
     "warn",
 ]
@@ -160,6 +161,10 @@ class SolutionFileError(InputError):
         self.path = str(path)
         self.detail = message
         super().__init__(f"{self.path}: {message}")
+
+
+class ResultFileError(InputError):
+    """A result file (an ensemble's ``.npz``, say) is missing, foreign or damaged."""
 
 
 class IntegrationError(HamrkqError, RuntimeError):

@@ -234,6 +234,13 @@ class Hamiltonian:
     def __delattr__(self, key: str) -> None:
         raise AttributeError(f"Hamiltonian is immutable (cannot delete {key!r})")
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # Pickle the declaration only (ensembles ship H to other processes):
+        # the cached derived quantities are rebuilt on demand there, and the
+        # lambdified functions of ``numeric`` cannot be pickled at all.
+        spec = {s: self._defaults.get(s) for s in self._params}
+        return (_unpickle, (self._H, self._q, self._p, spec, self._t, self.name))
+
     # -- the declaration ----------------------------------------------------
     @property
     def H(self) -> sp.Expr:
@@ -452,6 +459,10 @@ class Hamiltonian:
             if conflict is not None:
                 raise InputError(f"{label}: {conflict}")
         return np.array(parts, dtype=float)
+
+
+def _unpickle(H, q, p, parameters, t, name) -> Hamiltonian:
+    return Hamiltonian(H, q, p, parameters, t=t, name=name)
 
 
 def _check_scalar(H: Any, problems: list[str]) -> sp.Expr | None:

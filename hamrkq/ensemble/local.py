@@ -1,0 +1,190 @@
+"""Running an ensemble's chunks on this machine: in this thread, a thread pool
+or a process pool, and collecting the chunk results into one ensemble.
+
+Threads share the compiled kernel (it is compiled with ``nogil=True``, so
+members integrate in parallel), but the Python part of each :func:`hamrkq.solve`
+call holds the GIL.  Processes need no GIL but each loads the compiled code
+from the disk cache once, and every chunk travels pickled.
+``benchmarks/ensemble_pools.py`` measures both; :data:`DEFAULT_POOL` is what won.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+
+from hamrkq.ensemble.request import STATS, ChunkResult, Request, run_chunk
+from hamrkq.ensemble.result import EnsembleSolution
+from hamrkq.errors import InputError, OptionError
+
+__all__ = ["DEFAULT_POOL", "POOLS", "Collector", "chunk_bounds", "run_local", "usable_cores"]
+
+POOLS = ("threads", "processes")
+#: The pool ``workers > 1`` uses unless told otherwise; chosen by measurement
+#: (``benchmarks/ensemble_pools.py``, output in ``benchmarks/ensemble_pools.txt``).
+DEFAULT_POOL = "processes"
+#: Upper bound of the default chunk size: big enough to amortise a task's cost
+#: (pickling, scheduling), small enough for a smooth progress bar and for a
+#: lost Dask task to cost little.
+MAX_CHUNK = 200
+#: Default number of chunks per worker, for load balance between fast and slow members.
+CHUNKS_PER_WORKER = 8
+
+
+def usable_cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def chunk_bounds(size: int, workers: int, chunk_size: int | None) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` covering ``range(size)`` in order."""
+    if chunk_size is None:
+        chunk_size = max(1, min(MAX_CHUNK, math.ceil(size / (CHUNKS_PER_WORKER * workers))))
+    return [(a, min(a + chunk_size, size)) for a in range(0, size, chunk_size)]
+
+
+class Collector:
+    """The ensemble's arrays, filled chunk by chunk in whatever order chunks finish.
+
+    Every member must arrive exactly once: a chunk that overlaps members
+    already collected (a task run twice) is refused, and :meth:`finish`
+    refuses an ensemble with members missing.
+    """
+
+    def __init__(self, request: Request):
+        m, dim, times = request.size, request.ham.dim, request.times
+        self.request = request
+        self.y = np.full((m, times.size, dim), np.nan)
+        self.t_last = np.full(m, np.nan)
+        self.status = np.zeros(m, dtype=np.int8)
+        self.max_global_error = np.full(m, np.nan)
+        self.energy_drift = np.full(m, np.nan)
+        self.stats = np.zeros((m, len(STATS)), dtype=np.int64)
+        self.messages: dict[int, str] = {}
+        self.seen = np.zeros(m, dtype=bool)
+        self.done = 0
+
+    def add(self, chunk: ChunkResult) -> int:
+        """Store a chunk's results; returns the number of members it held."""
+        a = chunk.start - self.request.start
+        b = a + chunk.size
+        if self.seen[a:b].any():
+            raise RuntimeError(f"members {a}:{b} were delivered twice")
+        self.seen[a:b] = True
+        self.y[a:b] = chunk.y
+        self.t_last[a:b] = chunk.t_last
+        self.status[a:b] = chunk.status
+        self.max_global_error[a:b] = chunk.max_global_error
+        self.energy_drift[a:b] = chunk.energy_drift
+        self.stats[a:b] = chunk.stats
+        self.messages.update({a + i: text for i, text in chunk.messages.items()})
+        self.done += chunk.size
+        return chunk.size
+
+    def finish(self) -> EnsembleSolution:
+        """The :class:`EnsembleSolution` (every member must have arrived)."""
+        if not self.seen.all():
+            missing = np.flatnonzero(~self.seen)
+            raise RuntimeError(f"{missing.size} members never arrived (first: {missing[0]})")
+        r = self.request
+        failed = np.array(sorted(self.messages), dtype=np.int64)
+        names = [s.name for s in r.ham.parameters]
+        return EnsembleSolution(
+            t=r.times,
+            y=self.y,
+            y0=r.y0,
+            t_last=self.t_last,
+            status=self.status,
+            max_global_error=self.max_global_error,
+            energy_drift=self.energy_drift,
+            failed=failed,
+            messages=tuple(self.messages[int(i)] for i in failed),
+            names=r.ham.names,
+            method=str(r.options.get("method", "rk34q8")),
+            t_span=r.t_span,
+            parameters={name: r.params[:, j] for j, name in enumerate(names)},
+            stats={name: self.stats[:, k] for k, name in enumerate(STATS)},
+            options=_jsonable(r.options),
+        )
+
+
+def run_local(
+    request: Request,
+    workers: int,
+    pool: str,
+    chunk_size: int | None,
+    progress: Callable[[int], None],
+) -> EnsembleSolution:
+    """Run every chunk here (``workers == 1``) or in a pool of ``workers``."""
+    if pool not in POOLS:
+        raise OptionError(f"pool={pool!r} is not valid; valid: {', '.join(map(repr, POOLS))}")
+    collector = Collector(request)
+    bounds = chunk_bounds(request.size, workers, chunk_size)
+    if workers == 1 or len(bounds) <= 1:
+        for a, b in bounds:
+            progress(collector.add(run_chunk(request.subset(a, b))))
+        return collector.finish()
+    if pool == "threads":
+        executor: cf.Executor = cf.ThreadPoolExecutor(workers, thread_name_prefix="hamrkq")
+    else:
+        # spawn, not fork: the parent may hold threads (numba's, a GUI's) and
+        # locks that a forked child would inherit in an unknown state.
+        context = multiprocessing.get_context("spawn")
+        executor = cf.ProcessPoolExecutor(workers, mp_context=context)
+    with executor:
+        try:
+            for chunk in _bounded(executor, request, bounds, 2 * workers):
+                progress(collector.add(chunk))
+        except BaseException:
+            executor.shutdown(wait=False, cancel_futures=True)
+            raise
+    return collector.finish()
+
+
+def _bounded(
+    executor: cf.Executor, request: Request, bounds: list[tuple[int, int]], window: int
+) -> Iterator[ChunkResult]:
+    """Chunk results as they finish, with at most ``window`` chunks in flight
+    (a million members never become a million pending tasks)."""
+    todo = iter(bounds)
+    pending: set[cf.Future] = set()
+    while True:
+        for a, b in todo:
+            pending.add(executor.submit(run_chunk, request.subset(a, b)))
+            if len(pending) >= window:
+                break
+        if not pending:
+            return
+        finished, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+        for future in finished:
+            yield future.result()
+
+
+def check_workers(workers: Any) -> int:
+    """``workers`` as a positive int (None: every usable core)."""
+    if workers is None:
+        return usable_cores()
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"workers must be a positive integer or None, got {workers!r}")
+    return workers
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

@@ -1,0 +1,407 @@
+"""An ensemble request, validated once, and the one function that runs a chunk of it.
+
+:func:`build_request` turns what a user passes to :func:`hamrkq.ensemble` into
+a :class:`Request`: the Hamiltonian, one row of initial values and one row of
+parameter values per member, the time span, the kept times and the options of
+:func:`hamrkq.solve`.  Every check happens here, before any member runs, and
+every message names the parameter (and the member) at fault.
+
+:func:`run_chunk` integrates the members of a request and returns plain arrays
+(:class:`ChunkResult`), which cross process boundaries cheaply.  It is the only
+place that integrates: the local pools and the Dask path all call it on
+:meth:`Request.subset` slices.  Today it calls :func:`hamrkq.solve` once per
+member; a batch kernel (one compiled loop over members) can replace its body
+without touching anything else.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from hamrkq._validate import real as _real
+from hamrkq._validate import show as _show
+from hamrkq._validate import span as _span
+from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.solve import solve
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
+__all__ = ["STATS", "ChunkResult", "Request", "build_request", "run_chunk"]
+
+#: Per-member counters kept by an ensemble (0 where a method has no such counter).
+STATS = ("steps", "rejected", "quenches", "nfev", "njev")
+
+#: Keywords of :func:`hamrkq.solve` an ensemble decides itself: it keeps only
+#: ``t_eval`` (or the last node), and draws its own progress bar over members.
+_OWN_KEYWORDS = ("keep_every", "progress", "q0", "p0", "t_span", "parameters", "t_eval")
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Request:
+    """A validated ensemble: everything :func:`run_chunk` needs, and nothing
+    that does not pickle (the Hamiltonian travels as its SymPy declaration).
+
+    Attributes
+    ----------
+    ham : Hamiltonian
+    y0 : ndarray, shape (M, 2n)
+        Initial state of each member, all q then all p.
+    params : ndarray, shape (M, P)
+        Parameter values of each member, ordered like ``ham.parameters``.
+    t_span : (float, float)
+    t_eval : ndarray or None
+        The kept times; None keeps each member's last node only.
+    options : mapping
+        Keyword options passed to :func:`hamrkq.solve` for every member.
+    start : int
+        Index of the first member of this request in the whole ensemble
+        (non-zero for a :meth:`subset`).
+    """
+
+    ham: Hamiltonian
+    y0: np.ndarray
+    params: np.ndarray
+    t_span: tuple[float, float]
+    t_eval: np.ndarray | None
+    options: dict[str, Any] = field(default_factory=dict)
+    start: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "y0", _readonly(np.asarray(self.y0, dtype=float)))
+        object.__setattr__(self, "params", _readonly(np.asarray(self.params, dtype=float)))
+        if self.t_eval is not None:
+            object.__setattr__(self, "t_eval", _readonly(np.asarray(self.t_eval, dtype=float)))
+
+    @property
+    def size(self) -> int:
+        """Number of members."""
+        return int(self.y0.shape[0])
+
+    @property
+    def times(self) -> np.ndarray:
+        """The times kept for every member: ``t_eval``, or ``[t_end]``."""
+        if self.t_eval is not None:
+            return self.t_eval
+        return np.array([self.t_span[1]])
+
+    def subset(self, start: int, stop: int) -> Request:
+        """Members ``start:stop`` (indices into this request) as a request of their own."""
+        return Request(
+            self.ham,
+            self.y0[start:stop],
+            self.params[start:stop],
+            self.t_span,
+            self.t_eval,
+            self.options,
+            self.start + start,
+        )
+
+    def member_kwargs(self, i: int) -> dict[str, Any]:
+        """The arguments of :func:`hamrkq.solve` that integrate member ``i``
+        (an index into this request) on its own."""
+        n = self.ham.n
+        names = [s.name for s in self.ham.parameters]
+        return dict(
+            q0=self.y0[i, :n],
+            p0=self.y0[i, n:],
+            t_span=self.t_span,
+            parameters=dict(zip(names, self.params[i].tolist(), strict=True)),
+            t_eval=self.t_eval,
+            **self.options,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkResult:
+    """The outcome of :func:`run_chunk` for ``m`` members, as arrays.
+
+    ``y`` is (m, T, 2n), NaN at kept times a failed member never reached;
+    ``t_last`` the last time each member reached; ``status`` the
+    :class:`~hamrkq.result.Status` codes; ``messages`` the message of every
+    member that failed, by index in the chunk; ``stats`` (m, len(STATS)).
+    """
+
+    start: int
+    y: np.ndarray
+    t_last: np.ndarray
+    status: np.ndarray
+    max_global_error: np.ndarray
+    energy_drift: np.ndarray
+    stats: np.ndarray
+    messages: dict[int, str]
+
+    @property
+    def size(self) -> int:
+        """Number of members."""
+        return int(self.status.size)
+
+
+def run_chunk(request: Request) -> ChunkResult:
+    """Integrate every member of ``request``; one failure never stops the others.
+
+    Each member is integrated by :func:`hamrkq.solve` with the request's
+    options, so that it equals the same member solved alone, bit for bit.
+    """
+    m, dim = request.size, request.ham.dim
+    times = request.times
+    y = np.full((m, times.size, dim), np.nan)
+    t_last = np.full(m, np.nan)
+    status = np.zeros(m, dtype=np.int8)
+    max_error = np.full(m, np.nan)
+    drift = np.full(m, np.nan)
+    stats = np.zeros((m, len(STATS)), dtype=np.int64)
+    messages: dict[int, str] = {}
+    for i in range(m):
+        sol = solve(request.ham, **request.member_kwargs(i))
+        status[i] = sol.status.code
+        if not sol.success:
+            messages[i] = sol.message
+        stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
+        if sol.t.size == 0:
+            continue
+        t_last[i] = sol.t[-1]
+        if request.t_eval is not None:
+            y[i, : sol.t.size] = sol.y
+        else:
+            # A member that stopped short of t_end keeps its last state too
+            # (t_last says when), as solve keeps the nodes computed so far.
+            y[i, 0] = sol.y[-1]
+        if sol.global_error is not None:
+            max_error[i] = float(np.max(np.abs(sol.global_error)))
+        drift[i] = float(np.max(np.abs(sol.energy - _initial_energy(request, i, sol))))
+    return ChunkResult(request.start, y, t_last, status, max_error, drift, stats, messages)
+
+
+def _initial_energy(request: Request, i: int, sol: Any) -> float:
+    """H at the member's initial state: the first node when that is t0 (the
+    usual case), else evaluated once (``t_eval`` need not contain t0)."""
+    t0 = request.t_span[0]
+    if sol.t[0] == t0:
+        return float(sol.energy[0])
+    energy = request.ham.numeric.energy(np.array([t0]), request.y0[i : i + 1], request.params[i])
+    return float(np.asarray(energy).ravel()[0])
+
+
+# -- validation --------------------------------------------------------------------
+
+
+def build_request(
+    system: Any,
+    q0: Any,
+    p0: Any,
+    t_span: Any,
+    parameters: Mapping[Any, Any] | None,
+    t_eval: Any,
+    options: Mapping[str, Any],
+) -> Request:
+    """Validate an ensemble request (see :func:`hamrkq.ensemble`)."""
+    from hamrkq.catalogue.problems import Problem
+
+    for name in _OWN_KEYWORDS:
+        if name in options:
+            raise OptionError(
+                f"{name}= is not an option of ensemble (it keeps t_eval or the last node "
+                "of every member, and draws its own progress bar)"
+            )
+    if isinstance(system, Problem):
+        ham = system.hamiltonian
+        # The problem's [integration] settings are defaults; keywords win.
+        options = {**dict(system.integration), **options}
+        base_params = np.asarray(system.parameter_array, dtype=float)
+        t_span = system.t_span if t_span is None else t_span
+    elif isinstance(system, Hamiltonian):
+        ham = system
+        missing = [k for k, v in (("q0", q0), ("p0", p0), ("t_span", t_span)) if v is None]
+        if missing:
+            raise InputError(
+                f"{', '.join(missing)} must be given for an ensemble of a Hamiltonian"
+            )
+        base_params = None
+    else:
+        raise InputTypeError(
+            "problem_or_hamiltonian must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
+            f"got {type(system).__name__}"
+        )
+    options.pop("t_span", None)
+    t0, t_end = _span(t_span)
+    columns = _parameter_columns(ham, parameters)
+    n = ham.n
+    q_cols = _state_columns("q0", q0, [s.name for s in ham.q])
+    p_cols = _state_columns("p0", p0, [s.name for s in ham.p])
+    size = _common_size({**q_cols, **p_cols, **columns})
+    params = _parameter_rows(ham, base_params, columns, size)
+    y0 = np.empty((size, 2 * n))
+    defaults = _problem_initial(system, ham, params, q_cols, p_cols)
+    for k, name in enumerate(ham.names):
+        col = {**q_cols, **p_cols}.get(name)
+        if col is None:
+            if defaults is None:
+                label = "q0" if k < n else "p0"
+                raise InputError(f"{label} gives no value for {name!r}")
+            y0[:, k] = defaults[:, k]
+        else:
+            y0[:, k] = col
+    bad = ~np.isfinite(y0)
+    if bad.any():
+        member, k = map(int, np.argwhere(bad)[0])
+        raise InputError(
+            f"initial value {ham.names[k]} of member {member} is not finite ({y0[member, k]!r})"
+        )
+    request = Request(ham, y0, params, (t0, t_end), _t_eval(t_eval, t0, t_end), dict(options))
+    _probe(request)
+    return request
+
+
+def _probe(request: Request) -> None:
+    """Let :func:`hamrkq.solve` check the options once, on member 0 over an
+    empty interval: a bad option fails here, before any member runs (and the
+    system is compiled here, once, before any worker starts)."""
+    if request.size == 0:
+        return
+    kwargs = request.member_kwargs(0)
+    t0 = request.t_span[0]
+    kwargs.update(t_span=(t0, t0), t_eval=None)
+    solve(request.ham, **kwargs)
+
+
+def _column(name: str, value: Any) -> np.ndarray:
+    """A 1-D float array (a scalar gives one value) from numbers or SymPy numbers."""
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{name} must be numbers, not the string {value!r}")
+    if isinstance(value, sp.Basic) or isinstance(value, numbers.Number):
+        return np.array([_real(name, value)])
+    array = np.asarray(value)
+    if array.dtype == object:
+        array = np.array([_real(name, v) for v in array.ravel()]).reshape(array.shape)
+    elif array.dtype.kind not in "iuf":
+        raise InputTypeError(f"{name} must be real numbers, got {_show(value)}")
+    if array.ndim > 1:
+        raise InputError(f"{name} must be a number or a 1-D array, got shape {array.shape}")
+    return np.atleast_1d(array.astype(float))
+
+
+def _state_columns(label: str, value: Any, names: list[str]) -> dict[str, np.ndarray]:
+    """``q0``/``p0`` as columns by name: an (n,) or (M, n) array, or a mapping
+    of names to numbers or (M,) arrays."""
+    if value is None:
+        return {}
+    if isinstance(value, Mapping):
+        unknown = sorted(str(k) for k in value if str(k) not in names)
+        if unknown:
+            raise InputError(
+                f"{label} names {', '.join(unknown)}, which are not among {', '.join(names)}"
+            )
+        return {str(k): _column(f"{label}[{k!s}]", v) for k, v in value.items()}
+    if isinstance(value, str | bytes):
+        raise InputTypeError(f"{label} must be an array of numbers, not the string {value!r}")
+    array = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
+    if array.ndim == 0:
+        array = array.reshape(1)
+    if array.ndim == 1:
+        array = array.reshape(1, -1)
+    if array.ndim != 2 or array.shape[1] != len(names):
+        raise InputError(
+            f"{label} must have shape ({len(names)},) or (M, {len(names)}), "
+            f"got shape {np.shape(value)}"
+        )
+    return {name: _column(f"{label}[:, {k}]", array[:, k]) for k, name in enumerate(names)}
+
+
+def _parameter_columns(ham: Hamiltonian, parameters: Any) -> dict[str, np.ndarray]:
+    if parameters is None:
+        return {}
+    if not isinstance(parameters, Mapping):
+        raise InputTypeError(
+            "parameters must be a mapping of names (or symbols) to numbers or arrays, "
+            f"got {_show(parameters)}"
+        )
+    known = [s.name for s in ham.parameters]
+    columns = {}
+    for key, value in parameters.items():
+        name = key.name if isinstance(key, sp.Symbol) else key
+        if name not in known:
+            raise InputError(
+                f"unknown parameter {key!s} (parameters: {', '.join(known) or 'none'})"
+            )
+        columns[name] = _column(f"parameters[{name!r}]", value)
+    return columns
+
+
+def _common_size(columns: Mapping[str, np.ndarray]) -> int:
+    """M: the one length (other than 1) shared by every column given."""
+    sizes = {name: col.size for name, col in columns.items()}
+    long = {size for size in sizes.values() if size != 1}
+    if len(long) > 1:
+        listing = ", ".join(f"{name}: {size}" for name, size in sizes.items())
+        raise InputError(f"members disagree in number ({listing}); give one length M, or 1")
+    if 0 in sizes.values():
+        return 0
+    return long.pop() if long else 1
+
+
+def _parameter_rows(
+    ham: Hamiltonian, base: np.ndarray | None, columns: Mapping[str, np.ndarray], size: int
+) -> np.ndarray:
+    if base is None:
+        given = {name: float(col[0]) for name, col in columns.items()}
+        base = ham.parameter_values(given)  # names a parameter with no value
+    params = np.repeat(np.asarray(base, dtype=float)[None, :], size, axis=0)
+    for j, symbol in enumerate(ham.parameters):
+        if symbol.name in columns:
+            params[:, j] = columns[symbol.name]
+    bad = ~np.isfinite(params)
+    if bad.any():
+        member, j = map(int, np.argwhere(bad)[0])
+        raise InputError(
+            f"parameter {ham.parameters[j].name} of member {member} is not finite "
+            f"({params[member, j]!r})"
+        )
+    return params
+
+
+def _problem_initial(
+    system: Any, ham: Hamiltonian, params: np.ndarray, q_cols: Mapping, p_cols: Mapping
+) -> np.ndarray | None:
+    """A Problem's initial values for each member's parameters (they may depend
+    on them), evaluated once per distinct parameter row; None for a Hamiltonian
+    or when q0 and p0 give every component."""
+    from hamrkq.catalogue.problems import Problem
+
+    if not isinstance(system, Problem) or len(q_cols) + len(p_cols) == ham.dim:
+        return None
+    out = np.empty((params.shape[0], ham.dim))
+    if params.shape[1] == 0:
+        out[:] = system.y0
+        return out
+    rows, inverse = np.unique(params, axis=0, return_inverse=True)
+    names = [s.name for s in ham.parameters]
+    for r, row in enumerate(rows):
+        values = dict(zip(names, row.tolist(), strict=True))
+        out[np.ravel(inverse) == r] = system.with_parameters(**values).y0
+    return out
+
+
+def _t_eval(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
+    if t_eval is None:
+        return None
+    times = _column("t_eval", t_eval)
+    if np.ndim(t_eval) != 1 or times.size == 0:
+        raise InputError(f"t_eval must be a non-empty 1-D array, got {_show(t_eval)}")
+    lo, hi = min(t0, t_end), max(t0, t_end)
+    if not np.all(np.isfinite(times)) or times.min() < lo or times.max() > hi:
+        raise InputError(f"t_eval must lie within t_span ({t0!r}, {t_end!r})")
+    if np.any(np.diff(times) * math.copysign(1.0, t_end - t0) <= 0):
+        raise InputError("t_eval must be strictly monotonic in the direction of integration")
+    return times

@@ -1,0 +1,184 @@
+"""hamrkq.ensemble on this machine: every member equals the same member solved
+alone (bit for bit), members that fail are marked and never stop the others,
+parameters bind by name, the request is validated before any member runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.catalogue import exact
+from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.result import Status
+
+q, p, w = sp.symbols("q p w")
+OSCILLATOR = hamrkq.Hamiltonian(p**2 / 2 + w**2 * q**2 / 2, q=[q], p=[p], parameters={w: 1.0})
+#: Attractive 1/q potential: from rest at q = 1 the fall reaches q = 0 at
+#: t = pi/(2 sqrt 2) ~ 1.11; with p0 > sqrt(2) the orbit escapes instead.
+FALL = hamrkq.Hamiltonian(p**2 / 2 - 1 / q, q=[q], p=[p])
+
+
+def _assert_member_equals_solve(ens, i, system, **kwargs):
+    n = ens.n
+    sol = hamrkq.solve(system, q0=ens.y0[i, :n], p0=ens.y0[i, n:], **kwargs)
+    assert ens.member_status(i) is sol.status
+    assert ens.t_last[i] == sol.t[-1]
+    for k, name in enumerate(("steps", "rejected", "quenches", "nfev", "njev")):
+        assert ens.stats[name][i] == sol.stats.get(name, 0), name
+    if ens.t.size == 1 and kwargs.get("t_eval") is None:
+        np.testing.assert_array_equal(ens.y[i, 0], sol.y[-1])
+    else:
+        np.testing.assert_array_equal(ens.y[i, : sol.t.size], sol.y)
+    assert ens.max_global_error[i] == np.abs(sol.global_error).max()
+    return sol
+
+
+def test_1000_pendulum_members_equal_solve_alone_bitwise():
+    pend = hamrkq.load_problem("pendulum")
+    rng = np.random.default_rng(7)
+    q0 = rng.uniform(-3.0, 3.0, (1000, 1))
+    p0 = rng.uniform(-2.0, 2.0, (1000, 1))
+    ens = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 3), workers=2, progress=False)
+    assert ens.y.shape == (1000, 1, 2) and ens.t.tolist() == [3.0]
+    assert ens.all_success and ens.success.all()
+    np.testing.assert_array_equal(ens.y0, np.hstack([q0, p0]))
+    for i in range(1000):
+        sol = _assert_member_equals_solve(ens, i, pend, t_span=(0, 3))
+        assert ens.energy_drift[i] == np.abs(sol.energy - sol.energy[0]).max()
+    # And the numbers are right: energy is conserved to the tolerance's order
+    # (atol 1e-8 from the problem file), and the error estimate is honest
+    # against the RK8 track (|y - z| within the tolerance).
+    assert ens.energy_drift.max() < 1e-7
+    assert ens.max_global_error.max() <= 1.05e-8
+
+
+def test_t_eval_keeps_every_member_at_those_times_and_matches_the_exact_solution():
+    t_eval = np.linspace(0.0, 10.0, 11)
+    y0 = np.array([[0.5, 0.0], [0.0, 1.0], [-1.0, 0.25]])
+    ens = hamrkq.ensemble(
+        hamrkq.load_problem("harmonic"), q0=y0[:, :1], p0=y0[:, 1:], t_span=(0, 10),
+        t_eval=t_eval, atol=1e-9, workers=1,
+    )  # fmt: skip
+    assert ens.y.shape == (3, 11, 2)
+    np.testing.assert_array_equal(ens.t, t_eval)
+    for i in range(3):
+        assert np.abs(ens.y[i] - exact.harmonic(t_eval, y0[i])).max() <= 1.05e-9
+        _assert_member_equals_solve(
+            ens, i, hamrkq.load_problem("harmonic"), t_span=(0, 10), t_eval=t_eval, atol=1e-9
+        )
+
+
+def test_parameters_per_member_by_name_against_the_exact_solution():
+    # q(t) = q0 cos(w t): one member per frequency, bound by name.
+    freqs = np.array([0.5, 1.0, 2.0, 3.0])
+    ens = hamrkq.ensemble(
+        OSCILLATOR, q0=[1.0], p0=[0.0], t_span=(0, 5), parameters={"w": freqs}, atol=1e-9,
+        workers=2, scheduler="threads",
+    )  # fmt: skip
+    np.testing.assert_array_equal(ens.parameters["w"], freqs)
+    np.testing.assert_allclose(ens.q[:, 0, 0], np.cos(5 * freqs), atol=2e-9, rtol=0)
+    for i, value in enumerate(freqs):
+        sol = hamrkq.solve(OSCILLATOR, [1.0], [0.0], (0, 5), parameters={w: value}, atol=1e-9)
+        np.testing.assert_array_equal(ens.y[i, 0], sol.y[-1])
+
+
+def test_a_problem_s_initial_values_follow_each_member_s_parameters():
+    kepler = hamrkq.load_problem("kepler")
+    ens = hamrkq.ensemble(
+        kepler, t_span=(0, 2), parameters={"e": [0.1, 0.5, 0.1]}, workers=1, progress=False
+    )
+    for i, e in enumerate([0.1, 0.5, 0.1]):
+        moved = kepler.with_parameters(e=e)
+        np.testing.assert_array_equal(ens.y0[i], moved.y0)
+        # Kepler's exact solution for that eccentricity, at the problem's tolerance.
+        assert np.abs(ens.y[i, 0] - moved.exact(np.array([2.0]))[0]).max() < 1e-5
+
+
+def test_a_member_that_fails_is_marked_and_never_stops_the_others():
+    p0 = np.array([0.0, 2.0, 0.1, 3.0])  # 0 and 0.1 fall into q = 0; 2 and 3 escape
+    ens = hamrkq.ensemble(
+        FALL, q0=[1.0], p0=p0[:, None], t_span=(0, 2), atol=1e-8, workers=2, chunk_size=1,
+        scheduler="threads",
+    )  # fmt: skip
+    assert ens.success.tolist() == [False, True, False, True]
+    assert ens.failed.tolist() == [0, 2] and not ens.all_success
+    for i in range(4):
+        sol = _assert_member_equals_solve(ens, i, FALL, t_span=(0, 2), atol=1e-8)
+        if not sol.success:
+            assert ens.message(i) == sol.message
+        else:
+            assert ens.message(i) == "The integration reached the end of the interval (t = 2.0)."
+    # The fall from rest reaches q = 0 at pi / (2 sqrt 2): the failure is there.
+    assert ens.t_last[0] == pytest.approx(np.pi / (2 * np.sqrt(2)), abs=1e-3)
+    assert ens.member_status(0) is not Status.SUCCESS and "t = " in ens.message(0)
+    # Escaping members conserve energy: H = p0**2/2 - 1.
+    h = ens.p[[1, 3], 0, 0] ** 2 / 2 - 1 / ens.q[[1, 3], 0, 0]
+    np.testing.assert_allclose(h, p0[[1, 3]] ** 2 / 2 - 1, atol=1e-7, rtol=0)
+
+
+def test_threads_processes_and_serial_give_the_same_bits():
+    pend = hamrkq.load_problem("pendulum")
+    q0 = np.linspace(-3, 3, 24)[:, None]
+    runs = [
+        hamrkq.ensemble(pend, q0=q0, p0=[0.3], t_span=(0, 2), scheduler=s, workers=2)
+        for s in ("serial", "threads", "processes")
+    ]
+    for other in runs[1:]:
+        np.testing.assert_array_equal(other.y, runs[0].y)
+        np.testing.assert_array_equal(other.stats["nfev"], runs[0].stats["nfev"])
+
+
+def test_progress_callable_sees_every_member_once():
+    calls = []
+    ens = hamrkq.ensemble(
+        hamrkq.load_problem("pendulum"), q0=np.linspace(0, 1, 10)[:, None], p0=[0.0],
+        t_span=(0, 1), workers=1, chunk_size=3, progress=lambda done, total: calls.append((done, total)),
+    )  # fmt: skip
+    assert calls == [(3, 10), (6, 10), (9, 10), (10, 10)] and len(ens) == 10
+
+
+def test_names_bind_q0_and_p0_by_name_and_the_rest_comes_from_the_problem():
+    hh = hamrkq.load_problem("henon_heiles")
+    ens = hamrkq.ensemble(hh, q0={"q1": [0.0, 0.1]}, t_span=(0, 1), workers=1)
+    np.testing.assert_array_equal(ens.y0, [[0.0, 0.18, 0.18, 0.18], [0.1, 0.18, 0.18, 0.18]])
+    assert ens.names == ("q1", "q2", "p1", "p2")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"q0": np.zeros((3, 1)), "p0": np.zeros((4, 1))}, InputError, "q: 3, p: 4"),
+        ({"q0": [[0.0], [np.nan]]}, InputError, "initial value q of member 1"),
+        ({"q0": np.zeros((2, 2))}, InputError, r"shape \(1,\) or \(M, 1\)"),
+        ({"q0": "0.5"}, InputTypeError, "string"),
+        ({"parameters": {"zeta": [1.0]}}, InputError, "unknown parameter zeta"),
+        ({"parameters": [1.0]}, InputTypeError, "mapping"),
+        ({"keep_every": 2}, OptionError, "keep_every"),
+        ({"atol": -1.0}, InputError, "atol"),
+        ({"method": "rk99"}, OptionError, "rk99"),
+        ({"t_eval": [0.5, 0.2]}, InputError, "monotonic"),
+        ({"t_eval": [0.5, 7.0]}, InputError, "within t_span"),
+        ({"workers": 0}, InputError, "workers"),
+        ({"scheduler": "gpu"}, OptionError, "scheduler='gpu'"),
+        ({"chunk_size": 0}, OptionError, "chunk_size"),
+        ({"progress": "yes"}, InputTypeError, "progress"),
+    ],
+)
+def test_bad_requests_fail_before_any_member_runs(kwargs, error, match):
+    base = {"q0": [[0.1], [0.2]], "p0": [0.0], "t_span": (0, 1), "workers": 1}
+    with pytest.raises(error, match=match):
+        hamrkq.ensemble(hamrkq.load_problem("pendulum"), **{**base, **kwargs})
+
+
+def test_a_hamiltonian_needs_initial_values_and_span():
+    with pytest.raises(InputError, match="p0, t_span must be given"):
+        hamrkq.ensemble(FALL, q0=[1.0])
+    with pytest.raises(InputTypeError, match="Hamiltonian or a hamrkq.Problem"):
+        hamrkq.ensemble("pendulum", q0=[1.0], p0=[0.0], t_span=(0, 1))
+
+
+def test_an_empty_ensemble_is_empty():
+    ens = hamrkq.ensemble(FALL, q0=np.zeros((0, 1)), p0=[0.0], t_span=(0, 1))
+    assert len(ens) == 0 and ens.y.shape == (0, 1, 2) and ens.all_success
