@@ -44,7 +44,7 @@ def run_dask(
     distributed = _distributed()
     if client is None:
         cluster = distributed.LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
         )
         with cluster, distributed.Client(cluster) as own:
             return _run(request, own, chunk_size, progress)

@@ -1,0 +1,99 @@
+"""The Dask path: the same numbers as the local path on a LocalCluster of two
+worker processes, and a worker killed mid-run loses nothing and duplicates nothing."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import numpy as np
+import pytest
+
+import hamrkq
+
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    )
+    with cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+def _members(count):
+    rng = np.random.default_rng(3)
+    return rng.uniform(-3, 3, (count, 1)), rng.uniform(-2, 2, (count, 1))
+
+
+def test_dask_gives_the_local_numbers(client):
+    pend = hamrkq.load_problem("pendulum")
+    q0, p0 = _members(60)
+    kwargs = dict(q0=q0, p0=p0, t_span=(0, 3), t_eval=[1.0, 3.0])
+    local = hamrkq.ensemble(pend, **kwargs, workers=1)
+    remote = hamrkq.ensemble(pend, **kwargs, client=client, chunk_size=7)
+    for name in ("y", "t_last", "status", "max_global_error", "energy_drift"):
+        np.testing.assert_array_equal(getattr(remote, name), getattr(local, name))
+    for name in local.stats:
+        np.testing.assert_array_equal(remote.stats[name], local.stats[name])
+
+
+def _exit_soon():
+    # Run on the worker: exit abruptly (no clean shutdown, no reply to its
+    # tasks) a moment after client.run has had its answer.
+    threading.Timer(0.05, os._exit, (1,)).start()
+
+
+def test_a_worker_killed_mid_run_loses_and_duplicates_nothing(client):
+    pend = hamrkq.load_problem("pendulum")
+    q0, p0 = _members(120)
+    local = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 3), workers=1)
+    victims = []
+
+    def kill_one(done, total):
+        # After the first chunk arrives, kill a worker that holds tasks: its
+        # process exits at once (no clean shutdown), the nanny restarts it,
+        # and the scheduler reruns the tasks it held.
+        if victims:
+            return
+        processing = client.processing()
+        busy = [addr for addr, keys in processing.items() if keys] or list(processing)
+        victims.append(busy[0])
+        client.run(_exit_soon, workers=[busy[0]])
+
+    calls = []
+
+    def progress(done, total):
+        calls.append(done)
+        kill_one(done, total)
+
+    remote = hamrkq.ensemble(
+        pend, q0=q0, p0=p0, t_span=(0, 3), client=client, chunk_size=4, progress=progress
+    )
+    assert victims, "no worker was killed"
+    assert victims[0] not in client.scheduler_info()["workers"]  # it did die
+    # Every member exactly once: the collector refuses a chunk delivered twice,
+    # and progress counted each member once, in 30 chunks of 4.
+    assert calls[-1] == 120 and len(calls) == 30
+    np.testing.assert_array_equal(remote.y, local.y)
+    np.testing.assert_array_equal(remote.stats["nfev"], local.stats["nfev"])
+    client.wait_for_workers(2, timeout=60)  # the nanny restarts it, for the other tests
+
+
+def test_scheduler_dask_starts_and_closes_its_own_cluster():
+    pend = hamrkq.load_problem("pendulum")
+    q0, p0 = _members(6)
+    before = _default_client()
+    ens = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 1), scheduler="dask", workers=1)
+    assert _default_client() == before  # its own client is gone, none replaced the default
+    local = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 1), workers=1)
+    np.testing.assert_array_equal(ens.y, local.y)
+
+
+def _default_client():
+    try:
+        return distributed.default_client().id
+    except ValueError:  # no client at all
+        return None
