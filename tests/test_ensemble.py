@@ -46,6 +46,7 @@ def test_1000_pendulum_members_equal_solve_alone_bitwise():
     np.testing.assert_array_equal(ens.y0, np.hstack([q0, p0]))
     for i in range(1000):
         sol = _assert_member_equals_solve(ens, i, pend, t_span=(0, 3))
+        assert ens.energy0[i] == sol.energy[0]
         assert ens.energy_drift[i] == np.abs(sol.energy - sol.energy[0]).max()
     # And the numbers are right: energy is conserved to the tolerance's order
     # (atol 1e-8 from the problem file), and the error estimate is honest

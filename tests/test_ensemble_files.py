@@ -29,7 +29,7 @@ def ens():
 
 
 def _assert_same(a, b):
-    for name in ("t", "y", "y0", "t_last", "status", "max_global_error", "energy_drift",
+    for name in ("t", "y", "y0", "t_last", "status", "max_global_error", "energy0", "energy_drift",
                  "failed"):  # fmt: skip
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
         assert getattr(a, name).dtype == getattr(b, name).dtype
@@ -43,6 +43,8 @@ def _assert_same(a, b):
 def test_the_fixture_has_failed_and_unreached_times(ens):
     assert ens.failed.tolist() == [0, 2]
     assert np.isnan(ens.y[0, 2]).all() and np.isfinite(ens.y[1]).all()
+    # t_eval does not hold t0: H(y0) is evaluated apart, H = p0**2/2 - 1/q0.
+    np.testing.assert_allclose(ens.energy0, [-1.0, 1.0, 0.005 - 1.0], rtol=0, atol=1e-15)
 
 
 def test_arrays_are_read_only_and_fields_frozen(ens):

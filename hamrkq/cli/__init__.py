@@ -88,6 +88,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hamrkq.cli.run",
     "hamrkq.cli.reproduce",
     "hamrkq.cli.compare",
+    "hamrkq.cli.ensemble",
 )
 
 

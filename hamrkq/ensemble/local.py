@@ -67,6 +67,7 @@ class Collector:
         self.t_last = np.full(m, np.nan)
         self.status = np.zeros(m, dtype=np.int8)
         self.max_global_error = np.full(m, np.nan)
+        self.energy0 = np.full(m, np.nan)
         self.energy_drift = np.full(m, np.nan)
         self.stats = np.zeros((m, len(STATS)), dtype=np.int64)
         self.messages: dict[int, str] = {}
@@ -84,6 +85,7 @@ class Collector:
         self.t_last[a:b] = chunk.t_last
         self.status[a:b] = chunk.status
         self.max_global_error[a:b] = chunk.max_global_error
+        self.energy0[a:b] = chunk.energy0
         self.energy_drift[a:b] = chunk.energy_drift
         self.stats[a:b] = chunk.stats
         self.messages.update({a + i: text for i, text in chunk.messages.items()})
@@ -105,6 +107,7 @@ class Collector:
             t_last=self.t_last,
             status=self.status,
             max_global_error=self.max_global_error,
+            energy0=self.energy0,
             energy_drift=self.energy_drift,
             failed=failed,
             messages=tuple(self.messages[int(i)] for i in failed),

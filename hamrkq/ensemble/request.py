@@ -138,6 +138,7 @@ class ChunkResult:
     t_last: np.ndarray
     status: np.ndarray
     max_global_error: np.ndarray
+    energy0: np.ndarray
     energy_drift: np.ndarray
     stats: np.ndarray
     messages: dict[int, str]
@@ -160,6 +161,7 @@ def run_chunk(request: Request) -> ChunkResult:
     t_last = np.full(m, np.nan)
     status = np.zeros(m, dtype=np.int8)
     max_error = np.full(m, np.nan)
+    energy0 = np.full(m, np.nan)
     drift = np.full(m, np.nan)
     stats = np.zeros((m, len(STATS)), dtype=np.int64)
     messages: dict[int, str] = {}
@@ -180,8 +182,11 @@ def run_chunk(request: Request) -> ChunkResult:
             y[i, 0] = sol.y[-1]
         if sol.global_error is not None:
             max_error[i] = float(np.max(np.abs(sol.global_error)))
-        drift[i] = float(np.max(np.abs(sol.energy - _initial_energy(request, i, sol))))
-    return ChunkResult(request.start, y, t_last, status, max_error, drift, stats, messages)
+        energy0[i] = _initial_energy(request, i, sol)
+        drift[i] = float(np.max(np.abs(sol.energy - energy0[i])))
+    return ChunkResult(
+        request.start, y, t_last, status, max_error, energy0, drift, stats, messages
+    )
 
 
 def _initial_energy(request: Request, i: int, sol: Any) -> float:

@@ -38,11 +38,12 @@ _ARRAYS = {
     "t_last": float,
     "status": np.int8,
     "max_global_error": float,
+    "energy0": float,
     "energy_drift": float,
     "failed": np.int64,
 }
 #: Arrays with one value per member.
-_PER_MEMBER = ("t_last", "status", "max_global_error", "energy_drift")
+_PER_MEMBER = ("t_last", "status", "max_global_error", "energy0", "energy_drift")
 
 
 def _readonly(value: Any, dtype: Any) -> np.ndarray:
@@ -75,6 +76,8 @@ class EnsembleSolution:
     max_global_error : ndarray, shape (M,)
         The largest estimated global error ``max |y - z|`` over the member's
         kept nodes and components (NaN for methods without the RK8 track).
+    energy0 : ndarray, shape (M,)
+        H at each member's initial state.
     energy_drift : ndarray, shape (M,)
         ``max |H(y) - H(y0)|`` over the member's kept nodes.
     stats : mapping of str to ndarray (M,)
@@ -97,6 +100,7 @@ class EnsembleSolution:
     t_last: np.ndarray
     status: np.ndarray
     max_global_error: np.ndarray
+    energy0: np.ndarray
     energy_drift: np.ndarray
     failed: np.ndarray
     messages: tuple[str, ...]
