@@ -183,3 +183,22 @@ def test_a_hamiltonian_needs_initial_values_and_span():
 def test_an_empty_ensemble_is_empty():
     ens = hamrkq.ensemble(FALL, q0=np.zeros((0, 1)), p0=[0.0], t_span=(0, 1))
     assert len(ens) == 0 and ens.y.shape == (0, 1, 2) and ens.all_success
+
+
+def test_threads_in_a_fresh_process_do_not_race_to_compile(tmp_path):
+    # Each thread's first solve used to prepare (compile or load) the kernel's
+    # signature for t_eval itself; two at once made numba raise "compilation
+    # disabled".  The request's probe now prepares it once, before the pool.
+    import subprocess
+    import sys
+
+    script = (
+        "import numpy as np, hamrkq\n"
+        "ens = hamrkq.ensemble(hamrkq.load_problem('henon_heiles'), q0=np.full((8, 2), 0.1),\n"
+        "    t_span=(0, 2), t_eval=[1.0, 2.0], workers=2, scheduler='threads', chunk_size=1)\n"
+        "print(len(ens), ens.failed.size)\n"
+    )
+    for _ in range(3):
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert done.stdout.split() == ["8", "0"]

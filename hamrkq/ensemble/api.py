@@ -63,8 +63,11 @@ def ensemble(
     client : dask.distributed.Client, optional
         Run the chunks on this Dask cluster (implies ``scheduler="dask"``).
     scheduler : {"auto", "serial", "threads", "processes", "dask"}
-        ``"auto"``: this machine, in a pool of processes when ``workers > 1``
-        (measured faster than threads, see ``docs/ensembles.md``).
+        ``"auto"``: this machine, on a pool of ``workers`` threads when
+        ``workers > 1`` (measured no slower than processes, which also pay
+        seconds to start and load the compiled code; see ``docs/ensembles.md``).
+        ``"processes"`` starts them with ``spawn``: a script must guard its
+        entry point with ``if __name__ == "__main__":``.
         ``"dask"`` without ``client`` starts a ``LocalCluster`` of ``workers``
         processes and closes it at the end (needs the ``dask`` extra).
     chunk_size : int, optional

@@ -28,7 +28,7 @@ __all__ = ["DEFAULT_POOL", "POOLS", "Collector", "chunk_bounds", "run_local", "u
 POOLS = ("threads", "processes")
 #: The pool ``workers > 1`` uses unless told otherwise; chosen by measurement
 #: (``benchmarks/ensemble_pools.py``, output in ``benchmarks/ensemble_pools.txt``).
-DEFAULT_POOL = "processes"
+DEFAULT_POOL = "threads"
 #: Upper bound of the default chunk size: big enough to amortise a task's cost
 #: (pickling, scheduling), small enough for a smooth progress bar and for a
 #: lost Dask task to cost little.

@@ -270,14 +270,21 @@ def build_request(
 
 
 def _probe(request: Request) -> None:
-    """Let :func:`hamrkq.solve` check the options once, on member 0 over an
-    empty interval: a bad option fails here, before any member runs (and the
-    system is compiled here, once, before any worker starts)."""
+    """Run member 0 over a sliver of the interval with the ensemble's options.
+
+    :func:`hamrkq.solve` checks the options (a bad one fails here, before any
+    member runs), and the compiled kernel is prepared here, once, for the
+    argument types every member will use: threads that each prepared it on
+    their first member raced inside numba ("compilation disabled").
+    """
     if request.size == 0:
         return
     kwargs = request.member_kwargs(0)
-    t0 = request.t_span[0]
-    kwargs.update(t_span=(t0, t0), t_eval=None)
+    t0, t_end = request.t_span
+    length = abs(t_end - t0)
+    sliver = min(length, max(1e-6 * length, kwargs.get("first_step") or 0.0))
+    t_short = t0 + math.copysign(sliver, t_end - t0)
+    kwargs.update(t_span=(t0, t_short), t_eval=None if request.t_eval is None else [t_short])
     solve(request.ham, **kwargs)
 
 
