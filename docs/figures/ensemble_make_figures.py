@@ -5,7 +5,8 @@
   coloured by H; the separatrix p = +-2 cos(q/2) (H = 1) is dashed;
 - ``ensemble_henon_heiles_section.png``: the Poincaré section q1 = 0
   (p1 > 0) at H = 1/8 from one ensemble: crossings located between kept
-  samples by linear interpolation (sample spacing 0.02).
+  samples by linear interpolation (sample spacing 0.02); the orbits that
+  stopped early (their global error could no longer be guaranteed) in orange.
 
 Run from the repository root: ``python docs/figures/ensemble_make_figures.py``;
 it prints the numbers quoted in the docs.
@@ -76,9 +77,17 @@ def henon_heiles() -> None:
     x = q2[member, k] + s * (q2[member, k + 1] - q2[member, k])
     y = p2[member, k] + s * (p2[member, k + 1] - p2[member, k])
     print(f"henon_heiles: {member.size} crossings of q1 = 0")
+    for status in sorted({ens.member_status(i) for i in ens.failed}, key=lambda s: s.code):
+        stopped = [i for i in ens.failed if ens.member_status(i) is status]
+        print(f"henon_heiles: {len(stopped)} members stopped with {status.name}, at t in "
+              f"[{ens.t_last[stopped].min():.1f}, {ens.t_last[stopped].max():.1f}]")  # fmt: skip
     fig = Figure(figsize=(6.4, 5.6), layout="constrained")
     ax = fig.add_subplot()
-    ax.scatter(x, y, s=0.6, c=member, cmap="tab20", linewidths=0)
+    ok = ens.success[member]
+    ax.scatter(x[ok], y[ok], s=0.6, c="tab:blue", linewidths=0, label="reached t = 300")
+    ax.scatter(x[~ok], y[~ok], s=0.6, c="tab:orange", linewidths=0,
+               label="stopped early: tolerance unattainable (chaotic)")  # fmt: skip
+    ax.legend(loc="upper right", markerscale=8, fontsize="small")
     ax.set_xlabel("q2")
     ax.set_ylabel("p2")
     ax.set_title(f"Hénon-Heiles, H = 1/8: section q1 = 0 (p1 > 0), {len(ens)} orbits, t ≤ 300")
