@@ -202,3 +202,22 @@ def test_threads_in_a_fresh_process_do_not_race_to_compile(tmp_path):
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
         assert done.returncode == 0, done.stderr[-2000:]
         assert done.stdout.split() == ["8", "0"]
+
+
+def test_ctrl_c_inside_a_member_stops_the_whole_ensemble(monkeypatch):
+    # solve turns Ctrl-C into Status.INTERRUPTED for its own run; an ensemble
+    # must not carry on with the next member as if nothing happened.
+    from hamrkq.ensemble import request as module
+
+    real, calls = module.solve, []
+
+    def solve(*args, **kwargs):
+        sol = real(*args, **kwargs)
+        calls.append(1)
+        return sol.replace(status=Status.INTERRUPTED) if len(calls) == 3 else sol
+
+    monkeypatch.setattr(module, "solve", solve)
+    with pytest.raises(KeyboardInterrupt):
+        hamrkq.ensemble(FALL, q0=[1.0], p0=np.linspace(2, 3, 6)[:, None], t_span=(0, 1),
+                        workers=1)  # fmt: skip
+    assert len(calls) == 3  # the probe, members 0 and 1; members 2..5 never ran

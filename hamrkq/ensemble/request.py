@@ -29,6 +29,7 @@ from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
 from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.result import Status
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -167,6 +168,10 @@ def run_chunk(request: Request) -> ChunkResult:
     messages: dict[int, str] = {}
     for i in range(m):
         sol = solve(request.ham, **request.member_kwargs(i))
+        if sol.status is Status.INTERRUPTED:
+            # solve turns Ctrl-C into a status; here it must stop the whole
+            # ensemble, not just the member that was running.
+            raise KeyboardInterrupt
         status[i] = sol.status.code
         if not sol.success:
             messages[i] = sol.message
