@@ -76,16 +76,22 @@ def orbits(
     qk = ens.q[:, :, k]
     if wrap is not None:
         qk = (qk + wrap / 2) % wrap - wrap / 2
-        # A NaN vertex breaks the line: no stroke across the plot at a wrap.
-        jumps = np.zeros(qk.shape, dtype=bool)
-        jumps[:, 1:] = np.abs(np.diff(qk, axis=1)) > wrap / 2
-        qk = np.where(jumps, np.nan, qk)
-    segments = np.stack([qk, ens.p[:, :, k]], axis=-1)
+    orbits_ = np.stack([qk, ens.p[:, :, k]], axis=-1)
+    segments, colours = [], []
+    for orbit, value in zip(orbits_, values, strict=True):
+        pieces = [orbit]
+        if wrap is not None:
+            # One piece between wraps: no stroke across the plot.
+            cuts = np.flatnonzero(np.abs(np.diff(orbit[:, 0])) > wrap / 2) + 1
+            pieces = np.split(orbit, cuts)
+        segments += pieces
+        colours += [value] * len(pieces)
     lines = LineCollection(
-        list(segments), array=values, cmap=colormaps["viridis"], norm=norm, linewidths=linewidth
-    )
+        segments, array=np.array(colours), cmap=colormaps["viridis"], norm=norm,
+        linewidths=linewidth,
+    )  # fmt: skip
     ax.add_collection(lines)
-    finite_pts = segments[np.isfinite(segments).all(axis=-1)]
+    finite_pts = orbits_[np.isfinite(orbits_).all(axis=-1)]
     if finite_pts.size:
         ax.set_xlim(finite_pts[:, 0].min(), finite_pts[:, 0].max())
         ax.set_ylim(finite_pts[:, 1].min(), finite_pts[:, 1].max())
