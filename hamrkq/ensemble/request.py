@@ -244,7 +244,7 @@ def build_request(
             "problem_or_hamiltonian must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
             f"got {type(system).__name__}"
         )
-    options.pop("t_span", None)
+    options.pop("t_span", None)  # a file's [integration] may hold it; it is an argument here
     t0, t_end = _span(t_span)
     columns = _parameter_columns(ham, parameters)
     n = ham.n
