@@ -18,7 +18,7 @@ __all__ = ["SCHEDULERS", "ensemble"]
 SCHEDULERS = ("auto", "serial", *POOLS, "dask")
 
 
-def ensemble(
+def ensemble(  # noqa: PLR0913 - the contract's keywords (PRODUCT.md) plus where and how to run
     problem_or_hamiltonian: Any,
     q0: Any = None,
     p0: Any = None,
