@@ -30,8 +30,8 @@ __all__ = [
     "OptionError",
     "ProblemFileError",
     "ProblemNotFoundError",
-    "SolutionFileError",
     "ResultFileError",
+    "SolutionFileError",
     "UndeclaredSymbolError",
     "warn",
 ]
