@@ -125,7 +125,7 @@ LIBRARY = [
     pytest.param(lambda: hamrkq.Hamiltonian("p**2/2", q=[q], p=[p]), HamiltonianError,
                  r"H is a string.*never evaluates text", id="ham-string"),
     pytest.param(lambda: hamrkq.Hamiltonian(p**2 + q, q=[q, a], p=[p]), HamiltonianError,
-                 r"q has 2 symbols but p has 1", id="ham-lengths"),
+                 r"q has 2 symbols but p has 1: every coordinate needs its", id="ham-lengths"),
     pytest.param(lambda: hamrkq.Hamiltonian(p**2 + a * q, q=[q], p=[p], parameters={a: np.nan}),
                  HamiltonianError, r"parameter a must be finite, got nan", id="ham-param-nan"),
     # catalogue and expressions
