@@ -158,3 +158,43 @@ def test_abs_potential_integrates_with_a_warning(backend):
     assert sol.success
     np.testing.assert_allclose(sol.p[:, 0], -sol.t, atol=1e-12)
     np.testing.assert_allclose(sol.q[:, 0], 1 - sol.t**2 / 2, atol=1e-12)
+
+
+# -- reports: no meaningless numbers ---------------------------------------------------
+def test_time_dependent_energy_is_reported_as_not_conserved():
+    from hamrkq.analysis.diagnostics import diagnose
+    from hamrkq.io.report import format_table, summary_rows
+
+    q, p, t = sp.symbols("q p t", real=True)
+    # a driven oscillator: H changes along the flow by dH/dt = -q sin t
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 + q * sp.cos(t), q=[q], p=[p])
+    sol = hamrkq.solve(ham, q0=[1.0], p0=[0.0], t_span=(0, 5), atol=1e-8)
+    diag = diagnose(sol, ham, reference="rk8")
+    assert abs(sol.energy[-1] - sol.energy[0]) > 0.1  # the change is physics, not error
+    for text in (diag.table(), format_table(summary_rows(sol, diag))):
+        assert "not conserved: H depends on t" in text
+        assert "energy / bound" not in text and "energy error" not in text
+        assert "max |H - H(0)|" not in text
+    summary = diag.to_dict()
+    assert summary["energy_conserved"] is False and summary["energy_bound_ratio"] is None
+
+
+def test_true_error_needs_a_reference_more_accurate_than_the_tolerance():
+    from hamrkq.analysis.diagnostics import diagnose
+    from hamrkq.analysis.reference import Reference
+    from hamrkq.io.report import format_table, summary_rows
+
+    sol = hamrkq.solve(OSC, q0=[1.0], p0=[0.0], t_span=(0, 3), atol=1e-8)
+    exact = np.column_stack([np.cos(2 * sol.t), -2 * np.sin(2 * sol.t)])
+    good = diagnose(sol, OSC, reference=Reference(sol.t, exact, 1e-15, "exact cosine"))
+    text = format_table(summary_rows(sol, good))
+    assert good.error_measured
+    assert "max true error (independent)" in text and "reference accurate to ~1.0e-15" in text
+    true_max = np.max(np.abs(sol.y - exact))
+    assert good.error.max_trajectory >= true_max > 0
+    # the same reference claiming to be accurate only to 1e-6 (above atol = 1e-8)
+    poor = diagnose(sol, OSC, reference=Reference(sol.t, exact, 1e-6, "a loose run"))
+    assert not poor.error_measured and poor.to_dict()["true_error_measured"] is False
+    for text in (poor.table(), format_table(summary_rows(sol, poor))):
+        assert "not measured: the reference (a loose run) is accurate only to ~1.0e-06" in text
+        assert "tolerance 1.0e-08" in text
