@@ -198,3 +198,10 @@ def test_true_error_needs_a_reference_more_accurate_than_the_tolerance():
     for text in (poor.table(), format_table(summary_rows(sol, poor))):
         assert "not measured: the reference (a loose run) is accurate only to ~1.0e-06" in text
         assert "tolerance 1.0e-08" in text
+
+
+def test_named_initial_value_not_finite_names_its_own_key(tmp_path):
+    path = write(tmp_path, BY_NAME.replace('x = "sqrt(k)/2"', 'x = "1/(k - 2)"'))
+    with pytest.raises(ProblemFileError) as info:
+        hamrkq.load_problem(path)
+    assert "key 'initial.x'" in str(info.value) and "k = 2" in str(info.value)

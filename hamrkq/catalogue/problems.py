@@ -101,6 +101,8 @@ class Problem:
     expected: Mapping[str, Any]
     parameters: Mapping[str, float]
     path: Path | None = None
+    #: The file's key of each initial value ("initial.x" or "initial.q[0]"), for messages.
+    initial_keys: tuple[str, ...] = ()
     _values: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -108,7 +110,9 @@ class Problem:
         params = ham.parameter_values(self.parameters)
         subs = dict(zip(ham.parameters, params, strict=True))
         n = ham.n
-        keys = [f"initial.{'qp'[i >= n]}[{i % n}]" for i in range(2 * n)]
+        keys = list(self.initial_keys) or [
+            f"initial.{'qp'[i >= n]}[{i % n}]" for i in range(2 * n)
+        ]
         y0 = np.array(
             [self._value(e, subs, k) for e, k in zip(self.initial_exprs, keys, strict=True)]
         )
@@ -372,7 +376,7 @@ class _FileReader:
             )
         except InputError as exc:
             raise self.error(str(exc), "hamiltonian") from None
-        init_exprs = self.initial(q_names, p_names, params_only)
+        init_exprs, init_keys = self.initial(q_names, p_names, params_only)
         integration = self.table("integration")
         extra = sorted(set(integration) - INTEGRATION_KEYS)
         if extra:
@@ -402,6 +406,7 @@ class _FileReader:
             references=tuple(references),
             hamiltonian=ham,
             initial_exprs=tuple(init_exprs),
+            initial_keys=tuple(init_keys),
             t_span_exprs=span_exprs,
             integration=integration,
             invariants=invariants,
@@ -413,9 +418,10 @@ class _FileReader:
 
     def initial(
         self, q_names: list[str], p_names: list[str], params: Mapping[str, sp.Symbol]
-    ) -> list[sp.Expr]:
+    ) -> tuple[list[sp.Expr], list[str]]:
         """``[initial]``, bound by the problem's own names (``x = 1.0``) or by the
-        lists ``q = [...]``, ``p = [...]``; the expressions in the state's order."""
+        lists ``q = [...]``, ``p = [...]``: the expressions in the state's order,
+        and the key of each."""
         initial = self.table("initial")
         state = [*q_names, *p_names]
         listed = [k for k in initial if k in ("q", "p") and k not in state]
@@ -428,7 +434,7 @@ class _FileReader:
                 f"initial.{named[0]}",
             )
         if not named:
-            exprs = []
+            exprs, keys = [], []
             for part, count in (("q", len(q_names)), ("p", len(p_names))):
                 values = initial.get(part)
                 if not isinstance(values, list) or len(values) != count:
@@ -436,10 +442,11 @@ class _FileReader:
                         f"must be a list of {count} values, got {_shown(values)}",
                         f"initial.{part}",
                     )
+                keys += [f"initial.{part}[{i}]" for i in range(count)]
                 exprs += [
-                    self.expr(v, params, f"initial.{part}[{i}]") for i, v in enumerate(values)
+                    self.expr(v, params, k) for v, k in zip(values, keys[-count:], strict=True)
                 ]
-            return exprs
+            return exprs, keys
         unknown = [k for k in named if k not in state]
         if unknown:
             hint = " (a parameter: set it in [parameters])" if unknown[0] in params else ""
@@ -463,7 +470,7 @@ class _FileReader:
                     )
                 value = value[0]
             exprs.append(self.expr(value, params, f"initial.{key}"))
-        return exprs
+        return exprs, [f"initial.{key}" for key in state]
 
     def setting(self, key: str, value: Any) -> None:
         """Check one ``[integration]`` value with :func:`hamrkq.options.check_setting`,
