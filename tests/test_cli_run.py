@@ -221,8 +221,8 @@ def test_default_output_directory(tmp_path, monkeypatch, capsys):
 @pytest.mark.parametrize(
     ("extra", "fragment"),
     [
-        (["--atol", "-1"], "atol must be finite and positive"),
-        (["--atol", "nan"], "atol must be finite and positive"),
+        (["--atol", "-1"], "--atol '-1': expected a positive finite number"),
+        (["--atol", "nan"], "--atol 'nan': expected a positive finite number"),
         (["--method", "nope"], "method='nope' is not valid"),
         (["--reference", "exact"], "has no exact solution"),
         (["--method", "rk34", "--reference", "rk8"], "has no RK8 track"),
@@ -231,7 +231,7 @@ def test_default_output_directory(tmp_path, monkeypatch, capsys):
         (["--param", "a=2"], "has no parameter"),
         (["--backend", "gpu"], "backend='gpu'"),
         (["--dpi", "1"], "--dpi"),
-        (["--atol", "tiny"], "invalid float value"),
+        (["--atol", "tiny"], "--atol 'tiny': expected a positive finite number"),
         (["--reference", "psychic"], "invalid choice"),
     ],
 )

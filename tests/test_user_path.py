@@ -205,3 +205,9 @@ def test_named_initial_value_not_finite_names_its_own_key(tmp_path):
     with pytest.raises(ProblemFileError) as info:
         hamrkq.load_problem(path)
     assert "key 'initial.x'" in str(info.value) and "k = 2" in str(info.value)
+
+
+def test_abs_of_a_symbol_not_declared_real_says_to_declare_it():
+    q, p = sp.symbols("q p")  # no real=True: d|q|/dq is (re(q) re'(q) + ...)/|q|
+    with pytest.raises(HamiltonianError, match=r"Abs or sign of q, not declared real.*real=True"):
+        hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])

@@ -243,6 +243,7 @@ class Hamiltonian:
                 {str(s) for s in undeclared}, problems + _undeclared_hints(undeclared, declared)
             )
         if H is not None:
+            problems += _complex_kinks(H)
             # Only what every numerical backend can evaluate: elementary
             # functions, finite real numbers, the declared symbols.
             try:
@@ -626,6 +627,22 @@ def _undeclared_hints(undeclared: set, declared: list) -> list[str]:
             f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
         )
     return hints
+
+
+def _complex_kinks(H: sp.Expr) -> list[str]:
+    """``Abs(q)`` of a symbol not declared real: SymPy differentiates it as a
+    complex function (``re``, ``im``, ``Derivative``), which nothing can evaluate."""
+    loose = {
+        s.name for node in H.atoms(sp.Abs, sp.sign) for s in node.free_symbols if not s.is_real
+    }
+    if not loose:
+        return []
+    names = ", ".join(sorted(loose))
+    return [
+        f"H takes Abs or sign of {names}, not declared real: SymPy then differentiates "
+        "it as a complex function (re, im), which cannot be evaluated; declare the "
+        f"symbols real, sympy.symbols('{' '.join(sorted(loose))}', real=True)"
+    ]
 
 
 def _assumptions(values: Mapping[str, bool]) -> str:
