@@ -7,6 +7,8 @@ quoted in the prose, to ``docs/generated.json`` and into the pages.  Here:
 - the pages match the committed ``docs/generated.json`` (no run, fast);
 - each page, rerun now, gives the committed output: a change in the code's
   numbers that is not regenerated fails (timings are compared as ``<time>``).
+  This also runs the code blocks of quickstart.md and cli.md as they stand
+  (it replaces test_cli_run's former quickstart test).
 
 After an intended change of numbers: ``python docs/generate.py``.
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,3 +73,10 @@ def test_page_reruns_to_the_committed_output(name, tmp_path):
     assert len(outputs) == len(committed["outputs"]), HOW
     for new, old in zip(outputs, committed["outputs"], strict=True):
         assert gen.normalise(new) == gen.normalise(old), HOW
+    if name == "quickstart.md":  # the figures it promises were drawn, and are not blank
+        from matplotlib.image import imread
+
+        for figure in ("figure1", "figure2", "figure3", "figure4"):
+            rgb = imread(tmp_path / "quickstart" / f"{figure}.png")[..., :3]
+            assert 0.01 < np.any(rgb < 0.9, axis=-1).mean() < 0.9, figure
+        assert (tmp_path / "runs" / "coupled" / "figure1_solution.png").is_file()

@@ -291,6 +291,9 @@ class Diagnostics:
         Per-node arrays for plots: ``t``, ``energy_error``, ``energy_bound``,
         ``delta``, ``trajectory_bound`` and, where available,
         ``estimated_error``, ``error``, ``reference``, ``gamma``.
+    time_dependent : bool
+        H depends on t explicitly: the energy is not conserved, and reports
+        say so instead of showing its error (:attr:`energy_note`).
     """
 
     method: str
