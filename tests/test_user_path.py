@@ -211,3 +211,14 @@ def test_abs_of_a_symbol_not_declared_real_says_to_declare_it():
     q, p = sp.symbols("q p")  # no real=True: d|q|/dq is (re(q) re'(q) + ...)/|q|
     with pytest.raises(HamiltonianError, match=r"Abs or sign of q, not declared real.*real=True"):
         hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+
+
+def test_a_file_may_ask_for_method_auto(tmp_path):
+    from hamrkq.options import METHOD_NAMES
+
+    if "auto" not in METHOD_NAMES:
+        pytest.skip("solve has no method 'auto' yet")
+    path = write(tmp_path, BY_NAME)
+    path.write_text(path.read_text().replace("atol = 1e-9", 'atol = 1e-9\nmethod = "auto"'))
+    problem = hamrkq.load_problem(path)
+    assert problem.integration["method"] == "auto"

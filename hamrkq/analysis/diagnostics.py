@@ -502,6 +502,22 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
 
 
+def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
+    """Largest ``|Gamma|`` (nan without one), with a note when it is rounding."""
+    if sol.gamma is None:
+        return float("nan")
+    series["gamma"] = sol.gamma
+    gamma_max = float(np.max(np.abs(sol.gamma)))
+    track = sol.z if sol.z is not None else sol.y
+    roundoff = GAMMA_ROUNDOFF_ULPS * _EPS * float(np.max(np.abs(track)))
+    if gamma_max < roundoff:
+        notes.append(
+            f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "
+            "track: the Richardson estimate measures rounding, not truncation"
+        )
+    return gamma_max
+
+
 def diagnose(
     solution: Any,
     problem: Any = None,
@@ -628,17 +644,7 @@ def diagnose(
                 f"the reference ({source}) is accurate only to ~{accuracy:.1e}, not "
                 "far below the tolerance: the true error is uncertain by that much"
             )
-    gamma_max = float("nan")
-    if sol.gamma is not None:
-        series["gamma"] = sol.gamma
-        gamma_max = float(np.max(np.abs(sol.gamma)))
-        track = sol.z if sol.z is not None else y
-        roundoff = GAMMA_ROUNDOFF_ULPS * _EPS * float(np.max(np.abs(track)))
-        if gamma_max < roundoff:
-            notes.append(
-                f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "
-                "track: the Richardson estimate measures rounding, not truncation"
-            )
+    gamma_max = _gamma_max(sol, series, notes)
     if not sol.success:
         notes.append(f"partial run: {sol.message}")
     for name, value in series.items():

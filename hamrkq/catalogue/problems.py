@@ -325,7 +325,8 @@ class _FileReader:
                 raise self.error(f"bad name: {reason}", key)
         return value
 
-    def problem(self) -> Problem:
+    def header(self) -> str:
+        """Check the top-level keys and the name; returns the name."""
         data = self.data
         unknown = sorted(set(data) - TOP_LEVEL_KEYS)
         if unknown:
@@ -336,6 +337,10 @@ class _FileReader:
         name = data["name"]
         if name != self.path.stem:
             raise self.error(f"name {name!r} must equal the file stem {self.path.stem!r}", "name")
+        return name
+
+    def state_names(self) -> tuple[list[str], list[str]]:
+        """``coordinates`` and ``momenta``, checked, of equal length."""
         q_names, p_names = self.names("coordinates"), self.names("momenta")
         if len(q_names) != len(p_names):
             raise self.error(
@@ -344,6 +349,12 @@ class _FileReader:
                 "every coordinate needs its conjugate momentum, listed in the same order",
                 "momenta",
             )
+        return q_names, p_names
+
+    def problem(self) -> Problem:
+        data = self.data
+        name = self.header()
+        q_names, p_names = self.state_names()
         param_table = self.table("parameters")
         param_names = list(param_table)
         for pname in param_names:

@@ -41,6 +41,7 @@ from hamrkq.io.report import (
     summary_dict,
     summary_rows,
 )
+from hamrkq.options import METHOD_NAMES
 from hamrkq.solve import BACKENDS, METHODS, solve
 
 __all__ = ["REFERENCE_CHOICES", "register", "run_command"]
@@ -78,7 +79,7 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
     p.add_argument(
-        "--method", metavar="M", help=f"integration method ({', '.join(METHODS)}); "
+        "--method", metavar="M", help=f"integration method ({', '.join(METHOD_NAMES)}); "
         "default: the problem's"
     )  # fmt: skip
     p.add_argument(

@@ -201,37 +201,10 @@ class Hamiltonian:
         if not q and not p:
             problems.append("q and p are empty: at least one degree of freedom is needed")
         free = H.free_symbols if H is not None else set()
-        if t is None:
-            named_t = [s for s in free if s.name == "t"]
-            t = named_t[0] if len(named_t) == 1 else TIME
-            for label, symbols in (("coordinate", q), ("momentum", p)):
-                if t in symbols:
-                    # Otherwise reported as "duplicated symbols: t", which
-                    # does not say that t is the time.
-                    problems.append(
-                        f"the {label} is called 't', the name of the time symbol: rename it "
-                        "(for example 'theta'), or pass the time symbol explicitly "
-                        "(t=sympy.Symbol('tau'))"
-                    )
-                    t = sp.Dummy("t", real=True)
-        elif not isinstance(t, sp.Symbol):
-            problems.append(f"t must be a sympy Symbol, got {t!r}")
-            t = TIME
+        t = _time_symbol(t, free, q, p, problems)
         params, defaults = _parameters(parameters, free, problems)
         if H is not None:
-            constants = {
-                str(c): c for c in H.atoms(sp.NumberSymbol, sp.core.numbers.ImaginaryUnit)
-            }
-            for symbol in params:
-                if symbol not in free and symbol.name in constants:
-                    # H = p**2/2 + E*q**2 after `from sympy import *`: the E in H
-                    # is Euler's number, and the parameter E would silently do nothing.
-                    problems.append(
-                        f"parameter {symbol.name} does not occur in H, but H contains the SymPy "
-                        f"constant {symbol.name} = {sp.N(constants[symbol.name], 6)} (`from "
-                        f"sympy import *` binds the name {symbol.name} to it): build H with "
-                        f"{symbol.name} = sympy.Symbol('{symbol.name}')"
-                    )
+            problems += _shadowed_constants(H, params)
         declared = [*q, *p, *params, t]
         seen: set[sp.Symbol] = set()
         duplicated = sorted({str(s) for s in declared if s in seen or seen.add(s)})
@@ -627,6 +600,41 @@ def _undeclared_hints(undeclared: set, declared: list) -> list[str]:
             f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
         )
     return hints
+
+
+def _time_symbol(t: Any, free: set, q: tuple, p: tuple, problems: list[str]) -> sp.Symbol:
+    """The time symbol: the given one, else H's symbol named ``t``, else :data:`TIME`."""
+    if t is not None:
+        if isinstance(t, sp.Symbol):
+            return t
+        problems.append(f"t must be a sympy Symbol, got {t!r}")
+        return TIME
+    named_t = [s for s in free if s.name == "t"]
+    t = named_t[0] if len(named_t) == 1 else TIME
+    for label, symbols in (("coordinate", q), ("momentum", p)):
+        if t in symbols:
+            # Otherwise reported as "duplicated symbols: t", which does not
+            # say that t is the time.
+            problems.append(
+                f"the {label} is called 't', the name of the time symbol: rename it "
+                "(for example 'theta'), or pass the time symbol explicitly "
+                "(t=sympy.Symbol('tau'))"
+            )
+            return sp.Dummy("t", real=True)
+    return t
+
+
+def _shadowed_constants(H: sp.Expr, params: tuple[sp.Symbol, ...]) -> list[str]:
+    """``H = p**2/2 + E*q**2`` after ``from sympy import *``: the E in H is
+    Euler's number, and a parameter named E would silently do nothing."""
+    constants = {str(c): c for c in H.atoms(sp.NumberSymbol, sp.core.numbers.ImaginaryUnit)}
+    return [
+        f"parameter {s.name} does not occur in H, but H contains the SymPy constant "
+        f"{s.name} = {sp.N(constants[s.name], 6)} (`from sympy import *` binds the name "
+        f"{s.name} to it): build H with {s.name} = sympy.Symbol('{s.name}')"
+        for s in params
+        if s not in H.free_symbols and s.name in constants
+    ]
 
 
 def _complex_kinks(H: sp.Expr) -> list[str]:
