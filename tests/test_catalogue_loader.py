@@ -119,7 +119,7 @@ BAD_FILES = [
     (
         lambda s: s.replace('momenta = ["px"]', 'momenta = ["px", "py"]'),
         ProblemFileError,
-        ["q has 1 symbols but p has 2"],
+        ["osc.toml:5", "key 'momenta'", "1 coordinate (x) but 2 momenta (px, py)", "conjugate"],
     ),
     (
         lambda s: s.replace("k*x**2/2", "k*x**2/2 + zeta"),

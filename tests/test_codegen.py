@@ -207,19 +207,25 @@ def test_unsupported_expressions_are_named(make, fragment):
 
 def test_abs_of_a_non_real_symbol_is_refused():
     # For complex symbols d|q|/dq involves re, im and Derivative: not scalar code.
+    # The Hamiltonian refuses it first, saying how to fix it (issue 16).
     q, p = sp.symbols("q p")
-    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+    with pytest.raises(hamrkq.errors.HamiltonianError, match="not declared real"):
+        hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+    q_real = sp.Symbol("q", real=True)
     with pytest.raises(CodegenError, match="cannot generate scalar code"):
-        codegen.generate_source(ham)
+        codegen.check_supported([sp.diff(sp.Abs(q), q)], {q, q_real})
 
 
-def test_abs_of_a_real_symbol_fails_on_its_second_derivative():
-    # rhs has sign(q), which prints; the Jacobian has DiracDelta(q), which does
-    # not (the numeric layer cannot lambdify it either).
+def test_abs_of_a_real_symbol_generates_code_without_diracdelta():
+    # rhs has sign(q); the Jacobian's DiracDelta(q) (zero away from the kink,
+    # and printable by no backend) is dropped by the Hamiltonian (issue 16).
     q, p = sp.symbols("q p", real=True)
-    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
-    with pytest.raises(CodegenError, match="DiracDelta"):
-        codegen.generate_source(ham)
+    with pytest.warns(hamrkq.errors.HamrkqWarning, match="not differentiable"):
+        ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
+    source = codegen.generate_source(ham)
+    assert "DiracDelta" not in source
+    assert ham.jacobian == sp.Matrix([[0, 1], [0, 0]])
+    assert ham.rhs == sp.Matrix([p, -sp.sign(q)])
 
 
 # -- cache key and directory -------------------------------------------------------

@@ -110,12 +110,95 @@ def test_all_four_figures_for_a_pair_of_runs(tmp_path):
 def test_more_degrees_of_freedom(n, tmp_path):
     sol = run(n=n, nodes=3001)
     fig1 = figure1(sol)
-    q_lines = [line for line in fig1.axes[0].lines]
-    assert len(q_lines) == (n if n <= 4 else 1)  # one per pair, else the norm |q|
+    assert len(fig1.axes) == 3 + n  # q(t), p(t), H, and one phase portrait per dof
+    assert len(fig1.axes[0].lines) == n  # one curve per coordinate, by its name
+    assert [line.get_label() for line in fig1.axes[0].lines][:2] == ["RK34Q8: q1", "RK34Q8: q2"]
+    titles = [ax.get_title() for ax in fig1.axes[2:-1]]
+    assert titles[0] == "phase portrait (q1, p1)" and titles[-1] == f"phase portrait (q{n}, p{n})"
+    q1, p1 = fig1.axes[2].lines[0].get_data()
+    np.testing.assert_array_equal(q1, sol.q[: q1.size, 0])  # q1 against p1, uniform stride
+    np.testing.assert_array_equal(p1, sol.p[: p1.size, 0])
     fig2 = figure2(sol)
-    assert "max_k |q_k|" in fig2.axes[0].get_ylabel()
+    assert "max over q1, " in fig2.axes[0].get_ylabel()
     for fig in (fig1, fig2, figure3(sol), figure4(sol)):
         assert not_blank(save_figure(fig, tmp_path / "f.png"))
+
+
+def nbody(dims=2, bodies=3, nodes=2001, **changes):
+    """Circular orbits of radius k about the origin, names x1, y1(, z1), ..."""
+    t = np.linspace(0.0, 20.0, nodes)
+    q, p, names = [], [], []
+    for k in range(1, bodies + 1):
+        q += [k * np.cos(t / k), k * np.sin(t / k)] + ([0 * t] if dims == 3 else [])
+        p += [-np.sin(t / k), np.cos(t / k)] + ([0 * t] if dims == 3 else [])
+        names += [f"{a}{k}" for a in "xyz"[:dims]]
+    y = np.column_stack(q + p)
+    names += [f"p{name}" for name in names]
+    fields = dict(
+        t=t, y=y, energy=np.ones_like(t), z=y - 1e-9, global_error=np.full_like(y, 1e-9),
+        gamma=np.full_like(y, 1e-12), status=Status.SUCCESS, message="ok", method="rk34q8",
+        n=dims * bodies, names=tuple(names), atol=1e-6, rtol=0.0, stats={"steps": nodes - 1},
+    )  # fmt: skip
+    fields.update(changes)
+    return Solution(**fields)
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_nbody_figure1_draws_orbits(dims, tmp_path):
+    from hamrkq.plotting.figures import bodies
+
+    sol = nbody(dims)
+    assert [b for b, _ in bodies(sol.names[: sol.n])] == ["1", "2", "3"]
+    assert bodies(["q1", "q2"]) is None and bodies(["x1", "x2"]) is None
+    fig = figure1(sol)
+    orbit = fig.axes[0]
+    assert orbit.get_xlabel() == "x" and orbit.get_ylabel() == "y"
+    assert [line.get_label() for line in orbit.lines] == ["body 1", "body 2", "body 3"]
+    for k, line in enumerate(orbit.lines, start=1):
+        x, y = line.get_data()
+        np.testing.assert_allclose(np.hypot(x, y), k)  # each orbit is the body's circle
+    radius = fig.axes[1].lines[2].get_ydata()
+    np.testing.assert_allclose(radius, 3.0)
+    assert not_blank(save_figure(fig, tmp_path / "f.png"))
+
+
+def test_errors_per_tolerance_and_gamma_limit_when_delta_differs():
+    # momenta with a tolerance 1e4 times tighter than the positions (as in the
+    # outer solar system): the raw errors would hide the momenta's
+    sol = nbody(atol=np.array([1e-6] * 6 + [1e-10] * 6), options={"gamma_limit": 0.05})
+    fig2 = figure2(sol)
+    drawn = next(line for line in fig2.axes[1].lines if line.get_label() == "RK34Q8")
+    assert np.nanmax(drawn.get_ydata()) == pytest.approx(1e-9 / 1e-10)
+    assert "per tolerance" in fig2.axes[1].get_title()
+    assert "|error| / δ, max over px1, " in fig2.axes[1].get_ylabel()
+    one = [line for line in fig2.axes[0].lines if "tolerance" in line.get_label()]
+    assert one[0].get_ydata()[0] == 1.0
+    fig4 = figure4(sol)
+    limit = [line for line in fig4.axes[0].lines if "gamma_limit" in line.get_label()]
+    assert limit and limit[0].get_ydata()[0] == 0.05
+    # a uniform tolerance keeps the paper's raw errors, the limit as gamma_limit * delta
+    plain = run().replace(options={"gamma_limit": 0.05})
+    limit = [line for line in figure4(plain).axes[0].lines if "gamma_limit" in line.get_label()]
+    assert limit[0].get_ydata()[0] == pytest.approx(0.05 * 1e-6)
+
+
+def test_partial_run_is_marked_and_titles_say_what_the_error_is_against():
+    partial = run(nodes=3001).replace(status=Status.MAX_STEPS, message="step limit")
+    for fig in (figure1(partial), figure2(partial), figure3(partial), figure4(partial)):
+        marks = [
+            line
+            for ax in fig.axes
+            for line in ax.lines
+            if "stopped: MAX_STEPS" in line.get_label()
+        ]
+        assert marks and marks[0].get_xdata()[0] == partial.t[-1]
+    # a fixed-step run has no RK8 track: its "estimated" figure is against the reference
+    gauss = run(method="gauss4", track=False)
+    diag = diagnose(gauss, reference="exact", exact=lambda t: gauss.y - 1e-9 * t[:, None])
+    fig = figure2(gauss, diagnostics=diag)
+    assert all("RK8" not in ax.get_title() for ax in fig.axes)
+    assert "numerical minus reference" in fig.axes[0].get_title()
+    assert "RK8" not in figure3(gauss, diagnostics=diag).axes[0].get_title()
 
 
 def test_true_error_needs_diagnostics_and_gamma_is_required_for_figure4():

@@ -233,6 +233,19 @@ def error_summary(
 
 
 # -- the whole picture -------------------------------------------------------
+#: What the reports say instead of an energy error when H depends on t.
+NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accuracy)"
+
+
+def unmeasured_error(summary: ErrorSummary, delta: np.ndarray) -> str:
+    """Why a true error is not shown: its reference is no more accurate than the
+    tolerance, so the difference would be mostly the reference's own error."""
+    return (
+        f"not measured: the reference ({summary.description}) is accurate only to "
+        f"~{summary.reference_accuracy:.1e}, not below the tolerance {float(np.min(delta)):.1e}"
+    )
+
+
 def _plain(value: Any) -> Any:
     """JSON-ready: floats stay floats, nan and inf become None (strict JSON)."""
     if isinstance(value, Mapping):
@@ -278,6 +291,9 @@ class Diagnostics:
         Per-node arrays for plots: ``t``, ``energy_error``, ``energy_bound``,
         ``delta``, ``trajectory_bound`` and, where available,
         ``estimated_error``, ``error``, ``reference``, ``gamma``.
+    time_dependent : bool
+        H depends on t explicitly: the energy is not conserved, and reports
+        say so instead of showing its error (:attr:`energy_note`).
     """
 
     method: str
@@ -295,6 +311,35 @@ class Diagnostics:
     gamma_max: float
     notes: tuple[str, ...]
     series: Mapping[str, np.ndarray]
+    time_dependent: bool = False
+
+    @property
+    def energy_conserved(self) -> bool:
+        """False when H depends on t: its change along the run measures nothing."""
+        return not self.time_dependent
+
+    @property
+    def error_measured(self) -> bool:
+        """True when :attr:`error` is a true error worth showing: measured against a
+        reference (not the run's own RK8 track) whose own accuracy is finite and
+        below the smallest tolerance.  Otherwise the "true error" would be mostly
+        the reference's error."""
+        if self.error is None or self.error is self.estimated:
+            return False
+        accuracy = self.error.reference_accuracy
+        return bool(np.isfinite(accuracy) and accuracy < float(np.min(self.series["delta"])))
+
+    @property
+    def energy_note(self) -> str | None:
+        """What reports show instead of the energy error, or None to show it."""
+        return None if self.energy_conserved else NOT_CONSERVED
+
+    @property
+    def error_note(self) -> str | None:
+        """Why the true error is not shown (its reference is too inaccurate), or None."""
+        if self.error is None or self.error is self.estimated or self.error_measured:
+            return None
+        return unmeasured_error(self.error, self.series["delta"])
 
     def to_dict(self) -> dict[str, Any]:
         """Plain numbers and strings for ``summary.json`` (nan and inf become None)."""
@@ -307,13 +352,18 @@ class Diagnostics:
                 "stats": dict(self.stats),
                 "tolerance_rule": self.tolerance_rule,
                 "energy": None if self.energy is None else self.energy.to_dict(),
-                "energy_bound_ratio": self.energy_bound_ratio,
-                "t_energy_bound_ratio": self.t_energy_bound_ratio,
+                "energy_conserved": self.energy_conserved,
+                # the bound assumes a conserved H; for H(t) the ratio means nothing
+                "energy_bound_ratio": self.energy_bound_ratio if self.energy_conserved else None,
+                "t_energy_bound_ratio": self.t_energy_bound_ratio
+                if self.energy_conserved
+                else None,
                 "invariants": {s.name: s.to_dict() for s in self.invariants},
                 "estimated_global_error": None
                 if self.estimated is None
                 else self.estimated.to_dict(),
                 "global_error": None if self.error is None else self.error.to_dict(),
+                "true_error_measured": self.error_measured,
                 "rk8_estimated_global_error_max": self.gamma_max,
                 "notes": list(self.notes),
             }
@@ -335,7 +385,9 @@ class Diagnostics:
         rows.append(
             ("tolerance delta", f"{delta.min():.3e} .. {delta.max():.3e} ({self.tolerance_rule})")
         )
-        for summary in (self.energy, *self.invariants):
+        if self.energy is not None and not self.energy_conserved:
+            rows.append(("energy", self.energy_note))
+        for summary in (self.energy if self.energy_conserved else None, *self.invariants):
             if summary is not None:
                 rows.append(
                     (
@@ -345,7 +397,7 @@ class Diagnostics:
                         f"+/- {summary.drift_stderr:.1e} per unit t",
                     )
                 )
-        if np.isfinite(self.energy_bound_ratio):
+        if np.isfinite(self.energy_bound_ratio) and self.energy_conserved:
             rows.append(
                 (
                     "energy / bound",
@@ -357,6 +409,9 @@ class Diagnostics:
             if summary is None or any(summary is other for other in seen):
                 continue
             seen.append(summary)
+            if label == "true error" and not self.error_measured:
+                rows.append((label, self.error_note))
+                continue
             parts = ", ".join(
                 f"{n} {v:.3e}" for n, v in zip(summary.names, summary.max_abs, strict=True)
             )
@@ -445,6 +500,22 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
         ref = hamiltonian_reference(ham, sol.y[0], sol.t, params=params, periodic=periodic)
         return ref.y, "independent", ref.method, ref.estimated_error
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
+
+
+def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
+    """Largest ``|Gamma|`` (nan without one), with a note when it is rounding."""
+    if sol.gamma is None:
+        return float("nan")
+    series["gamma"] = sol.gamma
+    gamma_max = float(np.max(np.abs(sol.gamma)))
+    track = sol.z if sol.z is not None else sol.y
+    roundoff = GAMMA_ROUNDOFF_ULPS * _EPS * float(np.max(np.abs(track)))
+    if gamma_max < roundoff:
+        notes.append(
+            f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "
+            "track: the Richardson estimate measures rounding, not truncation"
+        )
+    return gamma_max
 
 
 def diagnose(
@@ -573,17 +644,7 @@ def diagnose(
                 f"the reference ({source}) is accurate only to ~{accuracy:.1e}, not "
                 "far below the tolerance: the true error is uncertain by that much"
             )
-    gamma_max = float("nan")
-    if sol.gamma is not None:
-        series["gamma"] = sol.gamma
-        gamma_max = float(np.max(np.abs(sol.gamma)))
-        track = sol.z if sol.z is not None else y
-        roundoff = GAMMA_ROUNDOFF_ULPS * _EPS * float(np.max(np.abs(track)))
-        if gamma_max < roundoff:
-            notes.append(
-                f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "
-                "track: the Richardson estimate measures rounding, not truncation"
-            )
+    gamma_max = _gamma_max(sol, series, notes)
     if not sol.success:
         notes.append(f"partial run: {sol.message}")
     for name, value in series.items():
@@ -605,4 +666,5 @@ def diagnose(
         gamma_max=gamma_max,
         notes=tuple(notes),
         series=dict(series),
+        time_dependent=bool(ham is not None and ham.time_dependent),
     )

@@ -101,6 +101,8 @@ class Problem:
     expected: Mapping[str, Any]
     parameters: Mapping[str, float]
     path: Path | None = None
+    #: The file's key of each initial value ("initial.x" or "initial.q[0]"), for messages.
+    initial_keys: tuple[str, ...] = ()
     _values: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -108,7 +110,9 @@ class Problem:
         params = ham.parameter_values(self.parameters)
         subs = dict(zip(ham.parameters, params, strict=True))
         n = ham.n
-        keys = [f"initial.{'qp'[i >= n]}[{i % n}]" for i in range(2 * n)]
+        keys = list(self.initial_keys) or [
+            f"initial.{'qp'[i >= n]}[{i % n}]" for i in range(2 * n)
+        ]
         y0 = np.array(
             [self._value(e, subs, k) for e, k in zip(self.initial_exprs, keys, strict=True)]
         )
@@ -321,7 +325,8 @@ class _FileReader:
                 raise self.error(f"bad name: {reason}", key)
         return value
 
-    def problem(self) -> Problem:
+    def header(self) -> str:
+        """Check the top-level keys and the name; returns the name."""
         data = self.data
         unknown = sorted(set(data) - TOP_LEVEL_KEYS)
         if unknown:
@@ -332,7 +337,24 @@ class _FileReader:
         name = data["name"]
         if name != self.path.stem:
             raise self.error(f"name {name!r} must equal the file stem {self.path.stem!r}", "name")
+        return name
+
+    def state_names(self) -> tuple[list[str], list[str]]:
+        """``coordinates`` and ``momenta``, checked, of equal length."""
         q_names, p_names = self.names("coordinates"), self.names("momenta")
+        if len(q_names) != len(p_names):
+            raise self.error(
+                f"{len(q_names)} coordinate{'s' if len(q_names) != 1 else ''} "
+                f"({', '.join(q_names)}) but {len(p_names)} momenta ({', '.join(p_names)}): "
+                "every coordinate needs its conjugate momentum, listed in the same order",
+                "momenta",
+            )
+        return q_names, p_names
+
+    def problem(self) -> Problem:
+        data = self.data
+        name = self.header()
+        q_names, p_names = self.state_names()
         param_table = self.table("parameters")
         param_names = list(param_table)
         for pname in param_names:
@@ -365,18 +387,7 @@ class _FileReader:
             )
         except InputError as exc:
             raise self.error(str(exc), "hamiltonian") from None
-        initial = self.table("initial")
-        extra = sorted(set(initial) - {"q", "p"})
-        if extra:
-            raise self.error(f"unknown key(s): {', '.join(extra)}", f"initial.{extra[0]}")
-        init_exprs = []
-        for part, count in (("q", len(q_names)), ("p", len(p_names))):
-            values = initial.get(part)
-            if not isinstance(values, list) or len(values) != count:
-                raise self.error(f"must be a list of {count} values", f"initial.{part}")
-            init_exprs += [
-                self.expr(v, params_only, f"initial.{part}[{i}]") for i, v in enumerate(values)
-            ]
+        init_exprs, init_keys = self.initial(q_names, p_names, params_only)
         integration = self.table("integration")
         extra = sorted(set(integration) - INTEGRATION_KEYS)
         if extra:
@@ -406,6 +417,7 @@ class _FileReader:
             references=tuple(references),
             hamiltonian=ham,
             initial_exprs=tuple(init_exprs),
+            initial_keys=tuple(init_keys),
             t_span_exprs=span_exprs,
             integration=integration,
             invariants=invariants,
@@ -414,6 +426,62 @@ class _FileReader:
             parameters=defaults,
             path=self.path,
         )
+
+    def initial(
+        self, q_names: list[str], p_names: list[str], params: Mapping[str, sp.Symbol]
+    ) -> tuple[list[sp.Expr], list[str]]:
+        """``[initial]``, bound by the problem's own names (``x = 1.0``) or by the
+        lists ``q = [...]``, ``p = [...]``: the expressions in the state's order,
+        and the key of each."""
+        initial = self.table("initial")
+        state = [*q_names, *p_names]
+        listed = [k for k in initial if k in ("q", "p") and k not in state]
+        named = [k for k in initial if k not in listed]
+        if listed and named:
+            raise self.error(
+                f"mixes the lists {' and '.join(listed)} with the names "
+                f"{', '.join(named)}: bind every value by name ({' = ..., '.join(state)} = ...) "
+                "or give the lists q = [...] and p = [...], not both",
+                f"initial.{named[0]}",
+            )
+        if not named:
+            exprs, keys = [], []
+            for part, count in (("q", len(q_names)), ("p", len(p_names))):
+                values = initial.get(part)
+                if not isinstance(values, list) or len(values) != count:
+                    raise self.error(
+                        f"must be a list of {count} values, got {_shown(values)}",
+                        f"initial.{part}",
+                    )
+                keys += [f"initial.{part}[{i}]" for i in range(count)]
+                exprs += [
+                    self.expr(v, params, k) for v, k in zip(values, keys[-count:], strict=True)
+                ]
+            return exprs, keys
+        unknown = [k for k in named if k not in state]
+        if unknown:
+            hint = " (a parameter: set it in [parameters])" if unknown[0] in params else ""
+            raise self.error(
+                f"{unknown[0]} = {_shown(initial[unknown[0]])}: unknown name{hint}; "
+                f"[initial] binds the coordinates and momenta {', '.join(state)}",
+                f"initial.{unknown[0]}",
+            )
+        missing = [k for k in state if k not in initial]
+        if missing:
+            raise self.error(f"no initial value for {', '.join(missing)}", "initial")
+        exprs = []
+        for key in state:
+            value = initial[key]
+            if isinstance(value, list):
+                # x = [1.0] reads as one value; more is a vector given to a scalar
+                if len(value) != 1:
+                    raise self.error(
+                        f"{key} = {_shown(value)}: one value expected, got a list of {len(value)}",
+                        f"initial.{key}",
+                    )
+                value = value[0]
+            exprs.append(self.expr(value, params, f"initial.{key}"))
+        return exprs, [f"initial.{key}" for key in state]
 
     def setting(self, key: str, value: Any) -> None:
         """Check one ``[integration]`` value with :func:`hamrkq.options.check_setting`,
@@ -449,6 +517,12 @@ class _FileReader:
                 raise self.error(f"must be a list of {n} expressions", f"exact.{part}")
             exprs += [self.expr(v, symbols, f"exact.{part}[{i}]") for i, v in enumerate(values)]
         return {"expressions": tuple(exprs)}
+
+
+def _shown(value: Any) -> str:
+    """A TOML value as the user wrote it, shortened for a message."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _finite_real(expr: sp.Expr) -> float | None:

@@ -19,11 +19,14 @@ results could not be written (the table is still printed).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.catalogue.problems import load_problem
@@ -34,9 +37,11 @@ from hamrkq.io.report import (
     ProgressBar,
     check_dpi,
     format_table,
+    jsonable,
     summary_dict,
     summary_rows,
 )
+from hamrkq.options import METHOD_NAMES
 from hamrkq.solve import BACKENDS, METHODS, solve
 
 __all__ = ["REFERENCE_CHOICES", "register", "run_command"]
@@ -74,12 +79,24 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
     p.add_argument(
-        "--method", metavar="M", help=f"integration method ({', '.join(METHODS)}); "
+        "--method", metavar="M", help=f"integration method ({', '.join(METHOD_NAMES)}); "
         "default: the problem's"
     )  # fmt: skip
-    p.add_argument("--atol", type=float, metavar="A", help="absolute tolerance")
+    p.add_argument(
+        "--atol", action="append", default=[], metavar="A|NAME=A",
+        help="absolute tolerance: a number for every component, or NAME=A for the "
+        "component of that coordinate or momentum (repeatable; the others keep the "
+        "plain --atol, else the problem's)",
+    )  # fmt: skip
     p.add_argument("--rtol", type=float, metavar="R", help="relative tolerance")
+    p.add_argument("--t-start", type=float, metavar="T0", help="start of the interval")
     p.add_argument("--t-end", type=float, metavar="T", help="end of the interval")
+    p.add_argument("--max-step", type=float, metavar="H", help="largest step size")
+    p.add_argument("--first-step", type=float, metavar="H", help="initial step size")
+    p.add_argument(
+        "--keep-every", type=int, metavar="K", help="keep every K-th accepted node "
+        "(and the first and last)"
+    )  # fmt: skip
     p.add_argument(
         "--step", type=float, metavar="H", help="step size of a fixed-step method "
         "(midpoint, gauss4, verlet, ...)"
@@ -104,6 +121,19 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--dpi", type=int, default=120, help="resolution of the PNGs (10 to 600, default 120)"
     )
+    p.add_argument(
+        "--csv", action="store_true", help="also write solution.csv (t, the coordinates and "
+        "momenta by name, H) beside solution.npz"
+    )  # fmt: skip
+    output = p.add_mutually_exclusive_group()
+    output.add_argument(
+        "--json", action="store_true", help="print summary.json on stdout instead of the "
+        "table (for scripts); no progress bar"
+    )  # fmt: skip
+    output.add_argument(
+        "--quiet", action="store_true", help="print nothing but errors (the files are "
+        "still written); no progress bar"
+    )  # fmt: skip
     p.set_defaults(func=run_command)
 
 
@@ -121,6 +151,49 @@ def parse_parameters(items: list[str]) -> dict[str, float]:
         if not sep or not name.isidentifier() or not math.isfinite(value):
             raise InputError(f"--param {item!r}: expected NAME=NUMBER with a finite number")
         values[name] = value
+    return values
+
+
+def parse_atol(items: list[str], problem: Any) -> float | list[float] | None:
+    """``--atol`` values -> what :func:`hamrkq.solve` takes as ``atol``.
+
+    ``["1e-8"]`` -> ``1e-8``; ``["1e-8", "x=1e-10"]`` -> a list of 2n values, the
+    named components set and the others ``1e-8``; with names only, the others
+    keep the problem's atol (or solve's default 1e-6).  None when not given.
+    """
+    if not items:
+        return None
+    names = list(problem.hamiltonian.names)
+    plain: float | None = None
+    named: dict[str, float] = {}
+    for item in items:
+        name, sep, text = item.rpartition("=")
+        name = name.strip()
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or value <= 0:
+            raise InputError(f"--atol {item!r}: expected a positive finite number or NAME=NUMBER")
+        if not sep:
+            if plain is not None:
+                raise InputError(f"--atol {item!r}: a plain --atol was already given ({plain:g})")
+            plain = value
+            continue
+        if name not in names:
+            raise InputError(
+                f"--atol {item!r}: {name!r} is not a coordinate or momentum of "
+                f"{problem.name!r} (names: {', '.join(names)})"
+            )
+        if name in named:
+            raise InputError(f"--atol {item!r}: {name} was already given ({named[name]:g})")
+        named[name] = value
+    if not named:
+        return plain
+    base = plain if plain is not None else problem.integration.get("atol", 1e-6)
+    values = np.broadcast_to(np.asarray(base, dtype=float), (len(names),)).tolist()
+    for name, value in named.items():
+        values[names.index(name)] = value
     return values
 
 
@@ -143,13 +216,30 @@ def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
     """Keywords for :func:`hamrkq.solve`: only what the command line set, so that
     everything else keeps the problem's (or solve's) default."""
     kwargs: dict[str, Any] = {}
-    for name in ("method", "atol", "rtol", "step", "max_steps", "backend"):
+    names = ("method", "rtol", "step", "max_steps", "backend", "max_step", "first_step")
+    for name in (*names, "keep_every"):
         value = getattr(args, name)
         if value is not None:
             kwargs[name] = value
-    if args.t_end is not None:
-        kwargs["t_span"] = (problem.t_span[0], args.t_end)
+    atol = parse_atol(args.atol, problem)
+    if atol is not None:
+        kwargs["atol"] = atol
+    if args.t_start is not None or args.t_end is not None:
+        t0, t_end = problem.t_span
+        kwargs["t_span"] = (
+            t0 if args.t_start is None else args.t_start,
+            t_end if args.t_end is None else args.t_end,
+        )
     return kwargs
+
+
+def write_csv(out: OutputDir, name: str, sol: Any) -> None:
+    """``t``, every coordinate and momentum by name, and ``H`` at each node, as
+    CSV with a header line; full precision (``repr`` of each float)."""
+    header = ",".join(["t", *sol.names, "H"])
+    table = np.column_stack([sol.t, sol.y, sol.energy])
+    lines = [header, *(",".join(repr(float(v)) for v in row) for row in table)]
+    out.text(name, "\n".join(lines) + "\n")
 
 
 def diagnose_safely(sol: Any, problem: Any, reference: str) -> tuple[Any, list[str]]:
@@ -207,11 +297,15 @@ def run_command(args: argparse.Namespace) -> int:
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
 
     started = time.perf_counter()
-    announce_preparation(problem)
-    with ProgressBar(f"{problem.name} {method}") as bar:
+    quiet = args.quiet or args.json  # stdout and stderr stay clean for scripts
+    if not quiet:
+        announce_preparation(problem)
+    with ProgressBar(f"{problem.name} {method}", enabled=False if quiet else None) as bar:
         sol = solve(problem, progress=bar, **kwargs)
     solve_time = time.perf_counter() - started
     write_failed = _attempt(lambda: out.solution("solution.npz", sol))
+    if args.csv and write_failed is None:
+        write_failed = _attempt(lambda: write_csv(out, "solution.csv", sol))
 
     notes: list[str] = []
     diag = None
@@ -253,21 +347,30 @@ def run_command(args: argparse.Namespace) -> int:
     if write_failed is None:
         write_failed = _attempt(lambda: out.json("summary.json", summary))
 
+    if args.json:
+        print(json.dumps(jsonable(summary), indent=2, allow_nan=False))
+    elif not args.quiet:
+        print_summary(problem, sol, diag, notes, solve_time)
+    if write_failed is not None:
+        # The table above is all that is left of the run: say so, distinctly
+        # from a failed integration.
+        print(f"hamrkq: error: cannot write output: {write_failed}", file=sys.stderr)
+        if out.written and not quiet:
+            print(f"wrote only {out.path}/: {', '.join(out.written)}")
+        return EXIT_WRITE_FAILED
+    if not quiet:
+        print(f"wrote {out.path}/: {', '.join(out.written)}")
+    return 0 if sol.success and not interrupted else 1
+
+
+def print_summary(problem: Any, sol: Any, diag: Any, notes: list[str], solve_time: float) -> None:
+    """The human-readable report on stdout."""
     print(f"{problem.name}: {problem.title}")
     print(format_table(summary_rows(sol, diag, wall_time=solve_time)))
     if not sol.success and diag is None:  # otherwise the diagnostics' notes carry it
         print(f"message: {sol.message}")
     for note in [*(diag.notes if diag is not None else ()), *notes]:
         print(f"note: {note}")
-    if write_failed is not None:
-        # The table above is all that is left of the run: say so, distinctly
-        # from a failed integration.
-        print(f"hamrkq: error: cannot write output: {write_failed}", file=sys.stderr)
-        if out.written:
-            print(f"wrote only {out.path}/: {', '.join(out.written)}")
-        return EXIT_WRITE_FAILED
-    print(f"wrote {out.path}/: {', '.join(out.written)}")
-    return 0 if sol.success and not interrupted else 1
 
 
 #: Degrees of freedom from which deriving and compiling takes long enough

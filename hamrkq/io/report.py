@@ -485,10 +485,17 @@ def summary_rows(
         rows.append(("max est. global error", _components(diag.estimated)))
         rows.append(("  trajectory / bound", _num(diag.estimated.bound_ratio, ".4f")))
     if diag.error is not None and diag.error is not diag.estimated:
-        rows.append((f"max true error ({diag.error.source})", _components(diag.error)))
-        rows.append(("  reference accuracy", f"~{_num(diag.error.reference_accuracy, '.1e')}"))
-        rows.append(("  trajectory / bound", _num(diag.error.bound_ratio, ".4f")))
-    if diag.energy is not None:
+        label = f"max true error ({diag.error.source})"
+        if diag.error_measured:
+            # never a true error without the accuracy of what it is measured against
+            accuracy = f"reference accurate to ~{_num(diag.error.reference_accuracy, '.1e')}"
+            rows.append((label, f"{_components(diag.error)} ({accuracy})"))
+            rows.append(("  trajectory / bound", _num(diag.error.bound_ratio, ".4f")))
+        else:
+            rows.append((label, diag.error_note))
+    if diag.energy is not None and not diag.energy_conserved:
+        rows.append(("energy", diag.energy_note))
+    elif diag.energy is not None:
         rows.append(
             (
                 "max |H - H(0)|",
@@ -496,7 +503,7 @@ def summary_rows(
                 f"(drift {_num(diag.energy.drift, '+.2e')} per unit t)",
             )
         )
-    rows.append(("  energy / bound", _num(diag.energy_bound_ratio, ".4f")))
+        rows.append(("  energy / bound", _num(diag.energy_bound_ratio, ".4f")))
     for inv in diag.invariants:
         rows.append((f"max |{inv.name} - {inv.name}(0)|", _num(inv.max_abs)))
     if math.isfinite(diag.gamma_max):

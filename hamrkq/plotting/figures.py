@@ -17,9 +17,12 @@ for drawing by :func:`downsample_indices`, which keeps the smallest and the
 largest value of every bin, so the maximum error is always on the plot; error
 curves (log scale) are drawn as the per-bin maximum (:func:`upper_envelope`)
 over a faint band of the thinned series.  For
-``n > 1`` degrees of freedom, Figure 1 draws each pair ``(q_k, p_k)`` (up to
-four, else the norms ``|q|`` and ``|p|``) and Figures 2 and 4 the max-norm
-over the ``q``'s and over the ``p``'s, the norm the tolerance bounds.
+``n > 1`` degrees of freedom, Figure 1 draws one phase portrait per degree of
+freedom (the first :data:`MAX_PAIRS`), or for N-body problems the bodies'
+orbits; Figures 2 and 4 draw the max-norm over the ``q``'s and over the
+``p``'s, the norm the tolerance bounds, divided by ``delta_k`` when the
+tolerance differs between components or along the run.  Curves are labelled
+with the problem's own coordinate names; a partial run's end is marked.
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ if TYPE_CHECKING:
     from hamrkq.result import Solution
 
 __all__ = [
+    "bodies",
     "downsample_indices",
     "figure1",
     "figure2",
@@ -58,8 +62,8 @@ MAX_POINTS = 4000
 PHASE_POINTS = 20000
 #: Bins of the upper envelope drawn over a long error series.
 ENVELOPE_BINS = 400
-#: Up to this many degrees of freedom, Figure 1 draws every pair (q_k, p_k).
-MAX_PAIRS = 4
+#: Figure 1 draws a phase portrait for each of the first this many degrees of freedom.
+MAX_PAIRS = 6
 _STYLES = ({"color": "C0", "lw": 1.0}, {"color": "C3", "lw": 1.0, "ls": "--"})
 
 
@@ -171,7 +175,27 @@ def _groups(sol: Solution) -> list[tuple[str, slice]]:
 
 
 def _group_label(sol: Solution, name: str) -> str:
-    return name if sol.n == 1 else f"max_k |{name}_k|"
+    """``q`` (one degree of freedom: its own name) or ``max over x, y, ...``."""
+    offset = 0 if name == "q" else sol.n
+    names = sol.names[offset : offset + sol.n]
+    if sol.n == 1:
+        return names[0]
+    shown = ", ".join(names) if sol.n <= 4 else f"{names[0]}, ..., {names[-1]}"
+    return f"max over {shown}"
+
+
+def _delta(sol: Solution) -> np.ndarray:
+    from hamrkq.analysis.diagnostics import tolerance
+
+    rule = str(sol.options.get("tolerance_rule", "componentwise"))
+    return tolerance(sol.y, sol.atol, sol.rtol, rule)
+
+
+def _per_delta(sol: Solution) -> bool:
+    """Plot errors per tolerance (``|e_k| / delta_k``) when ``delta`` differs
+    between components or along the run: raw errors of components with other
+    tolerances (positions in AU, momenta of 1e-11) cannot share one line."""
+    return bool(np.ptp(_delta(sol)) > 0)
 
 
 def _pair_style(style: dict, k: int, n: int) -> dict:
@@ -189,73 +213,191 @@ def _first_periods(t: np.ndarray, q: np.ndarray, periods: int) -> float:
 
 
 # -- the figures -------------------------------------------------------------
+def bodies(names: Sequence[str]) -> list[tuple[str, list[int]]] | None:
+    """The bodies of an N-body problem, from its coordinate names, or None.
+
+    Coordinates named ``x<s>``, ``y<s>`` (and ``z<s>``) for the same suffix
+    ``<s>`` form body ``<s>`` (``x0, y0, z0, x1, ...`` or ``x1, y1, x2, ...``);
+    returns ``[(suffix, [index of x, index of y(, index of z)]), ...]`` when
+    every coordinate belongs to a body and there are at least two, else None.
+    """
+    groups: dict[str, dict[str, int]] = {}
+    for index, name in enumerate(names):
+        axis, suffix = name[:1], name[1:].lstrip("_")
+        if axis not in ("x", "y", "z") or not suffix:
+            return None
+        groups.setdefault(suffix, {})[axis] = index
+    found = []
+    for suffix, axes in groups.items():
+        if "x" not in axes or "y" not in axes:
+            return None
+        found.append((suffix, [axes[a] for a in "xyz" if a in axes]))
+    return found if len(found) >= 2 else None
+
+
+def _mark_partial(ax: Axes, sol: Solution) -> None:
+    """A vertical line where a partial run stopped, so a short curve is not
+    mistaken for a finished one."""
+    if not sol.success and len(sol.t):
+        ax.axvline(
+            sol.t[-1], color="C3", lw=1.0, ls=":",
+            label=f"{sol.method.upper()} stopped: {sol.status.name} at t = {sol.t[-1]:.6g}",
+        )  # fmt: skip
+
+
 def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None = None) -> Figure:
-    """Figure 1: q(t), p(t) over the first periods, the phase portrait, H(t).
+    """Figure 1: the solution, its phase portraits (or orbits) and H(t).
+
+    Three layouts, chosen from the first run:
+
+    - N-body problems (coordinates ``x<i>, y<i>(, z<i>)``, see :func:`bodies`):
+      the orbit of each body in the x-y plane, its distance from the origin
+      and its momentum against t, and H(t) - H(0): four panels;
+    - otherwise ``q_k(t)`` and ``p_k(t)`` over the first periods, one phase
+      portrait per degree of freedom (up to :data:`MAX_PAIRS`, the first ones
+      beyond), and H(t) - H(0): ``3 + min(n, MAX_PAIRS)`` panels.
+
+    Curves and axes are labelled with the problem's own coordinate names.
 
     Parameters
     ----------
     runs : Solution, sequence of Solution, or mapping label -> Solution
         The first run is drawn in full colour, the others dashed.
     periods : int
-        How many oscillations of ``q_1`` to show in the time panels.
-    axes : sequence of 4 Axes, optional
-        Draw into these instead of a new figure.
+        How many oscillations of the first coordinate to show in the time panels.
+    axes : sequence of Axes, optional
+        Draw into these instead of a new figure (as many as the layout has panels).
     title : str, optional
         Figure title (the problem's name, say).
     """
     items = _runs(runs)
-    fig, (ax_q, ax_p, ax_phase, ax_h) = _new_axes(axes, 4, (10, 7), (2, 2))
     _, first = items[0]
-    end = _first_periods(first.t, first.q[:, 0], periods)
-    pairs = range(min(first.n, MAX_PAIRS)) if first.n <= MAX_PAIRS else None
+    found = bodies(first.names[: first.n])
+    if found is not None:
+        fig, panels = _new_axes(axes, 4, (11, 8), (2, 2))
+        _orbits(items, found, panels)
+    else:
+        pairs = list(range(min(first.n, MAX_PAIRS)))
+        count = 3 + len(pairs)
+        if axes is None and len(pairs) > 1:
+            fig, panels = _phase_layout(len(pairs))
+        else:
+            fig, panels = _new_axes(axes, count, (10, 7), (2, 2))
+        ax_q, ax_p, *phase, ax_h = panels
+        _time_and_phase(items, pairs, periods, ax_q, ax_p, phase)
+        if first.n > len(pairs):
+            phase[0].set_title(f"{phase[0].get_title()}; first {len(pairs)} of {first.n}")
+    ax_h = panels[-1]
     for number, (label, sol) in enumerate(items):
-        style = _STYLES[number % 2]
-        window = sol.t <= end
-        t = sol.t[window]
-        for ax, part in ((ax_q, sol.q[window]), (ax_p, sol.p[window])):
-            if pairs is None:
-                ax.plot(t, np.linalg.norm(part, axis=1), label=label, **style)
-            else:
-                for k in pairs:
-                    suffix = "" if sol.n == 1 else f" (k={k + 1})"
-                    ax.plot(t, part[:, k], label=label + suffix, **_pair_style(style, k, sol.n))
-        for k in pairs if pairs is not None else [None]:
-            x = np.linalg.norm(sol.q, axis=1) if k is None else sol.q[:, k]
-            y = np.linalg.norm(sol.p, axis=1) if k is None else sol.p[:, k]
-            # a uniform stride keeps the orbit's order: extremes-per-bin thinning
-            # would join distant points of the orbit by chords
-            index = np.arange(0, x.size, max(1, -(-x.size // PHASE_POINTS)))
-            suffix = "" if k is None or sol.n == 1 else f" (k={k + 1})"
-            on_top = {"zorder": 3} if number == 0 else {"zorder": 2, "alpha": 0.6}
-            pair = style if k is None else _pair_style(style, k, sol.n)
-            ax_phase.plot(x[index], y[index], label=label + suffix, **pair, **on_top)
         tt, dh = _thin(sol.t, sol.energy - sol.energy[0])
-        ax_h.plot(tt, dh, label=f"{label} (H(0) = {sol.energy[0]:.10g})", **style)
-    names = ("|q|", "|p|") if pairs is None else ("q", "p") if first.n == 1 else ("q_k", "p_k")
-    ax_q.set(xlabel="time t", ylabel=names[0], title=f"{names[0]}(t), first periods")
-    ax_p.set(xlabel="time t", ylabel=names[1], title=f"{names[1]}(t), first periods")
-    ax_phase.set(xlabel=names[0], ylabel=names[1], title="phase portrait (whole run)")
+        ax_h.plot(tt, dh, label=f"{label} (H(0) = {sol.energy[0]:.10g})", **_STYLES[number % 2])
+        _mark_partial(ax_h, sol)
     ax_h.set(xlabel="time t", ylabel="H(t) - H(0)", title="energy error along the run")
     ax_h.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
-    for ax in (ax_q, ax_p, ax_phase, ax_h):
+    for ax in panels:
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small")
+        ax.legend(fontsize="x-small")
     if title:
         fig.suptitle(f"{title}: solution and Hamiltonian")
     return fig
 
 
-def _error_arrays(items, diagnostics, which: str) -> list[tuple[str, Solution, np.ndarray]]:
+def _phase_layout(pairs: int):
+    """q(t), p(t) and H on top, one phase portrait per degree of freedom below."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(max(10.0, 3.2 * pairs), 7.5), layout="constrained")
+    grid = fig.add_gridspec(2, 3 * pairs)
+    ax_q = fig.add_subplot(grid[0, :pairs])
+    ax_p = fig.add_subplot(grid[0, pairs : 2 * pairs])
+    phase = [fig.add_subplot(grid[1, 3 * k : 3 * k + 3]) for k in range(pairs)]
+    ax_h = fig.add_subplot(grid[0, 2 * pairs :])
+    return fig, [ax_q, ax_p, *phase, ax_h]
+
+
+def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
+    _, first = items[0]
+    end = _first_periods(first.t, first.q[:, 0], periods)
+    many = len(pairs) > 1
+    for number, (label, sol) in enumerate(items):
+        style = _STYLES[number % 2]
+        window = sol.t <= end
+        t = sol.t[window]
+        for ax, part, offset in ((ax_q, sol.q[window], 0), (ax_p, sol.p[window], sol.n)):
+            for k in pairs:
+                name = sol.names[offset + k]
+                tag = f"{label}: {name}" if many else label
+                ax.plot(t, part[:, k], label=tag, **_pair_style(style, k, len(pairs)))
+        # a uniform stride keeps the orbit's order: extremes-per-bin thinning
+        # would join distant points of the orbit by chords
+        index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
+        on_top = {"zorder": 3} if number == 0 else {"zorder": 2, "alpha": 0.6}
+        for ax, k in zip(phase, pairs, strict=True):
+            ax.plot(sol.q[index, k], sol.p[index, k], label=label, **style, **on_top)
+    names = first.names
+    if many:
+        ax_q.set(xlabel="time t", ylabel="coordinates", title="coordinates, first periods")
+        ax_p.set(xlabel="time t", ylabel="momenta", title="momenta, first periods")
+    else:
+        ax_q.set(xlabel="time t", ylabel=names[0], title=f"{names[0]}(t), first periods")
+        ax_p.set(
+            xlabel="time t", ylabel=names[first.n], title=f"{names[first.n]}(t), first periods"
+        )
+    for ax, k in zip(phase, pairs, strict=False):
+        q_name, p_name = names[k], names[first.n + k]
+        ax.set(xlabel=q_name, ylabel=p_name, title=f"phase portrait ({q_name}, {p_name})")
+
+
+def _orbits(items, found, panels) -> None:
+    """N-body panels: x-y orbits, distance from the origin and |momentum| per body."""
+    ax_orbit, ax_r, ax_p, _ = panels
+    _, first = items[0]
+    three_d = any(len(axes) == 3 for _, axes in found)
+    for number, (label, sol) in enumerate(items):
+        style = _STYLES[number % 2]
+        index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
+        for k, (suffix, axes) in enumerate(found):
+            body = {**style, "color": f"C{k % 10}"}
+            tag = f"body {suffix}" if number == 0 else f"body {suffix} ({label})"
+            ax_orbit.plot(sol.q[index, axes[0]], sol.q[index, axes[1]], label=tag, **body)
+            r = np.linalg.norm(sol.q[:, axes], axis=1)
+            momentum = np.linalg.norm(sol.p[:, axes], axis=1)
+            ax_r.plot(*_thin(sol.t, r), label=tag, **body)
+            ax_p.plot(*_thin(sol.t, momentum), label=tag, **body)
+        for ax in (ax_r, ax_p):
+            _mark_partial(ax, sol)
+    x_name, y_name = first.names[found[0][1][0]][0], first.names[found[0][1][1]][0]
+    ax_orbit.set(
+        xlabel=x_name, ylabel=y_name, aspect="equal",
+        title="orbits in the x-y plane" + (" (projection)" if three_d else ""),
+    )  # fmt: skip
+    ax_r.set(xlabel="time t", ylabel="distance from the origin", title="|position| of each body")
+    ax_p.set(xlabel="time t", ylabel="|momentum|", yscale="log", title="|momentum| of each body")
+
+
+def _against(arrays, prefix: str) -> str:
+    """What the error curves were measured against, from where they came from
+    (a fixed-step run has no RK8 track even when the estimated error is asked)."""
+    sources = {source for *_, source in arrays}
+    if sources == {"rk8"}:
+        return f"{prefix} RK8 track"
+    if sources == {"reference"}:
+        return f"{prefix} reference"
+    return f"{prefix} RK8 track or reference, see the legend"
+
+
+def _error_arrays(items, diagnostics, which: str) -> list[tuple[str, Solution, np.ndarray, str]]:
     diags = _diagnostics_for(diagnostics, [label for label, _ in items])
     out = []
     for label, sol in items:
         diag = diags.get(label)
         if which == "estimated" and sol.global_error is not None:
-            out.append((label, sol, sol.global_error))
+            out.append((label, sol, sol.global_error, "rk8"))
         elif diag is not None and "error" in diag.series:
             # a run without an RK8 track (RK34) is measured against the reference
             tag = label if which == "true" else f"{label} (vs {diag.error.source} reference)"
-            out.append((tag, sol, diag.series["error"]))
+            source = "rk8" if diag.error.source == "rk8" else "reference"
+            out.append((tag, sol, diag.series["error"], source))
         else:
             raise InputError(
                 f"run {label!r} has no {which} global error: pass diagnostics computed "
@@ -298,16 +440,25 @@ def figure2(
         raise InputError(f"error must be 'estimated' or 'true', got {error!r}")
     arrays = _error_arrays(_runs(runs), diagnostics, error)
     fig, panels = _new_axes(axes, 2, (9, 6.5))
-    what = "numerical minus RK8 track" if error == "estimated" else "numerical minus reference"
-    for number, (label, sol, err) in enumerate(arrays):
+    what = _against(arrays, "numerical minus")
+    _, sol0, _, _ = arrays[0]
+    relative = _per_delta(sol0)
+    for number, (label, sol, err, _) in enumerate(arrays):
+        scaled = np.abs(err) / _delta(sol) if relative else np.abs(err)
         for ax, (name, part) in zip(panels, _groups(sol), strict=True):
-            worst = np.max(np.abs(err[:, part]), axis=1)
+            worst = np.max(scaled[:, part], axis=1)
             _log_series(ax, sol.t, worst, label, _STYLES[number % 2])
-            ax.set(ylabel=f"|error in {_group_label(sol, name)}|", yscale="log")
-    _, sol0, _ = arrays[0]
+            group = _group_label(sol, name)
+            ylabel = f"|error| / δ, {group}" if relative else f"|error in {group}|"
+            ax.set(ylabel=ylabel, yscale="log")
+            _mark_partial(ax, sol)
     for ax, (name, part) in zip(panels, _groups(sol0), strict=True):
-        _tolerance_line(ax, sol0, part, "tolerance δ")
-        ax.set(xlabel="time t", title=f"global error in {name} ({what})")
+        if relative:
+            ax.axhline(1.0, color="k", lw=1.2, label="tolerance: |error_k| = δ_k")
+        else:
+            _tolerance_line(ax, sol0, part, "tolerance δ")
+        per = ", per tolerance δ_k" if relative else ""
+        ax.set(xlabel="time t", title=f"global error in {name} ({what}{per})")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize="small")
     if title:
@@ -331,9 +482,10 @@ def figure3(
         raise InputError(f"error must be 'estimated' or 'true', got {error!r}")
     arrays = _error_arrays(_runs(runs), diagnostics, error)
     fig, (axis,) = _new_axes(None if ax is None else [ax], 1, (9, 4.5))
-    for number, (label, sol, err) in enumerate(arrays):
+    for number, (label, sol, err, _) in enumerate(arrays):
         _log_series(axis, sol.t, trajectory_error(err), label, _STYLES[number % 2])
-    _, sol0, _ = arrays[0]
+        _mark_partial(axis, sol)
+    _, sol0, _, _ = arrays[0]
     rule = str(sol0.options.get("tolerance_rule", "componentwise"))
     bound = trajectory_bound(tolerance(sol0.y, sol0.atol, sol0.rtol, rule))
     name = "√2·δ" if sol0.n == 1 else "√(Σ δ_k²)"
@@ -341,10 +493,9 @@ def figure3(
         axis.axhline(bound[0], color="k", lw=1.2, label=f"upper bound {name} = {bound[0]:.3g}")
     else:
         axis.plot(*_thin(sol0.t, bound), color="k", lw=1.2, label=f"upper bound {name}")
-    against = "RK8 track" if error == "estimated" else "reference"
     axis.set(
         xlabel="time t", ylabel="‖y − y_ref‖₂ (phase space)", yscale="log",
-        title=f"trajectory error (Euclidean, against the {against})",
+        title=f"trajectory error (Euclidean, {_against(arrays, 'against the')})",
     )  # fmt: skip
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize="small")
@@ -362,20 +513,41 @@ def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> F
     if not items:
         raise InputError("no run has an estimated RK8 global error (Gamma) to plot")
     fig, (axis,) = _new_axes(None if ax is None else [ax], 1, (9, 4.5))
+    relative = _per_delta(items[0][1])
     for label, sol in items:
+        scaled = np.abs(sol.gamma) / _delta(sol) if relative else np.abs(sol.gamma)
         for number, (name, part) in enumerate(_groups(sol)):
-            worst = np.max(np.abs(sol.gamma[:, part]), axis=1)
+            worst = np.max(scaled[:, part], axis=1)
             tag = f"|Γ| in {_group_label(sol, name)}" + (f" ({label})" if len(items) > 1 else "")
             _log_series(axis, sol.t, worst, tag, _STYLES[number % 2])
+        _mark_partial(axis, sol)
+    _gamma_limit_line(axis, items[0][1], relative)
     axis.set(
-        xlabel="time t", ylabel="|Γ| (estimated error of RK8)", yscale="log",
-        title="estimated global error of the RK8 track",
+        xlabel="time t", yscale="log",
+        ylabel="|Γ| / δ (estimated error of RK8)" if relative else "|Γ| (estimated error of RK8)",
+        title="estimated global error of the RK8 track" + (" per tolerance" if relative else ""),
     )  # fmt: skip
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize="small")
     if title:
         fig.suptitle(f"{title}: RK8 error estimate")
     return fig
+
+
+def _gamma_limit_line(axis: Axes, sol: Solution, relative: bool) -> None:
+    """Where the run stops with TOLERANCE_UNATTAINABLE: ``|Γ_k| > gamma_limit δ_k``
+    (rounding included; see ``docs/algorithm.md``)."""
+    limit = sol.options.get("gamma_limit")
+    if limit is None or not np.isfinite(limit):
+        return
+    if relative:
+        axis.axhline(limit, color="k", lw=1.0, ls="--", label=f"gamma_limit = {limit:g}")
+        return
+    delta = float(np.min(_delta(sol)))
+    axis.axhline(
+        limit * delta, color="k", lw=1.0, ls="--",
+        label=f"gamma_limit · δ = {limit:g} × {delta:.3g}",
+    )  # fmt: skip
 
 
 def paper_figures(

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from functools import cached_property
 from typing import Any
@@ -20,6 +21,7 @@ import sympy as sp
 from hamrkq.errors import (
     CodegenError,
     HamiltonianError,
+    HamrkqWarning,
     InputError,
     InputTypeError,
     UndeclaredSymbolError,
@@ -191,26 +193,30 @@ class Hamiltonian:
         q = _symbol_tuple(q, "q", problems)
         p = _symbol_tuple(p, "p", problems)
         if len(q) != len(p):
-            problems.append(f"q has {len(q)} symbols but p has {len(p)}")
+            problems.append(
+                f"q has {len(q)} symbol{'s' if len(q) != 1 else ''} but p has {len(p)}: "
+                "every coordinate needs its conjugate momentum, so give q and p the same "
+                "number of symbols (q=[q1, q2], p=[p1, p2])"
+            )
         if not q and not p:
             problems.append("q and p are empty: at least one degree of freedom is needed")
         free = H.free_symbols if H is not None else set()
-        if t is None:
-            named_t = [s for s in free if s.name == "t"]
-            t = named_t[0] if len(named_t) == 1 else TIME
-        elif not isinstance(t, sp.Symbol):
-            problems.append(f"t must be a sympy Symbol, got {t!r}")
-            t = TIME
+        t = _time_symbol(t, free, q, p, problems)
         params, defaults = _parameters(parameters, free, problems)
+        if H is not None:
+            problems += _shadowed_constants(H, params)
         declared = [*q, *p, *params, t]
         seen: set[sp.Symbol] = set()
         duplicated = sorted({str(s) for s in declared if s in seen or seen.add(s)})
         if duplicated:
             problems.append(f"duplicated symbols: {', '.join(duplicated)}")
-        undeclared = {str(s) for s in free if s not in set(declared)}
+        undeclared = {s for s in free if s not in set(declared)}
         if undeclared:
-            raise UndeclaredSymbolError(undeclared, problems)
+            raise UndeclaredSymbolError(
+                {str(s) for s in undeclared}, problems + _undeclared_hints(undeclared, declared)
+            )
         if H is not None:
+            problems += _complex_kinks(H)
             # Only what every numerical backend can evaluate: elementary
             # functions, finite real numbers, the declared symbols.
             try:
@@ -219,6 +225,15 @@ class Hamiltonian:
                 problems.append(str(exc).replace("cannot generate scalar code for", "H uses"))
         if problems:
             raise HamiltonianError(problems)
+        if H.has(sp.Abs, sp.sign):
+            warnings.warn(
+                f"H = {H} is not differentiable everywhere (Abs or sign): Hamilton's "
+                "equations and the Jacobian hold away from the kinks (the Jacobian's "
+                "DiracDelta terms are dropped), and the error estimates of a step that "
+                "crosses a kink are not reliable",
+                HamrkqWarning,
+                stacklevel=2,
+            )
         object.__setattr__(self, "_H", H)
         object.__setattr__(self, "_q", q)
         object.__setattr__(self, "_p", p)
@@ -323,7 +338,7 @@ class Hamiltonian:
         """Hamilton's equations' right-hand side, (dH/dp, -dH/dq), 2n x 1."""
         dq = [sp.diff(self._H, pi) for pi in self._p]
         dp = [-sp.diff(self._H, qi) for qi in self._q]
-        return sp.Matrix(dq + dp)
+        return _drop_delta(sp.Matrix(dq + dp))
 
     @cached_property
     def equations(self) -> list[sp.Eq]:
@@ -349,7 +364,9 @@ class Hamiltonian:
             for j in range(i, 2 * n):
                 hessian[i][j] = hessian[j][i] = sp.diff(gradient[i], state[j])
         rows = [hessian[n + i] for i in range(n)] + [[-h for h in hessian[i]] for i in range(n)]
-        return sp.Matrix(rows)
+        # d sign(q)/dq = 2 DiracDelta(q): zero wherever the equations hold
+        # (away from the kinks of Abs/sign), and no backend can evaluate it.
+        return _drop_delta(sp.Matrix(rows))
 
     @cached_property
     def gradient(self) -> sp.Matrix:
@@ -429,10 +446,24 @@ class Hamiltonian:
     def state_values(self, q0: Any, p0: Any) -> np.ndarray:
         """Initial values as one float array ``(q0..., p0...)``, validated.
 
-        Accepts numbers, SymPy numbers or expressions without free symbols.
+        Parameters
+        ----------
+        q0, p0 : sequence or mapping
+            A sequence of n values in the order of :attr:`q` (:attr:`p`), or a
+            mapping that binds every coordinate (momentum) by its name or symbol,
+            ``{"x": 1.0}``.  Values are numbers, SymPy numbers or expressions
+            without free symbols.
+
+        Raises
+        ------
+        InputError
+            A wrong count; in a mapping, a missing, unknown or twice-bound name.
         """
         parts = []
-        for label, values in (("q0", q0), ("p0", p0)):
+        for label, values, symbols in (("q0", q0, self._q), ("p0", p0, self._p)):
+            if isinstance(values, Mapping):
+                parts.extend(self._bind_by_name(label, values, symbols))
+                continue
             if isinstance(values, str | bytes):
                 raise InputTypeError(f"{label} must be a sequence of numbers, not a string")
             if isinstance(values, numbers.Number | sp.Basic) and not isinstance(
@@ -459,6 +490,44 @@ class Hamiltonian:
             if conflict is not None:
                 raise InputError(f"{label}: {conflict}")
         return np.array(parts, dtype=float)
+
+    def _bind_by_name(
+        self, label: str, values: Mapping[Any, Any], symbols: tuple[sp.Symbol, ...]
+    ) -> list[float]:
+        """The values of ``symbols`` from a mapping keyed by name or symbol."""
+        role = "coordinate" if label == "q0" else "momentum"
+        other = self._p if label == "q0" else self._q
+        by_name = {s.name: s for s in symbols}
+        bound: dict[sp.Symbol, Any] = {}
+        for key, value in values.items():
+            symbol = by_name.get(key) if isinstance(key, str) else key
+            if symbol not in symbols:
+                shown = key if isinstance(key, str) else str(key)
+                if any(shown == s.name for s in other):
+                    where = "p0" if label == "q0" else "q0"
+                    raise InputError(
+                        f"{label}: {shown!r} is not a {role} (it belongs in {where}); "
+                        f"{label} binds {', '.join(by_name)}"
+                    )
+                raise InputError(
+                    f"{label}: unknown {role} {shown!r} = {_show_value(value)}; the "
+                    f"{'coordinates' if label == 'q0' else 'momenta'} are {', '.join(by_name)}"
+                )
+            if symbol in bound:
+                raise InputError(
+                    f"{label}: {symbol.name} is bound twice (by name and by symbol): "
+                    f"{_show_value(bound[symbol])} and {_show_value(value)}"
+                )
+            bound[symbol] = value
+        missing = [s.name for s in symbols if s not in bound]
+        if missing:
+            raise InputError(f"{label}: no value for {', '.join(missing)}")
+        return [_as_number(bound[s], f"{label}[{s.name!r}]") for s in symbols]
+
+
+def _show_value(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _unpickle(H, q, p, parameters, t, name) -> Hamiltonian:
@@ -503,8 +572,108 @@ def _symbol_tuple(symbols: Any, label: str, problems: list[str]) -> tuple[sp.Sym
         if isinstance(item, sp.Symbol):
             result.append(item)
         else:
-            problems.append(f"{label} contains {item!r}, which is not a SymPy Symbol")
+            problems.append(
+                f"{label} contains {item!r}, which is not a SymPy Symbol{_constant_hint(item)}"
+            )
     return tuple(result)
+
+
+def _constant_hint(item: Any) -> str:
+    """Why a name like ``E`` is not a symbol: ``from sympy import *`` binds
+    ``E`` to Euler's number, ``I`` to the imaginary unit, ``pi``, ``S``, ``N``..."""
+    if isinstance(item, sp.NumberSymbol | sp.core.numbers.ImaginaryUnit):
+        return (
+            f" but the SymPy constant {item} = {sp.N(item, 6)} (`from sympy import *` "
+            f"binds the name {item} to it); declare your own symbol, for example "
+            f"{item}_ = sympy.Symbol('{item}')"
+        )
+    if callable(item) and not isinstance(item, sp.Basic):
+        name = getattr(item, "__name__", repr(item))
+        return f" but the SymPy function or class {name}; declare a symbol with sympy.Symbol"
+    return ""
+
+
+def _undeclared_hints(undeclared: set, declared: list) -> list[str]:
+    """Explain the undeclared symbols that look like declared ones: SymPy treats
+    ``Symbol('q')`` and ``Symbol('q', real=True)`` as different symbols."""
+    hints = []
+    by_name = {s.name: s for s in declared}
+    for symbol in sorted(undeclared, key=str):
+        twin = by_name.get(symbol.name)
+        if twin is None:
+            continue
+        mine = {k: v for k, v in symbol.assumptions0.items() if k in ("real", "positive")}
+        theirs = {k: v for k, v in twin.assumptions0.items() if k in ("real", "positive")}
+        hints.append(
+            f"H uses a symbol {symbol.name} ({_assumptions(mine)}) that is not the declared "
+            f"{twin.name} ({_assumptions(theirs)}): SymPy treats symbols with other "
+            "assumptions as different symbols; create both with the same call, for example "
+            f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
+        )
+    return hints
+
+
+def _time_symbol(t: Any, free: set, q: tuple, p: tuple, problems: list[str]) -> sp.Symbol:
+    """The time symbol: the given one, else H's symbol named ``t``, else :data:`TIME`."""
+    if t is not None:
+        if isinstance(t, sp.Symbol):
+            return t
+        problems.append(f"t must be a sympy Symbol, got {t!r}")
+        return TIME
+    named_t = [s for s in free if s.name == "t"]
+    t = named_t[0] if len(named_t) == 1 else TIME
+    for label, symbols in (("coordinate", q), ("momentum", p)):
+        if t in symbols:
+            # Otherwise reported as "duplicated symbols: t", which does not
+            # say that t is the time.
+            problems.append(
+                f"the {label} is called 't', the name of the time symbol: rename it "
+                "(for example 'theta'), or pass the time symbol explicitly "
+                "(t=sympy.Symbol('tau'))"
+            )
+            return sp.Dummy("t", real=True)
+    return t
+
+
+def _shadowed_constants(H: sp.Expr, params: tuple[sp.Symbol, ...]) -> list[str]:
+    """``H = p**2/2 + E*q**2`` after ``from sympy import *``: the E in H is
+    Euler's number, and a parameter named E would silently do nothing."""
+    constants = {str(c): c for c in H.atoms(sp.NumberSymbol, sp.core.numbers.ImaginaryUnit)}
+    return [
+        f"parameter {s.name} does not occur in H, but H contains the SymPy constant "
+        f"{s.name} = {sp.N(constants[s.name], 6)} (`from sympy import *` binds the name "
+        f"{s.name} to it): build H with {s.name} = sympy.Symbol('{s.name}')"
+        for s in params
+        if s not in H.free_symbols and s.name in constants
+    ]
+
+
+def _complex_kinks(H: sp.Expr) -> list[str]:
+    """``Abs(q)`` of a symbol not declared real: SymPy differentiates it as a
+    complex function (``re``, ``im``, ``Derivative``), which nothing can evaluate."""
+    loose = {
+        s.name for node in H.atoms(sp.Abs, sp.sign) for s in node.free_symbols if not s.is_real
+    }
+    if not loose:
+        return []
+    names = ", ".join(sorted(loose))
+    return [
+        f"H takes Abs or sign of {names}, not declared real: SymPy then differentiates "
+        "it as a complex function (re, im), which cannot be evaluated; declare the "
+        f"symbols real, sympy.symbols('{' '.join(sorted(loose))}', real=True)"
+    ]
+
+
+def _assumptions(values: Mapping[str, bool]) -> str:
+    shown = ", ".join(f"{k}={v}" for k, v in sorted(values.items()))
+    return shown or "no assumptions"
+
+
+def _drop_delta(matrix: sp.Matrix) -> sp.Matrix:
+    """``matrix`` with every DiracDelta (and its derivatives) set to zero."""
+    if not matrix.has(sp.DiracDelta):
+        return matrix
+    return matrix.replace(sp.DiracDelta, lambda *args: sp.S.Zero)
 
 
 def _parameters(
@@ -528,7 +697,9 @@ def _parameters(
         if isinstance(key, str):
             symbol = by_name.get(key, sp.Symbol(key, real=True))
         if not isinstance(symbol, sp.Symbol):
-            problems.append(f"parameter {key!r} is not a SymPy Symbol or a name")
+            problems.append(
+                f"parameter {key!r} is not a SymPy Symbol or a name{_constant_hint(key)}"
+            )
             continue
         symbols.append(symbol)
         if value is not None:

@@ -1,0 +1,147 @@
+"""`hamrkq run` options users reach for (issue 16): --t-start, --max-step,
+--first-step, --keep-every, --atol NAME=VALUE, --csv, --json, --quiet, --method
+passed through; a file with named initial values gives the positional numbers."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import numpy as np
+import pytest
+
+import hamrkq
+from hamrkq.cli import main
+
+FILE = """\
+name = "{name}"
+coordinates = ["x", "y"]
+momenta = ["u", "v"]
+hamiltonian = "(u**2 + v**2)/2 + (x**2 + 4*y**2)/2 + x**2*y/5"
+
+[initial]
+{initial}
+
+[integration]
+t_span = [0, 6]
+atol = 1e-8
+"""
+
+
+def write(tmp_path, name, initial):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(FILE.format(name=name, initial=initial))
+    return path
+
+
+def run(*argv):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main([str(a) for a in argv])
+    return status, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("files")
+    named = write(folder, "named", 'v = 0.1\nu = 0\ny = "1/4"\nx = 0.5')
+    listed = write(folder, "listed", 'q = [0.5, "1/4"]\np = [0, 0.1]')
+    return folder, named, listed
+
+
+def test_named_file_runs_like_the_positional_one(files, tmp_path):
+    _, named, listed = files
+    for path in (named, listed):
+        status, _, _ = run("run", path, "--no-plots", "--quiet", "--out", tmp_path / path.stem)
+        assert status == 0
+    a = hamrkq.Solution.load(tmp_path / "named" / "solution.npz")
+    b = hamrkq.Solution.load(tmp_path / "listed" / "solution.npz")
+    assert a.y[0].tolist() == [0.5, 0.25, 0.0, 0.1]
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_array_equal(a.y, b.y)
+
+
+def test_step_and_span_options_reach_solve(files, tmp_path):
+    _, named, _ = files
+    argv = ["--t-start", 1, "--t-end", 4, "--max-step", 0.05, "--first-step", 1e-3]
+    argv += ["--keep-every", 3, "--atol", "1e-9", "--atol", "v=1e-11", "--rtol", 0]
+    status, stdout, _ = run("run", named, *argv, "--no-plots", "--quiet", "--out", tmp_path)
+    assert status == 0 and stdout == ""
+    cli = hamrkq.Solution.load(tmp_path / "solution.npz")
+    lib = hamrkq.solve(
+        hamrkq.load_problem(named),
+        t_span=(1, 4),
+        max_step=0.05,
+        first_step=1e-3,
+        keep_every=3,
+        atol=[1e-9, 1e-9, 1e-9, 1e-11],
+        rtol=0,
+    )
+    np.testing.assert_array_equal(cli.t, lib.t)
+    np.testing.assert_array_equal(cli.y, lib.y)
+    assert cli.t[0] == 1 and cli.t[-1] == 4
+    assert np.max(np.diff(lib.t)) <= 3 * 0.05 + 1e-12  # keep_every 3 of steps <= 0.05
+    assert cli.atol.tolist() == [1e-9, 1e-9, 1e-9, 1e-11]
+
+
+def test_named_atol_alone_keeps_the_problems_atol(files, tmp_path):
+    _, named, _ = files
+    run("run", named, "--atol", "x=1e-10", "--no-plots", "--quiet", "--out", tmp_path)
+    sol = hamrkq.Solution.load(tmp_path / "solution.npz")
+    assert sol.atol.tolist() == [1e-10, 1e-8, 1e-8, 1e-8]  # the file's atol = 1e-8
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["--atol", "w=1e-9"], "'w' is not a coordinate or momentum of 'named' (names: x, y, u"),
+        (["--atol", "x=-1"], "expected a positive finite number"),
+        (["--atol", "1e-8", "--atol", "1e-9"], "a plain --atol was already given"),
+        (["--atol", "x=1e-9", "--atol", "x=1e-8"], "x was already given"),
+        (["--method", "nope"], "method='nope' is not valid; valid values: "),
+    ],
+)
+def test_bad_options_exit_2_with_the_culprit(files, tmp_path, argv, fragment):
+    _, named, _ = files
+    status, _, err = run("run", named, *argv, "--no-plots", "--out", tmp_path / "x")
+    assert status == 2 and fragment in err, err
+    assert not (tmp_path / "x").exists()
+
+
+def test_method_auto_is_passed_through(files, tmp_path):
+    from hamrkq.options import METHOD_NAMES
+
+    if "auto" not in METHOD_NAMES:
+        pytest.skip("solve has no method 'auto' yet")
+    _, named, _ = files
+    argv = ["--method", "auto", "--quiet", "--no-plots", "--out", tmp_path]
+    status, _, _ = run("run", named, *argv)
+    assert status == 0
+    cli = hamrkq.Solution.load(tmp_path / "solution.npz")
+    lib = hamrkq.solve(hamrkq.load_problem(named), method="auto")
+    assert cli.method == lib.method
+    np.testing.assert_array_equal(cli.y, lib.y)
+
+
+def test_method_list_comes_from_solve():
+    from hamrkq.options import METHOD_NAMES
+
+    status, stdout, _ = run("run", "--help")
+    assert status == 0
+    for name in METHOD_NAMES:
+        assert name in stdout.replace("\n", " ")
+
+
+def test_json_prints_the_summary_and_csv_matches_npz(files, tmp_path):
+    _, named, _ = files
+    status, stdout, err = run("run", named, "--json", "--csv", "--no-plots", "--out", tmp_path)
+    assert status == 0 and err == ""
+    printed = json.loads(stdout)
+    assert printed == json.loads((tmp_path / "summary.json").read_text())
+    assert "solution.csv" in printed["files"]
+    sol = hamrkq.Solution.load(tmp_path / "solution.npz")
+    header = (tmp_path / "solution.csv").read_text().splitlines()[0]
+    assert header == "t,x,y,u,v,H"
+    table = np.loadtxt(tmp_path / "solution.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(table, np.column_stack([sol.t, sol.y, sol.energy]))

@@ -1,0 +1,82 @@
+"""The docs quote only generated numbers, and their code blocks run.
+
+``docs/generate.py`` runs every ``python``/``bash`` block of the pages it
+knows (in order, in an empty folder) and writes their output, and the facts
+quoted in the prose, to ``docs/generated.json`` and into the pages.  Here:
+
+- the pages match the committed ``docs/generated.json`` (no run, fast);
+- each page, rerun now, gives the committed output: a change in the code's
+  numbers that is not regenerated fails (timings are compared as ``<time>``).
+  This also runs the code blocks of quickstart.md and cli.md as they stand
+  (it replaces test_cli_run's former quickstart test).
+
+After an intended change of numbers: ``python docs/generate.py``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location("docs_generate", ROOT / "docs" / "generate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+gen = _generator()
+HOW = "regenerate with: python docs/generate.py"
+
+
+def test_pages_match_the_committed_output():
+    assert gen.check(list(gen.PAGES)) == [], HOW
+
+
+def test_every_output_block_and_marker_is_generated():
+    data = gen.load()
+    for name in gen.PAGES:
+        text = (ROOT / "docs" / name).read_text()
+        blocks = gen.blocks(text)
+        code = gen.runnable(blocks)
+        outputs = [b for b in blocks if b["mark"] == "output"]
+        assert len(data[name]["outputs"]) == len(code), name
+        for block in outputs:
+            assert block["body"].strip(), f"{name}:{block['start'] + 1}: empty output block"
+        for key in gen.INLINE.findall(text):
+            assert key[0] in data[name]["facts"], f"{name}: <!-- gen:{key[0]} --> not generated"
+
+
+def test_fill_replaces_outputs_and_markers():
+    page = "a\n```python\nprint(1)\n```\n<!-- output -->\n```\nold\n```\n"
+    page += "x <!-- gen:k -->9<!-- /gen -->"
+    filled = gen.fill(page, ["1\n"], {"k": "42"})
+    assert filled == page.replace("old", "1").replace("-->9<", "-->42<")
+    with pytest.raises(KeyError, match="gen:k"):
+        gen.fill(page, ["1\n"], {})
+    # a stale page is detected
+    assert gen.fill(page, ["2\n"], {"k": "9"}) != page
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", gen.PAGES)
+def test_page_reruns_to_the_committed_output(name, tmp_path):
+    outputs, facts = gen.run_page(name, tmp_path)
+    committed = gen.load()[name]
+    assert facts == committed["facts"], HOW
+    assert len(outputs) == len(committed["outputs"]), HOW
+    for new, old in zip(outputs, committed["outputs"], strict=True):
+        assert gen.normalise(new) == gen.normalise(old), HOW
+    if name == "quickstart.md":  # the figures it promises were drawn, and are not blank
+        from matplotlib.image import imread
+
+        for figure in ("figure1", "figure2", "figure3", "figure4"):
+            rgb = imread(tmp_path / "quickstart" / f"{figure}.png")[..., :3]
+            assert 0.01 < np.any(rgb < 0.9, axis=-1).mean() < 0.9, figure
+        assert (tmp_path / "runs" / "coupled" / "figure1_solution.png").is_file()
