@@ -21,6 +21,7 @@ import numpy as np
 
 import hamrkq
 from hamrkq.analysis.reference import periodic_reference
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.rkq.family import MEMBERS
 
 HERE = Path(__file__).resolve().parent
@@ -38,7 +39,7 @@ def truth(problem, t):
     if problem.exact is not None:
         return problem.exact(t), 0.0
     ref = periodic_reference(
-        problem.hamiltonian.numeric.rhs, problem.y0, t, problem.parameter_array
+        numeric_of(problem.hamiltonian).rhs, problem.y0, t, problem.parameter_array
     )
     return ref.y, float(ref.estimated_error)
 

@@ -33,7 +33,7 @@ For every case:
    or 20 001 on the cases compared at hamrkq's nodes), median of repeats.
 4. **SciPy DOP853**: matched the same way; once with hamrkq's compiled rhs as
    ``f`` (its own step loop is then what is timed) and once with
-   ``ham.numeric.rhs``, interpreted Python (how a SciPy user calls it).
+   ``numeric_of(ham).rhs``, interpreted Python (how a SciPy user calls it).
 
 Ratios, not absolute times, are the claim: the machine is shared.
 """
@@ -59,6 +59,7 @@ import measure  # noqa: E402
 
 import hamrkq  # noqa: E402
 from hamrkq.backends import compiled  # noqa: E402
+from hamrkq.backends.numeric import numeric_of  # noqa: E402
 
 SCIPY_MIN_RTOL = 100 * np.finfo(float).eps
 
@@ -334,7 +335,7 @@ class Bench:
     def scipy_rhs(self, kind: str):
         params, dim = self.params, self.ham.dim
         if kind == "python":
-            numeric = self.ham.numeric
+            numeric = numeric_of(self.ham)
             return lambda t, y: numeric.rhs(t, y, params)
         system = compiled.compile_system(self.ham)
 

@@ -33,7 +33,7 @@ How to read it:
   compare the cost of the same accuracy.  SciPy is given hamrkq's compiled
   right-hand side (the fastest `f` there is), so its time is its own step
   loop; the row "f in Python" repeats DOP853 at the same tolerance with the
-  interpreted `ham.numeric.rhs`, the kind of `f` a SciPy user writes.
+  interpreted `numeric_of(ham).rhs`, the kind of `f` a SciPy user writes.
   `rk34` (local extrapolation only, the paper's comparison) runs at hamrkq's
   tolerance and shows what the global-error control buys.
 - **References.**  prentice2011: `hamrkq.analysis.reference.periodic_reference` (one
@@ -176,7 +176,7 @@ def _startup(results: dict[str, Any]) -> list[str]:
         "|---|---|",
         f"| parse the problem file | {d['parse']:.3g} |",
         f"| Hamilton's equations and the 36 x 36 Jacobian (SymPy) | {d['derive']:.3g} |",
-        f"| NumPy functions (`ham.numeric`, lambdify with CSE) | {d['numeric']:.3g} |",
+        f"| NumPy functions (`numeric_of(ham)`, lambdify with CSE) | {d['numeric']:.3g} |",
         f"| scalar source for the compiled backend (`codegen.generate_source`, CSE, "
         f"{d['lines']} lines) | {d['codegen']:.3g} |",
         "",

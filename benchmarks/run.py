@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq.backends.numeric import numeric_of
+
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
@@ -48,7 +50,7 @@ import measure  # noqa: E402
 import report  # noqa: E402
 
 import hamrkq  # noqa: E402
-from hamrkq import compiled  # noqa: E402
+from hamrkq.backends import compiled  # noqa: E402
 from hamrkq.analysis.reference import hamiltonian_reference, integrate_reference  # noqa: E402
 
 
@@ -128,7 +130,9 @@ class Bench:
             self._note_reference(ref)
             return ref.y
         if self.grid_reference is None:
-            ref = integrate_reference(self.ham.numeric.rhs, y0, self.grid, self.params, t0=self.t0)
+            ref = integrate_reference(
+                numeric_of(self.ham).rhs, y0, self.grid, self.params, t0=self.t0
+            )
             self.grid_reference = ref
             self._note_reference(ref)
             log(f"    reference: {ref.describe()}")
@@ -180,10 +184,10 @@ class Bench:
     def scipy_rhs(self, kind: str = "compiled"):
         """f for SciPy: ``"compiled"``, the compiled generated rhs (the fastest
         f there is, so SciPy's time is its own loop), or ``"python"``,
-        ``ham.numeric.rhs`` (an interpreted f, as a SciPy user would write)."""
+        ``numeric_of(ham).rhs`` (an interpreted f, as a SciPy user would write)."""
         params, dim = self.params, self.ham.dim
         if kind == "python":
-            numeric = self.ham.numeric
+            numeric = numeric_of(self.ham)
             return lambda t, y: numeric.rhs(t, y, params)
         system = compiled.compile_system(self.ham)
 
@@ -300,7 +304,7 @@ t1 = time.perf_counter()
 ham = problem.hamiltonian
 ham.rhs, ham.jacobian
 t2 = time.perf_counter()
-ham.numeric
+numeric_of(ham)
 t3 = time.perf_counter()
 source = codegen.generate_source(ham)
 t4 = time.perf_counter()
@@ -311,6 +315,7 @@ print(json.dumps({"parse": t1 - t0, "derive": t2 - t1, "numeric": t3 - t2,
 MEMORY_SCRIPT = """
 import numpy as np
 import hamrkq
+from hamrkq.backends.numeric import numeric_of
 problem = hamrkq.load_problem("prentice2011")
 hamrkq.solve(problem, t_span=(0.0, 1.0), backend="numba")  # load the compiled code
 t_end, thin, keep = {t_end!r}, {thin!r}, {keep!r}

@@ -1,4 +1,5 @@
 """Copy the tables of the latest benchmark runs into ``docs/performance.md``.
+from hamrkq.backends.numeric import numeric_of
 
     python benchmarks/update_docs.py
 
@@ -112,7 +113,7 @@ def startup_block() -> str:
              ("compile_rhs", "numba: rhs"), ("compile_jac", "numba: jac"),
              ("compile_rhs_jvp", "numba: rhs_jvp"), ("compile_energy", "numba: energy"),
              ("compile_energy_rows", "numba: energy_rows"),
-             ("numeric_construct", "`ham.numeric` (eager lambdify before)"))  # fmt: skip
+             ("numeric_construct", "`numeric_of(ham)` (eager lambdify before)"))  # fmt: skip
     lines += [
         "",
         "outer_solar_system's system, step by step (CPU seconds, fresh process):",

@@ -27,6 +27,7 @@ from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
 from hamrkq._validate import tolerance as _tolerance
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
 from hamrkq.catalogue.problems import Problem
@@ -122,7 +123,7 @@ def _run_rk(task: Task, backend: str) -> RunOutput:
 
         functions = compiled.kernel_functions(task.ham)
     else:
-        numeric = task.ham.numeric
+        numeric = numeric_of(task.ham)
         functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
     run = Integration(
         functions,
@@ -573,7 +574,7 @@ def _solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Sol
 
         energy = compiled.energy(task.ham, out.t, out.y, task.params)
     else:
-        energy = task.ham.numeric.energy(out.t, out.y, task.params)
+        energy = numeric_of(task.ham).energy(out.t, out.y, task.params)
     options: dict[str, Any] = {
         "method": o.method,
         "backend": backend,

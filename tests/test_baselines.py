@@ -9,6 +9,7 @@ from scipy.integrate import DOP853, solve_ivp
 
 import hamrkq
 from hamrkq import Status
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, USES_JACOBIAN, solve_scipy
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
@@ -42,7 +43,7 @@ def test_scipy_methods_through_solve_match_solve_ivp_and_the_exact_solution(kepl
     assert isinstance(sol, hamrkq.Solution) and sol.success
     assert sol.method == f"scipy:{name}" and sol.t[-1] == ONE_PERIOD[1]
     # Same solver, same settings: the same nodes as solve_ivp itself.
-    num, params = kepler.hamiltonian.numeric, kepler.parameter_array
+    num, params = numeric_of(kepler.hamiltonian), kepler.parameter_array
     direct = solve_ivp(lambda t, y: num.rhs(t, y, params), ONE_PERIOD, kepler.y0,
                        method=name, atol=1e-10, rtol=1e-10)  # fmt: skip
     assert np.array_equal(sol.t, direct.t)
@@ -75,7 +76,7 @@ def test_rejected_steps_counted_exactly(kepler, monkeypatch):
 def test_implicit_methods_get_the_symbolic_jacobian(name, monkeypatch):
     # FPU: stiff springs (omega = 50) make LSODA switch to BDF and use the Jacobian.
     problem = hamrkq.load_problem("fpu")
-    num = problem.hamiltonian.numeric
+    num = numeric_of(problem.hamiltonian)
     calls = []
     original = num.jac
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import hamrkq
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import ExpressionError, ProblemFileError, ProblemNotFoundError
 
 GOOD = """\
@@ -61,7 +62,7 @@ def test_a_good_file_loads(tmp_path):
     # the exact solution solves Hamilton's equations: check by central differences
     h = 1e-5
     deriv = (problem.exact(t + h) - problem.exact(t - h)) / (2 * h)
-    rhs = problem.hamiltonian.numeric.rhs_many(t, exact, problem.parameter_array)
+    rhs = numeric_of(problem.hamiltonian).rhs_many(t, exact, problem.parameter_array)
     np.testing.assert_allclose(deriv, rhs, atol=1e-8)
     assert problem.hamiltonian.is_first_integral(problem.invariants["twice_H"])
     other = problem.with_parameters(k=2.0)

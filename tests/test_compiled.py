@@ -21,6 +21,7 @@ from helpers import counters
 
 import hamrkq
 from hamrkq.backends import codegen, compiled
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, OptionError
 from hamrkq.rkq import layout, loop
 from hamrkq.rkq.driver import Integration, Settings, python_functions
@@ -186,7 +187,7 @@ def test_energy_matches_the_numeric_layer():
     t = np.linspace(0.0, 5.0, 50)
     params = ham.parameter_values()
     np.testing.assert_allclose(
-        compiled.energy(ham, t, Y, params), ham.numeric.energy(t, Y, params), rtol=1e-13
+        compiled.energy(ham, t, Y, params), numeric_of(ham).energy(t, Y, params), rtol=1e-13
     )
 
 

@@ -16,6 +16,7 @@ from hamrkq.analysis.diagnostics import (
     trajectory_error,
 )
 from hamrkq.analysis.reference import integrate_reference
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Solution, Status
 
@@ -223,11 +224,11 @@ def test_catalogue_problem_exact_and_independent_references_agree():
     ham, params = problem.hamiltonian, problem.parameter_array
     t = np.linspace(0.0, 20.0, 401)
     run = solve_ivp(
-        lambda t, y: ham.numeric.rhs(t, y, params), (0, 20), problem.y0, method="RK45",
+        lambda t, y: numeric_of(ham).rhs(t, y, params), (0, 20), problem.y0, method="RK45",
         rtol=1e-8, atol=1e-8, t_eval=t,
     )  # fmt: skip
     y = run.y.T
-    sol = make_solution(t, y, ham.numeric.energy(t, y, params), atol=1e-8)
+    sol = make_solution(t, y, numeric_of(ham).energy(t, y, params), atol=1e-8)
     by_exact = diagnose(sol, problem, reference="exact")
     by_reference = diagnose(sol, problem, reference="independent")
     assert by_reference.error.reference_accuracy < 1e-11

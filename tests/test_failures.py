@@ -17,6 +17,7 @@ import sympy as sp
 from scipy.optimize import brentq
 
 import hamrkq
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 
 q, p = sp.symbols("q p", real=True)
@@ -194,7 +195,7 @@ def test_interrupt_in_the_middle_of_a_step_drops_only_that_step(monkeypatch):
     ham = hamrkq.Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
     # The interpreted loop: only there does Python run inside a step.
     full = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python")
-    numeric = ham.numeric
+    numeric = numeric_of(ham)
     original = numeric.rhs
     calls = []
 

@@ -11,6 +11,7 @@ from scipy.integrate import solve_ivp
 
 import hamrkq
 from hamrkq import RK34Q8
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, InputError, OptionError
 from hamrkq.rkq.scipy_solver import HermiteDenseOutput
 
@@ -30,7 +31,7 @@ def harmonic_exact(t):
 @pytest.fixture(scope="module")
 def kepler():
     problem = hamrkq.load_problem("kepler")
-    num, params = problem.hamiltonian.numeric, problem.parameter_array
+    num, params = numeric_of(problem.hamiltonian), problem.parameter_array
     return (
         problem,
         lambda t, y: num.rhs(t, y, params),

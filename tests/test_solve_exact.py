@@ -11,6 +11,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue import exact
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
@@ -80,8 +81,8 @@ def test_energy_error_within_the_papers_first_order_bound(name):
     # |H(y~) - H(y)| <= sum_k |dH/dy_k| delta_k to first order (Prentice, Sec. 3).
     sol, delta, _ = solved(name, "abs", 1e-8)
     pr = problem(name)
-    gradient = pr.hamiltonian.numeric.gradient(sol.t, sol.y, pr.parameter_array)
-    exact_energy = pr.hamiltonian.numeric.energy(0.0, pr.y0, pr.parameter_array)
+    gradient = numeric_of(pr.hamiltonian).gradient(sol.t, sol.y, pr.parameter_array)
+    exact_energy = numeric_of(pr.hamiltonian).energy(0.0, pr.y0, pr.parameter_array)
     bound = np.sum(np.abs(gradient) * delta, axis=1)
     assert np.all(np.abs(sol.energy - exact_energy) <= 1.05 * bound)
 

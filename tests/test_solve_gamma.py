@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from hamrkq.analysis.reference import periodic_reference
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
 
@@ -73,7 +74,7 @@ def test_gamma_off_leaves_no_estimate_and_costs_less():
 @pytest.mark.slow
 def test_paper_propagation_understates_on_prentice2011():
     pr = load_problem("prentice2011")
-    numeric = pr.hamiltonian.numeric
+    numeric = numeric_of(pr.hamiltonian)
     runs = {
         mode: solve(pr, t_span=(0, 1000), global_error_estimate=mode, gamma_limit=np.inf)
         for mode in ("tangent", "paper")

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from hamrkq.analysis.reference import periodic_reference
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.solve import solve
 
@@ -26,7 +27,7 @@ def problem():
 
 
 def _with_reference(problem, sol):
-    numeric = problem.hamiltonian.numeric
+    numeric = numeric_of(problem.hamiltonian)
     ref = periodic_reference(numeric.rhs, problem.y0, sol.t, problem.parameter_array)
     assert ref.estimated_error <= TOL / 100
     return sol, ref.y
@@ -72,7 +73,7 @@ def test_node_count_matches_the_paper_within_a_factor_of_two(rkq_run):
 
 def test_energy_error_within_the_papers_bound(rkq_run, problem):
     sol, _ = rkq_run
-    numeric = problem.hamiltonian.numeric
+    numeric = numeric_of(problem.hamiltonian)
     gradient = numeric.gradient(sol.t, sol.y, problem.parameter_array)
     bound = np.abs(gradient).sum(axis=1) * TOL
     assert np.all(np.abs(sol.energy - 0.8) <= 1.05 * bound + 1e-15)

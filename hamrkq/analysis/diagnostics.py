@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq.analysis.reference import Reference, hamiltonian_reference
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.result import Solution
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -574,7 +575,7 @@ def diagnose(
     ham, params = _system(problem, params)
     if ham is not None:
         if gradient is None:
-            gradient = lambda t, Y: ham.numeric.gradient(t, Y, params)  # noqa: E731
+            gradient = lambda t, Y: numeric_of(ham).gradient(t, Y, params)  # noqa: E731
         if invariants is None and hasattr(problem, "invariant_functions"):
             invariants = problem.invariant_functions()
         if exact is None and getattr(problem, "exact", None) is not None:

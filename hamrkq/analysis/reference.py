@@ -31,6 +31,7 @@ import numpy as np
 from scipy.integrate import DOP853, solve_ivp
 from scipy.optimize import brentq
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, IntegrationError
 
 __all__ = [
@@ -549,7 +550,7 @@ def hamiltonian_reference(
     auto = periodic is None
     if auto:
         periodic = ham.n == 1 and not ham.time_dependent
-    rhs = ham.numeric.rhs
+    rhs = numeric_of(ham).rhs
     if periodic:
         try:
             return periodic_reference(rhs, y0, t, params, t0=t0)

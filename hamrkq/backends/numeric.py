@@ -20,7 +20,9 @@ raising.
 from __future__ import annotations
 
 import math
+import threading
 import types
+import weakref
 from collections.abc import Callable, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -31,7 +33,7 @@ import sympy as sp
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["NumericHamiltonian", "vectorized"]
+__all__ = ["NumericHamiltonian", "numeric_of", "vectorized"]
 
 #: What Python's floating-point code raises where IEEE arithmetic (and numba's
 #: compiled code, ``error_model="numpy"``) gives NaN or an infinity.
@@ -204,3 +206,19 @@ class NumericHamiltonian:
     def gradient(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """dH/dy at the rows of ``Y``, shape (N, 2n)."""
         return self._gradient(t, Y, params)
+
+
+_NUMERIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_NUMERIC_LOCK = threading.Lock()
+
+
+def numeric_of(ham: Hamiltonian) -> NumericHamiltonian:
+    """The numerical functions of ``ham`` (:class:`NumericHamiltonian`), built
+    once per Hamiltonian and kept while it lives.  (The symbolic layer does not
+    know about numerics: this is where a Hamiltonian meets them.)"""
+    with _NUMERIC_LOCK:
+        numeric = _NUMERIC.get(ham)
+        if numeric is None:
+            numeric = NumericHamiltonian(ham)
+            _NUMERIC[ham] = numeric
+        return numeric

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.scipy_solver import RK34Q8
@@ -163,7 +164,7 @@ def solve_scipy(
     if isinstance(keep_every, bool) or not isinstance(keep_every, int) or keep_every < 1:
         raise InputError(f"keep_every must be a positive integer, got {keep_every!r}")
     times = None if t_eval is None else np.asarray(t_eval, dtype=float).ravel()
-    num = ham.numeric
+    num = numeric_of(ham)
     fun = lambda t, y: num.rhs(t, y, params)  # noqa: E731
     kwargs: dict[str, Any] = {
         "atol": np.broadcast_to(np.asarray(atol, dtype=float), (ham.dim,)).copy(),

@@ -28,6 +28,7 @@ import sympy as sp
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.result import Status
 from hamrkq.solve import solve
@@ -200,7 +201,9 @@ def _initial_energy(request: Request, i: int, sol: Any) -> float:
     t0 = request.t_span[0]
     if sol.t[0] == t0:
         return float(sol.energy[0])
-    energy = request.ham.numeric.energy(np.array([t0]), request.y0[i : i + 1], request.params[i])
+    energy = numeric_of(request.ham).energy(
+        np.array([t0]), request.y0[i : i + 1], request.params[i]
+    )
     return float(np.asarray(energy).ravel()[0])
 
 

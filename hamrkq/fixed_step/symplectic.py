@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.fixed_step.implicit_rk import (
     GAUSS_TABLEAUS,
@@ -408,7 +409,7 @@ def solve_fixed(
     Parameters
     ----------
     ham : Hamiltonian
-        The system (uses ``ham.numeric``, ``ham.n``, ``ham.is_separable``,
+        The system (uses ``numeric_of(ham)``, ``ham.n``, ``ham.is_separable``,
         ``ham.names``, ``ham.parameter_values``).
     y0 : array_like, shape (2n,)
         Initial state, all q then all p.
@@ -458,7 +459,7 @@ def solve_fixed(
         t0, t1 = t_span
     except (TypeError, ValueError):
         raise InputError(f"t_span must be a pair (t0, t1), got {t_span!r}") from None
-    num = ham.numeric
+    num = numeric_of(ham)
     res = integrate_fixed(
         method,
         num.rhs,

@@ -435,14 +435,6 @@ class Hamiltonian:
             raise InputError(f"no value for parameter(s): {', '.join(missing)}")
         return np.array([chosen[s] for s in self._params], dtype=float)
 
-    @cached_property
-    def numeric(self):
-        """The numerical functions (:class:`~hamrkq.backends.numeric.NumericHamiltonian`),
-        generated once."""
-        from hamrkq.backends.numeric import NumericHamiltonian
-
-        return NumericHamiltonian(self)
-
     def state_values(self, q0: Any, p0: Any) -> np.ndarray:
         """Initial values as one float array ``(q0..., p0...)``, validated.
 
