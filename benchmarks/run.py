@@ -50,8 +50,8 @@ import measure  # noqa: E402
 import report  # noqa: E402
 
 import hamrkq  # noqa: E402
-from hamrkq.backends import compiled  # noqa: E402
 from hamrkq.analysis.reference import hamiltonian_reference, integrate_reference  # noqa: E402
+from hamrkq.backends import compiled  # noqa: E402
 
 
 @dataclass

@@ -12,7 +12,6 @@ import enum
 import json
 import os
 import pickle
-import tempfile
 import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
@@ -21,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._files import atomic_file, plain
 from hamrkq.errors import SolutionFileError
 
 __all__ = ["FrozenDict", "Solution", "Status"]
@@ -245,25 +245,16 @@ class Solution:
             "n": self.n,
             "names": list(self.names),
             "stats": dict(self.stats),
-            "options": _jsonable(dict(self.options)),
+            "options": plain(dict(self.options)),
             "partial": self.partial,
         }
         arrays["atol"] = self.atol
         arrays["rtol"] = self.rtol
         arrays["meta"] = np.array(json.dumps(meta))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            # mkstemp makes the file private (0600); a result is an ordinary file.
-            os.fchmod(fd, 0o666 & ~_umask())
-            with os.fdopen(fd, "wb") as handle:
-                # Not savez_compressed: float arrays shrink by about 16 % and
-                # deflating them took 0.3-0.9 s of a 2 s `hamrkq run prentice2011`.
-                np.savez(handle, **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        # Not savez_compressed: float arrays shrink by about 16 % and deflating
+        # them took 0.3-0.9 s of a 2 s `hamrkq run prentice2011`.
+        with atomic_file(path) as handle:
+            np.savez(handle, **arrays)
         return path
 
     @classmethod
@@ -339,22 +330,3 @@ class Solution:
 def _rebuild(cls: type[Solution], values: dict[str, Any]) -> Solution:
     """Unpickle a :class:`Solution` through its constructor (read-only arrays)."""
     return cls(**values)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)  # reading the umask means setting it; restore at once
-    os.umask(mask)
-    return mask
-
-
-def _jsonable(value: Any) -> Any:
-    """Turn NumPy scalars and arrays inside ``value`` into plain Python."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

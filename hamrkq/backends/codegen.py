@@ -33,7 +33,6 @@ import hashlib
 import importlib.util
 import os
 import sys
-import tempfile
 import threading
 import warnings
 import weakref
@@ -46,6 +45,7 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
+from hamrkq._files import atomic_file
 from hamrkq.errors import CodegenError, HamrkqWarning
 from hamrkq.symbolic.supported import check_supported
 
@@ -457,14 +457,8 @@ def generate_source(ham: Hamiltonian) -> str:
 
 
 def _write_atomically(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_file(path, "w") as handle:
+        handle.write(text)
 
 
 def _import_file(name: str, path: Path) -> ModuleType:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._files import plain
 from hamrkq.ensemble.request import STATS, ChunkResult, Request, run_chunk
 from hamrkq.ensemble.result import EnsembleSolution
 from hamrkq.errors import InputError, OptionError
@@ -116,7 +117,7 @@ class Collector:
             t_span=r.t_span,
             parameters={name: r.params[:, j] for j, name in enumerate(names)},
             stats={name: self.stats[:, k] for k, name in enumerate(STATS)},
-            options=_jsonable(r.options),
+            options=plain(r.options),
         )
 
 
@@ -179,15 +180,3 @@ def check_workers(workers: Any) -> int:
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InputError(f"workers must be a positive integer or None, got {workers!r}")
     return workers
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -32,8 +32,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, TextIO
 
-import numpy as np
-
+from hamrkq._files import jsonable, write_atomic
 from hamrkq.errors import InputError
 
 try:  # POSIX: an advisory lock that dies with its process (a stale lock frees itself)
@@ -102,45 +101,6 @@ def check_dpi(dpi: int) -> int:
 
 
 # -- files -------------------------------------------------------------------
-def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
-    """Write ``data`` to ``path`` whole or not at all (temporary file + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    raw = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(raw)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def jsonable(value: Any) -> Any:
-    """Plain JSON values: NumPy scalars and arrays become Python ones; nan and
-    inf become None (``summary.json`` is strict JSON, readable anywhere)."""
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, list | tuple):
-        return [jsonable(v) for v in value]
-    if isinstance(value, Path):
-        return str(value)
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        number = float(value)
-        return number if math.isfinite(number) else None
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
-
-
 #: Output directories claimed and not yet closed (see :func:`close_all`).
 _OPEN: weakref.WeakSet[OutputDir] = weakref.WeakSet()
 
