@@ -45,6 +45,7 @@ class Status(enum.Enum):
     )
     NEWTON_FAILED = (6, "The Newton iteration of an implicit method did not converge.")
     EXTERNAL_FAILURE = (7, "An external solver reported a failure.")
+    TERMINAL_EVENT = (8, "A terminal event ended the integration (see Solution.t_events).")
 
     def __init__(self, code: int, description: str):
         self.code = code
@@ -52,8 +53,9 @@ class Status(enum.Enum):
 
     @property
     def success(self) -> bool:
-        """True only for :attr:`SUCCESS`."""
-        return self is Status.SUCCESS
+        """True for :attr:`SUCCESS` and :attr:`TERMINAL_EVENT` (the run ended
+        where it was asked to, as SciPy's ``solve_ivp`` counts it)."""
+        return self is Status.SUCCESS or self is Status.TERMINAL_EVENT
 
 
 class FrozenDict(Mapping):
@@ -139,6 +141,18 @@ class Solution:
         The tolerances, per component.
     partial : bool
         True when the run stopped early (the nodes are those computed so far).
+    sol : callable or None
+        With ``solve(..., dense_output=True)``: the continuous solution
+        (:class:`hamrkq.rkq.dense.DenseOutput`), ``sol(t)`` of shape ``(2n,)``
+        for a number and ``(2n, m)`` for ``m`` times, as SciPy's.
+    t_events, y_events : list of ndarray or None
+        With ``events=``: per event function, the times (shape ``(m,)``) and
+        states (``(m, 2n)``) of its roots, as SciPy's names.
+    event_bound : list of ndarray or None
+        Per event, RKQ's error bound at each event state, ``max(atol,
+        rtol |y|)`` per component (shape ``(m, 2n)``).
+    event_labels : tuple of str
+        The event functions' names (the expression text for strings).
     """
 
     t: np.ndarray
@@ -157,6 +171,11 @@ class Solution:
     global_error: np.ndarray | None = None
     gamma: np.ndarray | None = None
     quenched: np.ndarray | None = None
+    sol: Any = None
+    t_events: list[np.ndarray] | None = None
+    y_events: list[np.ndarray] | None = None
+    event_bound: list[np.ndarray] | None = None
+    event_labels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -168,6 +187,10 @@ class Solution:
         set_(self, "stats", FrozenDict(self.stats))
         set_(self, "options", FrozenDict(self.options))
         set_(self, "names", tuple(self.names))
+        set_(self, "event_labels", tuple(self.event_labels))
+        for name in ("t_events", "y_events", "event_bound"):
+            if getattr(self, name) is not None:
+                set_(self, name, [_readonly(a) for a in getattr(self, name)])
         if self.y.ndim != 2 or self.y.shape != (self.t.size, 2 * self.n):
             raise ValueError(f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})")
 
@@ -189,7 +212,8 @@ class Solution:
 
     @property
     def partial(self) -> bool:
-        """True when the run stopped before the end of the interval."""
+        """True when the run stopped early because of a failure (a terminal
+        event is not one)."""
         return not self.status.success
 
     @property

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from hamrkq import events as _events
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
@@ -271,6 +272,8 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     t_eval: Any = None,
     backend: str = "auto",
     progress: bool | Callable[[float, float], None] | None = None,
+    dense_output: bool = False,
+    events: Any = None,
 ) -> Solution:
     """Integrate Hamilton's equations with RKQ (or RK34) and return the nodes.
 
@@ -352,6 +355,15 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     progress : bool or callable, optional
         True: a progress bar on stderr when it is a terminal.  A callable is
         called as ``progress(fraction, t)`` every few thousand steps.
+    dense_output : bool, default False
+        Attach the continuous solution ``sol.sol(t)`` (RKQ family only; one
+        quencher step from the node before ``t``, see ``docs/events.md``).
+    events : callable, expression, str, or a list of them, optional
+        Event functions ``g(t, y)`` (SciPy's convention, with ``terminal``
+        and ``direction`` attributes), SymPy expressions or strings in the
+        system's names; roots go to ``sol.t_events``/``sol.y_events`` and a
+        terminal one ends the run with ``Status.TERMINAL_EVENT``.  A
+        Problem's ``[[events]]`` are the default.  See :mod:`hamrkq.events`.
 
     Returns
     -------
@@ -406,6 +418,17 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
             "chooses the nodes that are kept"
         )
+    if events is None and isinstance(system_or_problem, Problem):
+        events = list(system_or_problem.events) or None
+    event_list = _events.event_specs(events, ham, params)
+    if (dense_output or event_list) and (
+        spec.run is not _run_rk or options.keep_every != 1 or t_eval_v is not None
+    ):
+        raise InputError(
+            "dense_output and events need an RKQ-family method with every node kept "
+            f"(method={options.method!r}, keep_every={options.keep_every!r}, "
+            f"t_eval {'given' if t_eval_v is not None else 'not given'})"
+        )
     bar = _progress(progress)
     started = time.perf_counter()
     chosen = _resolve_backend(options.backend, ham, spec)
@@ -429,7 +452,24 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             return out
         out.stats.setdefault("integrate_s", elapsed)
         out.stats["compile_s"] = compile_s
-        return _solution(task, spec, out, chosen)
+        sol = _solution(task, spec, out, chosen)
+        if dense_output or event_list:
+            sol = _with_events(task, sol, chosen, event_list, dense_output)
+        return sol
+
+
+def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
+    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run."""
+    member = _member(task)
+    dense = _events.dense_output(task.ham, member, backend, task.params, sol.t, sol.y)
+    if not specs:
+        return sol.replace(sol=dense)
+    z_dense = None if sol.z is None else dense.through(sol.t, sol.z)
+
+    def energy(t, Y):
+        return task.ham.numeric.energy(t, Y, task.params)
+
+    return _events.apply(sol, specs, dense, energy, z_dense, keep_dense)
 
 
 # -- validation ------------------------------------------------------------------

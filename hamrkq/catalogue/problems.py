@@ -45,6 +45,7 @@ TOP_LEVEL_KEYS = frozenset(
         "invariants",
         "exact",
         "expected",
+        "events",
     }
 )
 REQUIRED_KEYS = ("name", "coordinates", "momenta", "hamiltonian", "initial")
@@ -82,6 +83,10 @@ class Problem:
         values and parameters, where the file gives one.
     expected : mapping
         Published reference values, with their sources.
+    events : tuple of mapping
+        The ``[[events]]`` tables: ``expression`` (a SymPy expression in the
+        state, parameters and ``t``), ``direction`` and ``terminal``; the
+        default ``events=`` of :func:`hamrkq.solve`.
     parameters : mapping of str to float
         The parameter values in use.
     path : Path or None
@@ -103,6 +108,7 @@ class Problem:
     path: Path | None = None
     #: The file's key of each initial value ("initial.x" or "initial.q[0]"), for messages.
     initial_keys: tuple[str, ...] = ()
+    events: tuple[Mapping[str, Any], ...] = ()
     _values: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -404,6 +410,7 @@ class _FileReader:
         for iname, text in self.table("invariants").items():
             invariants[iname] = self.expr(text, state_syms, f"invariants.{iname}")
         exact = self.exact_spec({**params_only, "t": t}, len(q_names))
+        events = self.events(state_syms)
         references = data.get("references", [])
         if not isinstance(references, list) or not all(isinstance(r, str) for r in references):
             raise self.error("must be a list of strings", "references")
@@ -425,6 +432,7 @@ class _FileReader:
             expected=self.table("expected"),
             parameters=defaults,
             path=self.path,
+            events=events,
         )
 
     def initial(
@@ -482,6 +490,32 @@ class _FileReader:
                 value = value[0]
             exprs.append(self.expr(value, params, f"initial.{key}"))
         return exprs, [f"initial.{key}" for key in state]
+    def events(self, symbols: Mapping[str, sp.Symbol]) -> tuple[dict[str, Any], ...]:
+        """The ``[[events]]`` tables, expressions through the safe parser."""
+        tables = self.data.get("events", [])
+        if not isinstance(tables, list) or not all(isinstance(e, dict) for e in tables):
+            raise self.error("must be an array of tables ([[events]])", "events")
+        events = []
+        for k, table in enumerate(tables):
+            key = f"events[{k}]"
+            extra = sorted(set(table) - {"expression", "direction", "terminal"})
+            if extra or "expression" not in table:
+                raise self.error(
+                    "an event has 'expression' and may have 'direction' and 'terminal' "
+                    f"(got {', '.join(sorted(table))})",
+                    key,
+                )
+            direction = table.get("direction", 0)
+            if isinstance(direction, bool) or not isinstance(direction, int | float):
+                raise self.error(f"direction must be a number, got {direction!r}", key)
+            terminal = table.get("terminal", False)
+            if not isinstance(terminal, bool) and not (
+                isinstance(terminal, int) and terminal >= 0
+            ):
+                raise self.error(f"terminal must be a bool or a count, got {terminal!r}", key)
+            expr = self.expr(table["expression"], symbols, f"{key}.expression")
+            events.append({"expression": expr, "direction": direction, "terminal": terminal})
+        return tuple(events)
 
     def setting(self, key: str, value: Any) -> None:
         """Check one ``[integration]`` value with :func:`hamrkq.options.check_setting`,

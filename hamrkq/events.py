@@ -1,0 +1,294 @@
+"""Dense output and events for the RKQ family: what ``solve(dense_output=,
+events=)`` adds to a finished run.
+
+- :func:`dense_output` builds :class:`hamrkq.rkq.dense.DenseOutput` (one
+  quencher step from the node before ``t``) on the backend the run used.
+- :func:`event_specs` turns ``events=`` into :class:`EventSpec`: SciPy-style
+  callables ``g(t, y)`` (their ``terminal`` and ``direction`` attributes as in
+  :func:`scipy.integrate.solve_ivp`), SymPy expressions, or strings in the
+  system's own names (q's, p's, parameters, ``t``), parsed by the safe parser
+  of :mod:`hamrkq.symbolic.expressions` -- never ``eval``/``sympify``.
+- :func:`locate` finds every root: ``g`` on all nodes, sign changes in the
+  requested direction bracketed, each root refined by
+  :func:`scipy.optimize.brentq` on ``g(t, sol(t))`` to a few ulps of ``t``.
+- :func:`apply` puts ``t_events``/``y_events``/``event_bound`` and ``sol``
+  on the :class:`~hamrkq.result.Solution` and, for a terminal event, ends it
+  there (``Status.TERMINAL_EVENT``).
+
+A zero of ``g`` at the initial time is not an event (the sign must change
+after ``t0``), unlike SciPy, so that an orbit started on a Poincare section
+does not count its starting point.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+from scipy.optimize import brentq
+
+from hamrkq.errors import InputError, InputTypeError
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.dense import DenseOutput, dense_tableaus, evaluate, prepare_work
+from hamrkq.rkq.family import Member
+from hamrkq.symbolic.expressions import parse_expression
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
+__all__ = ["EventSpec", "apply", "dense_output", "event_specs", "locate"]
+
+_EPS = float(np.finfo(np.float64).eps)
+
+
+@dataclass(frozen=True)
+class EventSpec:
+    """One event function, ready to evaluate.
+
+    ``rows(t, Y)`` gives ``g`` at the rows of ``Y`` (times ``t``);
+    ``terminal`` is the number of occurrences that end the run (0: never);
+    ``direction`` > 0 counts only upward crossings, < 0 only downward, 0 both.
+    ``label`` names it in messages and summaries.
+    """
+
+    rows: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    terminal: int
+    direction: float
+    label: str
+
+    def scalar(self, t: float, y: np.ndarray) -> float:
+        return float(self.rows(np.array([t]), y[None, :])[0])
+
+
+def _terminal(value: Any, where: str) -> int:
+    if isinstance(value, bool | np.bool_):
+        return int(value)
+    if isinstance(value, int | np.integer) and value >= 0:
+        return int(value)
+    raise InputTypeError(f"{where}: terminal must be a bool or a count >= 0, got {value!r}")
+
+
+def _direction(value: Any, where: str) -> float:
+    try:
+        d = float(value)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{where}: direction must be a number, got {value!r}") from None
+    if not math.isfinite(d):
+        raise InputError(f"{where}: direction must be finite, got {value!r}")
+    return float(np.sign(d))
+
+
+def _symbols(ham: Hamiltonian) -> dict[str, sp.Symbol]:
+    names = {s.name: s for s in (*ham.state, *ham.parameters)}
+    names.setdefault("t", ham.t)
+    return names
+
+
+def _expression_rows(ham: Hamiltonian, expr: sp.Expr, params: np.ndarray, label: str):
+    allowed = {*ham.state, *ham.parameters, ham.t}
+    stray = sorted(str(s) for s in expr.free_symbols - allowed)
+    if stray:
+        raise InputError(
+            f"event {label!r} uses {', '.join(stray)}, which are not coordinates, momenta, "
+            f"parameters or t of the system"
+        )
+    f = sp.lambdify((ham.t, ham.state, ham.parameters), expr, modules="numpy")
+    dim = ham.dim
+
+    def rows(t: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        cols = [Y[:, k] for k in range(dim)]
+        return np.broadcast_to(np.asarray(f(t, cols, params), dtype=float), t.shape).copy()
+
+    return rows
+
+
+def _callable_rows(g: Callable) -> Callable:
+    def rows(t: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        return np.array([float(g(float(ti), yi.copy())) for ti, yi in zip(t, Y, strict=True)])
+
+    return rows
+
+
+def event_specs(events: Any, ham: Hamiltonian, params: np.ndarray) -> list[EventSpec]:
+    """``events=`` as a list of :class:`EventSpec`.
+
+    Each item is a callable ``g(t, y)`` (``y`` the state, q's then p's; the
+    attributes ``terminal`` and ``direction`` as in SciPy), a SymPy
+    expression or a string in the system's names, or a mapping with
+    ``expression`` and optional ``terminal`` (bool or count) and
+    ``direction`` (the form of a catalogue file's ``[[events]]``).
+    A single item may be given without a list.
+    """
+    if events is None:
+        return []
+    if callable(events) or isinstance(events, str | sp.Basic | Mapping):
+        events = [events]
+    if not isinstance(events, Sequence):
+        raise InputTypeError(
+            f"events must be a callable, an expression, a string or a list of them, "
+            f"got {type(events).__name__}"
+        )
+    specs = []
+    for k, item in enumerate(events):
+        where = f"events[{k}]"
+        terminal, direction = 0, 0.0
+        if isinstance(item, Mapping):
+            unknown = sorted(set(item) - {"expression", "terminal", "direction"})
+            if unknown or "expression" not in item:
+                raise InputError(
+                    f"{where}: a mapping needs 'expression' and may have 'terminal' and "
+                    f"'direction' (got keys {sorted(item)})"
+                )
+            terminal = _terminal(item.get("terminal", False), where)
+            direction = _direction(item.get("direction", 0.0), where)
+            item = item["expression"]
+        if isinstance(item, str):
+            expr = parse_expression(item, _symbols(ham), key=where)
+            specs.append(
+                EventSpec(_expression_rows(ham, expr, params, item), terminal, direction, item)
+            )
+        elif isinstance(item, sp.Basic):
+            label = str(item)
+            specs.append(
+                EventSpec(_expression_rows(ham, item, params, label), terminal, direction, label)
+            )
+        elif callable(item):
+            terminal = _terminal(getattr(item, "terminal", False), where)
+            direction = _direction(getattr(item, "direction", 0.0), where)
+            label = getattr(item, "__name__", f"event {k}")
+            specs.append(EventSpec(_callable_rows(item), terminal, direction, label))
+        else:
+            raise InputTypeError(
+                f"{where} must be a callable, a SymPy expression or a string, "
+                f"got {type(item).__name__}"
+            )
+    return specs
+
+
+def dense_output(
+    ham: Hamiltonian,
+    member: Member,
+    backend: str,
+    params: np.ndarray,
+    t: np.ndarray,
+    y: np.ndarray,
+) -> DenseOutput:
+    """The continuous solution through the nodes ``(t, y)`` of a run of
+    ``member`` on ``backend`` (``"numba"`` compiles the evaluation)."""
+    tab = dense_tableaus(member)
+    params = np.require(params, np.float64, ("C", "W"))
+    t = np.array(t, dtype=np.float64)
+    y = np.array(y, dtype=np.float64)
+    if backend == "numba":
+        from hamrkq.backends import compiled, extras
+
+        rhs = compiled.compile_system(ham).rhs
+        work = prepare_work(y.shape[1], tab)
+        args = (rhs, tab, params, t, y, np.zeros(1, np.int64), np.zeros(1))
+        fast = extras.compiled_helper(evaluate, ("rhs",), *args, work, np.zeros((1, y.shape[1])))
+        return DenseOutput(t, y, rhs, tab, params, compiled=fast)
+    numeric = ham.numeric
+
+    def rhs(t, y, params, out):
+        out[:] = numeric.rhs(t, y, params)
+
+    return DenseOutput(t, y, rhs, tab, params)
+
+
+def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]:
+    """Every root of ``spec`` along ``dense`` (in the direction of
+    integration, a zero at the first node excluded): times and states."""
+    t, y = dense.t, dense.y
+    g = spec.rows(t, y)
+    if t.size < 2:
+        return np.empty(0), np.empty((0, y.shape[1]))
+    g0, g1 = g[:-1], g[1:]
+    up = (g0 < 0) & (g1 >= 0)
+    down = (g0 > 0) & (g1 <= 0)
+    if spec.direction > 0:
+        hits = up
+    elif spec.direction < 0:
+        hits = down
+    else:
+        hits = up | down
+    roots = []
+    for i in np.flatnonzero(hits):
+        a, b = float(t[i]), float(t[i + 1])
+        if g1[i] == 0.0:
+            roots.append(b)
+            continue
+
+        def f(s: float) -> float:
+            return spec.scalar(s, dense(s))
+
+        # brentq's smallest relative tolerance (4 eps); the absolute one only
+        # matters for a root at t = 0.
+        roots.append(brentq(f, a, b, xtol=1e-300, rtol=4 * _EPS, maxiter=200))
+    times = np.array(roots, dtype=float)
+    states = dense.values(times) if times.size else np.empty((0, y.shape[1]))
+    return times, states
+
+
+def _bound(sol: Solution, states: np.ndarray) -> np.ndarray:
+    """RKQ's promise at the event states: delta_k = max(atol_k, rtol_k |y_k|)."""
+    return np.maximum(sol.atol, sol.rtol * np.abs(states))
+
+
+def apply(
+    sol: Solution,
+    specs: list[EventSpec],
+    dense: DenseOutput,
+    energy: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    z_dense: DenseOutput | None,
+    keep_dense: bool,
+) -> Solution:
+    """Events (and ``sol``) on the solution; a terminal event ends it."""
+    found = [locate(spec, dense) for spec in specs]
+    forward = sol.t[-1] >= sol.t[0]
+    key = 1.0 if forward else -1.0
+    stop_at, stop_by = math.inf, -1
+    for k, (spec, (times, _)) in enumerate(zip(specs, found, strict=True)):
+        if spec.terminal and times.size >= spec.terminal:
+            at = key * times[spec.terminal - 1]
+            if at < stop_at:
+                stop_at, stop_by = at, k
+    changes: dict[str, Any] = {}
+    if stop_by >= 0:
+        t_stop = key * stop_at
+        found = [
+            (times[key * times <= stop_at], states[key * times <= stop_at])
+            for times, states in found
+        ]
+        keep = key * sol.t < stop_at
+        y_stop = dense.values([t_stop])
+        t_new = np.append(sol.t[keep], t_stop)
+        y_new = np.vstack([sol.y[keep], y_stop])
+        changes.update(t=t_new, y=y_new, energy=energy(t_new, y_new))
+        if sol.z is not None and z_dense is not None:
+            z_new = np.vstack([sol.z[keep], z_dense.values([t_stop])])
+            changes.update(z=z_new, global_error=y_new - z_new)
+        if sol.gamma is not None:
+            # Gamma is not re-stepped: the last node's estimate, carried.
+            changes["gamma"] = np.vstack([sol.gamma[keep], sol.gamma[keep][-1:]])
+        if sol.quenched is not None:
+            changes["quenched"] = np.append(sol.quenched[keep], False)
+        changes.update(
+            status=Status.TERMINAL_EVENT,
+            message=(
+                f"stopped by terminal event {stop_by} ({specs[stop_by].label}) at "
+                f"t = {t_stop!r}"
+            ),
+        )
+        if keep_dense:
+            dense = dense.through(t_new, y_new)
+    changes.update(
+        t_events=[times for times, _ in found],
+        y_events=[states for _, states in found],
+        event_bound=[_bound(sol, states) for _, states in found],
+        event_labels=[spec.label for spec in specs],
+    )
+    if keep_dense:
+        changes["sol"] = dense
+    return sol.replace(**changes)
