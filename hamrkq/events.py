@@ -277,8 +277,7 @@ def apply(
         changes.update(
             status=Status.TERMINAL_EVENT,
             message=(
-                f"stopped by terminal event {stop_by} ({specs[stop_by].label}) at "
-                f"t = {t_stop!r}"
+                f"stopped by terminal event {stop_by} ({specs[stop_by].label}) at t = {t_stop!r}"
             ),
         )
         if keep_dense:
