@@ -1,0 +1,137 @@
+"""Events (solve(..., events=)): roots located on the dense output, SciPy's
+semantics for terminal and direction, catalogue [[events]] and hostile text."""
+
+from __future__ import annotations
+
+import math
+import shutil
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.catalogue.problems import catalogue_dir, load_problem
+from hamrkq.errors import ExpressionError, InputError, ProblemFileError
+from hamrkq.result import Status
+
+q, p = sp.symbols("q p", real=True)
+OSC = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2, q=[q], p=[p])
+
+
+def test_harmonic_zero_crossings_at_exact_times():
+    # q = cos t: zeros at (k + 1/2) pi.
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-13, events="q")
+    times = sol.t_events[0]
+    exact = (np.arange(times.size) + 0.5) * math.pi
+    assert times.size == 6
+    assert np.max(np.abs(times - exact)) < 1e-12  # measured 1.0e-13
+    # The state at each event: q = 0 and p = -sin(t) = -+1.
+    np.testing.assert_allclose(sol.y_events[0][:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(sol.y_events[0][:, 1], -np.sin(exact), atol=1e-12)
+    np.testing.assert_allclose(sol.event_bound[0], 1e-13)
+
+
+def test_direction_filters_crossings_like_scipy():
+    def g(t, y):
+        return y[0]
+
+    g.direction = 1.0  # q increasing through 0: t = 3 pi / 2, 7 pi / 2, ...
+    up = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-12, events=[g, "q"])
+    np.testing.assert_allclose(up.t_events[0], [1.5 * math.pi, 3.5 * math.pi, 5.5 * math.pi])
+    assert up.t_events[1].size == 6
+    down = hamrkq.solve(
+        OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-12, events={"expression": q, "direction": -1}
+    )
+    np.testing.assert_allclose(down.t_events[0], [0.5 * math.pi, 2.5 * math.pi, 4.5 * math.pi])
+
+
+def test_kepler_pericentre_passages_match_the_period():
+    # q.p = r dr/dt rises through zero at every pericentre: t = 2 pi k (a = 1),
+    # the start (a pericentre, q.p = 0 at t0) not counted.
+    problem = load_problem("kepler", e=0.6)
+    sol = hamrkq.solve(
+        problem,
+        t_span=(0.0, 200 * math.pi + 1.0),
+        atol=1e-12,
+        method="auto",
+        gamma_limit=math.inf,
+        events={"expression": "q1*p1 + q2*p2", "direction": 1},
+    )
+    times = sol.t_events[0]
+    k = np.arange(1, times.size + 1)
+    assert times.size == 100
+    assert np.max(np.abs(times - 2 * math.pi * k)) < 1e-10  # measured 5.2e-12
+    assert abs(np.polyfit(k, times, 1)[0] - 2 * math.pi) < 1e-12  # measured 5e-14
+
+
+def test_terminal_event_stops_the_run_with_status():
+    def hits_zero(t, y):
+        return y[0]
+
+    hits_zero.terminal = 2  # the second zero of q = cos t, at 3 pi / 2
+    sol = hamrkq.solve(
+        OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-12, events=[hits_zero], dense_output=True
+    )
+    assert sol.status is Status.TERMINAL_EVENT
+    assert sol.success and not sol.partial
+    assert "terminal event 0" in sol.message
+    assert sol.t[-1] == sol.t_events[0][-1]
+    assert abs(sol.t[-1] - 1.5 * math.pi) < 1e-11
+    np.testing.assert_allclose(sol.y[-1], [0.0, 1.0], atol=1e-11)
+    assert sol.t_events[0].size == 2
+    assert np.all(np.diff(sol.t) > 0)
+    # the rows stay consistent after the truncation
+    assert sol.z.shape == sol.y.shape == sol.gamma.shape
+    assert abs(sol.energy[-1] - 0.5) < 1e-11
+    assert sol.sol.t[-1] == sol.t[-1]
+
+
+def test_terminal_event_backward_in_time():
+    def g(t, y):
+        return y[0]
+
+    g.terminal = True
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, -10.0), atol=1e-12, events=g)
+    assert sol.status is Status.TERMINAL_EVENT
+    assert abs(sol.t[-1] + 0.5 * math.pi) < 1e-11
+
+
+def _copy_harmonic(tmp_path, extra: str):
+    path = tmp_path / "harmonic.toml"
+    shutil.copy(catalogue_dir() / "harmonic.toml", path)
+    with path.open("a") as handle:
+        handle.write(extra)
+    return path
+
+
+def test_events_from_a_problem_file(tmp_path):
+    path = _copy_harmonic(
+        tmp_path, '\n[[events]]\nexpression = "p"\ndirection = -1\nterminal = true\n'
+    )
+    problem = load_problem(path)
+    assert len(problem.events) == 1
+    sol = hamrkq.solve(problem, atol=1e-12)  # q = sin t, p = cos t: p falls through 0
+    assert sol.status is Status.TERMINAL_EVENT
+    assert abs(sol.t[-1] - 0.5 * math.pi) < 1e-11
+    assert sol.event_labels == ("p",)
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["__import__('os').system('true')", "q.__class__", "lambda: 0", "open('x')", "q; p"],
+)
+def test_hostile_event_text_is_rejected(tmp_path, text):
+    path = _copy_harmonic(tmp_path, f"\n[[events]]\nexpression = '''{text}'''\n")
+    with pytest.raises(ExpressionError):
+        load_problem(path)
+    with pytest.raises(ExpressionError):
+        hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=text)
+
+
+def test_bad_event_tables_are_rejected(tmp_path):
+    path = _copy_harmonic(tmp_path, '\n[[events]]\nexpression = "q"\nwhen = 1\n')
+    with pytest.raises(ProblemFileError, match="events"):
+        load_problem(path)
+    with pytest.raises(InputError, match="not coordinates"):
+        hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=sp.Symbol("x"))
