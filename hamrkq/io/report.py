@@ -413,6 +413,19 @@ def summary_dict(
         notes=list(notes),
         versions=package_versions(),
     )
+    if getattr(solution, "t_events", None) is not None:
+        # Per event function: its roots, the states there and RKQ's bound
+        # max(atol, rtol |y|) on each state's error (hamrkq.events).
+        out["events"] = [
+            {"label": label, "t": t, "y": y, "error_bound": bound}
+            for label, t, y, bound in zip(
+                solution.event_labels,
+                solution.t_events,
+                solution.y_events,
+                solution.event_bound,
+                strict=True,
+            )
+        ]
     return jsonable(out)
 
 

@@ -1,0 +1,222 @@
+"""Poincare sections: where orbits cross a surface, from the events machinery.
+
+:func:`poincare` integrates each orbit with :func:`hamrkq.solve` and an event
+``g = lhs - rhs`` of the section ``"lhs = rhs"`` (every node kept, roots
+refined on the dense output, see :mod:`hamrkq.events`), so a crossing's time
+and state carry the run's error bound.  :func:`energy_orbits` chooses initial
+conditions on a section at a given energy, the classic way of drawing a
+section of a two-degree-of-freedom system (Henon & Heiles 1964).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import sympy as sp
+from scipy.optimize import brentq
+
+from hamrkq.catalogue.problems import Problem
+from hamrkq.errors import InputError
+from hamrkq.result import Solution
+from hamrkq.solve import solve
+from hamrkq.symbolic.expressions import parse_expression
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
+__all__ = ["PoincareSection", "energy_orbits", "poincare", "section_expression"]
+
+
+@dataclass(frozen=True)
+class PoincareSection:
+    """The crossings of one or many orbits.
+
+    Attributes
+    ----------
+    t : ndarray, shape (m,)
+        Crossing times.
+    y : ndarray, shape (m, 2n)
+        Full states at the crossings, one row per crossing (the layout of
+        :attr:`hamrkq.Solution.y`).
+    orbit : ndarray of int, shape (m,)
+        The orbit (row of ``q0``/``p0``) each crossing belongs to.
+    section : str
+        The section's text.
+    names : tuple of str
+        State component names.
+    solutions : list of Solution
+        One per orbit (status, counters, error bounds at the crossings).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    orbit: np.ndarray
+    section: str
+    names: tuple[str, ...]
+    solutions: list[Solution] = field(repr=False)
+
+    @property
+    def success(self) -> bool:
+        """True when every orbit's run ended as asked."""
+        return all(s.success for s in self.solutions)
+
+    def column(self, name: str) -> np.ndarray:
+        """One state component at every crossing, by name."""
+        return self.y[:, self.names.index(name)]
+
+
+def _split_section(section: str) -> tuple[str, str]:
+    if not isinstance(section, str):
+        raise InputError(f"section must be a string like 'q1 = 0', got {section!r}")
+    parts = re.split(r"(?<![=<>!])=(?!=)", section)
+    if len(parts) != 2:
+        raise InputError(f"section must have exactly one '=' (like 'q1 = 0'), got {section!r}")
+    return parts[0], parts[1]
+
+
+def section_expression(ham: Hamiltonian, section: str) -> sp.Expr:
+    """``lhs - rhs`` of ``"lhs = rhs"``, both sides through the safe parser."""
+    lhs, rhs = _split_section(section)
+    symbols = {s.name: s for s in (*ham.state, *ham.parameters)}
+    symbols["t"] = ham.t
+    return parse_expression(lhs, symbols, key="section") - parse_expression(
+        rhs, symbols, key="section"
+    )
+
+
+def _system(system: Any) -> tuple[Hamiltonian, Problem | None]:
+    if isinstance(system, Problem):
+        return system.hamiltonian, system
+    if isinstance(system, Hamiltonian):
+        return system, None
+    raise InputError(
+        f"system must be a hamrkq.Hamiltonian or a hamrkq.Problem, got {type(system).__name__}"
+    )
+
+
+def poincare(
+    system: Any,
+    section: str = "q1 = 0",
+    q0: Any = None,
+    p0: Any = None,
+    t_span: Any = None,
+    *,
+    direction: float = 1.0,
+    n_crossings: int | None = None,
+    **solve_options: Any,
+) -> PoincareSection:
+    """Crossings of the surface ``section`` by one orbit, or by many.
+
+    Parameters
+    ----------
+    system : Hamiltonian or Problem
+    section : str
+        ``"lhs = rhs"`` in the system's names (``"q1 = 0"``), parsed safely.
+    q0, p0 : array of n, or of shape (k, n) for k orbits
+        Initial values (a Problem's by default).
+    t_span : (t0, t_end)
+    direction : float, default +1
+        Count crossings where ``lhs - rhs`` increases (+1), decreases (-1), or both (0).
+    n_crossings : int, optional
+        Stop each orbit at this many crossings (a terminal event).
+    **solve_options
+        Passed to :func:`hamrkq.solve` (``atol``, ``method``, ``backend``, ...).
+
+    Returns
+    -------
+    PoincareSection
+    """
+    ham, problem = _system(system)
+    expr = section_expression(ham, section)
+    if n_crossings is not None and (
+        isinstance(n_crossings, bool) or not isinstance(n_crossings, int) or n_crossings < 1
+    ):
+        raise InputError(f"n_crossings must be a positive integer, got {n_crossings!r}")
+    event = {"expression": expr, "direction": direction, "terminal": n_crossings or False}
+    if problem is not None:
+        q0 = problem.q0 if q0 is None else q0
+        p0 = problem.p0 if p0 is None else p0
+    Q, P = np.asarray(q0, dtype=float), np.asarray(p0, dtype=float)
+    if Q.ndim != P.ndim or Q.ndim not in (1, 2) or (Q.ndim == 2 and Q.shape[0] != P.shape[0]):
+        raise InputError(
+            f"q0 and p0 must both be 1-D (one orbit) or 2-D with one row per orbit, "
+            f"got shapes {Q.shape} and {P.shape}"
+        )
+    Q, P = np.atleast_2d(Q), np.atleast_2d(P)
+    solutions = [
+        solve(system, q, p, t_span, events=[event], **solve_options)
+        for q, p in zip(Q, P, strict=True)
+    ]
+    times = [s.t_events[0] for s in solutions]
+    states = [s.y_events[0] for s in solutions]
+    return PoincareSection(
+        t=np.concatenate(times),
+        y=np.concatenate(states) if states else np.empty((0, ham.dim)),
+        orbit=np.concatenate([np.full(t.size, k) for k, t in enumerate(times)]).astype(int),
+        section=section,
+        names=ham.names,
+        solutions=solutions,
+    )
+
+
+def energy_orbits(
+    ham: Hamiltonian,
+    energy: float,
+    orbits: int,
+    section: str = "q1 = 0",
+    parameters: Any = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Initial values of ``orbits`` orbits on ``section`` at energy ``energy``
+    (two degrees of freedom).
+
+    The section must fix a coordinate, ``"q_k = c"``.  The other coordinate
+    runs evenly over the interval where ``H(q, p = 0) <= E`` (the open
+    interval containing the section's point, with the other momentum 0), and
+    ``p_k >= 0`` is solved from ``H = E``.
+
+    Returns
+    -------
+    q0, p0 : ndarrays of shape (orbits, 2)
+    """
+    if ham.n != 2:
+        raise InputError(f"energy_orbits needs two degrees of freedom, got n = {ham.n}")
+    lhs, rhs = _split_section(section)
+    names = {s.name: k for k, s in enumerate(ham.q)}
+    key = lhs.strip()
+    if key not in names:
+        raise InputError(
+            f"the section must fix a coordinate ({', '.join(names)}), got {section!r}"
+        )
+    k = names[key]
+    value = float(sp.N(parse_expression(rhs, {}, key="section")))
+    other = 1 - k
+    params = ham.parameter_values(parameters)
+    H = ham.numeric.energy
+
+    def h_at(q_other: float, p_k: float) -> float:
+        y = np.zeros(4)
+        y[k], y[other], y[2 + k] = value, q_other, p_k
+        return float(H(0.0, y, params))
+
+    if not h_at(0.0, 0.0) <= energy:
+        raise InputError(f"the point q = 0 on the section is above the energy {energy!r}")
+    grid = np.linspace(-10.0, 10.0, 20001)
+    allowed = np.array([h_at(x, 0.0) <= energy for x in grid])
+    centre = np.searchsorted(grid, 0.0)
+    lo = centre
+    while lo > 0 and allowed[lo - 1]:
+        lo -= 1
+    hi = centre
+    while hi < grid.size - 1 and allowed[hi + 1]:
+        hi += 1
+    xs = np.linspace(grid[lo], grid[hi], orbits + 2)[1:-1]
+    q0 = np.zeros((orbits, 2))
+    p0 = np.zeros((orbits, 2))
+    for j, x in enumerate(xs):
+        top = 1.0
+        while h_at(x, top) < energy:
+            top *= 2.0
+        pk = brentq(lambda s, x=x: h_at(x, s) - energy, 0.0, top, xtol=1e-15, rtol=1e-15)
+        q0[j, k], q0[j, other], p0[j, k] = value, x, pk
+    return q0, p0

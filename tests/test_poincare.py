@@ -1,0 +1,75 @@
+"""Poincare sections: crossings on exact invariant curves, many orbits, the
+energy initial conditions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.analysis.poincare import energy_orbits, poincare
+from hamrkq.catalogue.problems import load_problem
+from hamrkq.errors import ExpressionError, InputError
+
+q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2", real=True)
+OMEGA = math.sqrt(2.0)
+TWO = hamrkq.Hamiltonian(
+    (p1**2 + q1**2) / 2 + (p2**2 + OMEGA**2 * q2**2) / 2, q=[q1, q2], p=[p1, p2]
+)
+
+
+def test_uncoupled_oscillators_section_on_the_exact_invariant_curve():
+    # Each oscillator keeps its energy: at every crossing of q1 = 0,
+    # p2**2 + w**2 q2**2 = 2 E2 exactly, and p1 = +sqrt(2 E1) (direction +1).
+    q0, p0 = [0.3, 0.4], [0.2, -0.1]
+    e2 = (p0[1] ** 2 + OMEGA**2 * q0[1] ** 2) / 2
+    e1 = (p0[0] ** 2 + q0[0] ** 2) / 2
+    atol = 1e-10
+    sec = poincare(TWO, "q1 = 0", q0, p0, (0.0, 200.0), atol=atol)
+    # q1 = 0.3 cos t + 0.2 sin t = R cos(t - a) rises through 0 at a + 3 pi / 2 + 2 pi k.
+    exact_t = math.atan2(0.2, 0.3) + 1.5 * math.pi + 2 * math.pi * np.arange(31)
+    assert sec.t.size == 31
+    np.testing.assert_allclose(sec.t, exact_t, atol=1e-9, rtol=0)
+    curve = sec.column("p2") ** 2 + OMEGA**2 * sec.column("q2") ** 2 - 2 * e2
+    # |q2|, |p2| < 0.6: an error delta in each moves the curve by < 4 delta.
+    assert np.max(np.abs(curve)) < 4 * atol
+    assert np.max(np.abs(sec.column("q1"))) < 2 * atol
+    np.testing.assert_allclose(sec.column("p1"), math.sqrt(2 * e1), atol=2 * atol)
+
+
+def test_many_orbits_and_n_crossings():
+    q0 = np.array([[0.3, 0.4], [0.1, -0.2], [-0.2, 0.0]])
+    p0 = np.array([[0.2, -0.1], [0.5, 0.1], [0.1, 0.3]])
+    sec = poincare(TWO, "q1 = 0", q0, p0, (0.0, 100.0), atol=1e-9, n_crossings=4, direction=-1)
+    assert sec.t.size == 12
+    np.testing.assert_array_equal(sec.orbit, np.repeat([0, 1, 2], 4))
+    assert all(s.status is hamrkq.Status.TERMINAL_EVENT for s in sec.solutions)
+    assert np.all(sec.column("p1") < 0)  # direction -1: q1 decreasing
+    assert sec.success
+
+
+def test_henon_heiles_energy_orbits_lie_on_the_energy_surface():
+    problem = load_problem("henon_heiles")
+    ham = problem.hamiltonian
+    q0, p0 = energy_orbits(ham, 1 / 8, 6)
+    y0 = np.hstack([q0, p0])
+    energies = [ham.numeric.energy(0.0, row, problem.parameter_array) for row in y0]
+    np.testing.assert_allclose(energies, 1 / 8, atol=1e-14)
+    assert np.all(q0[:, 0] == 0) and np.all(p0[:, 0] > 0)
+    sec = poincare(problem, "q1 = 0", q0[:2], p0[:2], (0.0, 200.0), atol=1e-9)
+    assert sec.t.size > 10
+    # Energy at the crossings: conserved to the tolerance.
+    e = [ham.numeric.energy(0.0, row, problem.parameter_array) for row in sec.y]
+    assert np.max(np.abs(np.array(e) - 1 / 8)) < 1e-8
+
+
+def test_bad_sections_are_rejected():
+    with pytest.raises(InputError, match="exactly one"):
+        poincare(TWO, "q1", [0.1, 0.1], [0.1, 0.1], (0, 1))
+    with pytest.raises(ExpressionError):
+        poincare(TWO, "__import__('os') = 0", [0.1, 0.1], [0.1, 0.1], (0, 1))
+    with pytest.raises(InputError, match="n_crossings"):
+        poincare(TWO, "q1 = 0", [0.1, 0.1], [0.1, 0.1], (0, 1), n_crossings=0)
