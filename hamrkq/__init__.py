@@ -6,7 +6,9 @@ fast numerical code, and integrates with explicit Runge-Kutta methods under
 stepwise control of the *global* error (J.S.C. Prentice, arXiv:1111.6996).
 """
 
+from hamrkq.analysis.chaos import lyapunov, megno
 from hamrkq.analysis.diagnostics import Diagnostics, diagnose
+from hamrkq.analysis.poincare import poincare
 from hamrkq.catalogue.problems import Problem, list_problems, load_problem
 from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.result import Solution, Status
@@ -32,6 +34,9 @@ __all__ = [
     "errors",
     "list_problems",
     "load_problem",
+    "lyapunov",
+    "megno",
     "parse_expression",
+    "poincare",
     "solve",
 ]

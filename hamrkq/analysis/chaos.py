@@ -1,0 +1,173 @@
+"""Chaos indicators from the variational equations: the maximal Lyapunov
+exponent and MEGNO.
+
+Both integrate the orbit with :func:`hamrkq.solve` (every node kept), then
+carry a tangent vector ``v`` along the nodes with the exact linearisation of
+the quencher's step (:mod:`hamrkq.rkq.variational`; the symbolic Jacobian gives
+``J v``), renormalised every step.  With ``l_i = log(|v_{i+1}|/|v_i|)``:
+
+- the maximal Lyapunov exponent ``lambda(t_k) = sum_{i<k} l_i / (t_k - t0)``
+  (Benettin et al. 1980), which tends to 0 like ``1/t`` on a regular orbit;
+- MEGNO ``Y(t) = (2/t) int_0^t s (v.v'/v.v) ds`` and its running mean
+  ``<Y>(t) = (1/t) int_0^t Y ds`` (Cincotta & Simo 2000, the definition
+  REBOUND uses), the integrand ``v.v'/v.v = d log|v|/ds`` taken constant
+  over each step (``l_i / h_i``), so ``int s (...) ds`` over the step is
+  ``l_i (t_i + t_{i+1}) / 2``; ``<Y>`` by the trapezoidal rule.  ``<Y>``
+  tends to 0 for a harmonic (isochronous) orbit, to 2 for a quasi-periodic
+  one, and grows like ``lambda t / 2`` for a chaotic one.
+
+Time is counted from ``t0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hamrkq.catalogue.problems import Problem
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.dense import dense_tableaus, prepare_work
+from hamrkq.rkq.variational import sweep
+from hamrkq.solve import solve
+
+__all__ = ["ChaosIndicator", "lyapunov", "megno", "tangent_growth"]
+
+
+@dataclass(frozen=True)
+class ChaosIndicator:
+    """An indicator along an orbit.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        The nodes of the orbit's run.
+    value : ndarray, shape (N,)
+        The indicator at each node (``value[-1]`` the estimate at the end;
+        ``value[0]`` is 0 by convention).
+    status : Status
+        The orbit's run's status (the indicator covers the nodes computed).
+    message : str
+    solution : Solution
+        The orbit.
+    """
+
+    t: np.ndarray
+    value: np.ndarray
+    status: Status
+    message: str
+    solution: Solution
+
+    @property
+    def success(self) -> bool:
+        return self.status.success
+
+
+def tangent_growth(
+    sol: Solution, system: Any, v0: Any = None, backend: str | None = None
+) -> np.ndarray:
+    """``l_i = log(|v_{i+1}| / |v_i|)`` along the nodes of ``sol`` (a run of
+    :func:`hamrkq.solve` of ``system`` with every node), from the unit
+    vector along ``v0`` (default: all components equal)."""
+    from hamrkq.rkq.family import get_member
+
+    ham = system.hamiltonian if isinstance(system, Problem) else system
+    options = sol.options
+    member = get_member(str(options["method"]), options.get("z_method"), options.get("z_substeps"))
+    tab = dense_tableaus(member)
+    params = np.array(list(options["parameters"].values()), dtype=np.float64)
+    d = ham.dim
+    v = np.ones(d) if v0 is None else np.array(v0, dtype=np.float64)
+    v = v / np.linalg.norm(v)
+    t = np.array(sol.t, dtype=np.float64)
+    y = np.array(sol.y, dtype=np.float64)
+    growth = np.zeros(max(t.size - 1, 0))
+    work = prepare_work(d, tab)
+    backend = backend or str(options.get("backend", "python"))
+    if backend == "numba":
+        from hamrkq.backends import compiled, extras
+
+        system_fns = compiled.compile_system(ham)
+        args = (system_fns.rhs_jvp, tab, params, t, y, v, work, growth)
+        extras.compiled_helper(sweep, ("rhs_jvp",), *args)(*args)
+    else:
+        numeric = ham.numeric
+
+        def tangent(t, y, params, v, out, dout, JM):
+            out[:] = numeric.rhs(t, y, params)
+            JM[:, :] = numeric.jac(t, y, params)
+            dout[:] = JM @ v
+
+        sweep(tangent, tab, params, t, y, v, work, growth)
+    return growth
+
+
+def _orbit(system, q0, p0, t_span, solve_options) -> Solution:
+    for key in ("dense_output", "events", "keep_every", "t_eval"):
+        if key in solve_options:
+            raise TypeError(f"{key} cannot be given: the indicators need every node")
+    return solve(system, q0, p0, t_span, **solve_options)
+
+
+def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosIndicator:
+    sol = _orbit(system, q0, p0, t_span, dict(solve_options))
+    growth = tangent_growth(sol, system, v0)
+    t = np.asarray(sol.t)
+    elapsed = t - t[0]
+    value = np.zeros(t.size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if kind == "lyapunov":
+            value[1:] = np.cumsum(growth) / elapsed[1:]
+        else:
+            weighted = np.cumsum(growth * 0.5 * (elapsed[:-1] + elapsed[1:]))
+            Y = np.zeros(t.size)
+            Y[1:] = 2.0 * weighted / elapsed[1:]
+            integral = np.concatenate([[0.0], np.cumsum(0.5 * (Y[1:] + Y[:-1]) * np.diff(t))])
+            value[1:] = integral[1:] / elapsed[1:]
+    return ChaosIndicator(t=t, value=value, status=sol.status, message=sol.message, solution=sol)
+
+
+def lyapunov(
+    system: Any,
+    q0: Any = None,
+    p0: Any = None,
+    t_span: Any = None,
+    *,
+    v0: Any = None,
+    **solve_options: Any,
+) -> ChaosIndicator:
+    """The maximal Lyapunov exponent along an orbit, at every node.
+
+    Parameters
+    ----------
+    system : Hamiltonian or Problem
+    q0, p0, t_span
+        As for :func:`hamrkq.solve` (a Problem's by default).
+    v0 : array of 2n, optional
+        Initial tangent direction (default: all components equal).
+    **solve_options
+        For :func:`hamrkq.solve` (``atol``, ``method``, ``gamma_limit``, ...).
+
+    Returns
+    -------
+    ChaosIndicator
+        ``value[k] = sum_{i<k} log(|v_{i+1}|/|v_i|) / (t_k - t0)``.
+    """
+    return _indicator("lyapunov", system, q0, p0, t_span, v0, solve_options)
+
+
+def megno(
+    system: Any,
+    q0: Any = None,
+    p0: Any = None,
+    t_span: Any = None,
+    *,
+    v0: Any = None,
+    **solve_options: Any,
+) -> ChaosIndicator:
+    """The mean MEGNO ``<Y>(t)`` along an orbit, at every node (Cincotta &
+    Simo 2000): about 2 on a quasi-periodic orbit, 0 on a harmonic one,
+    growing like ``lambda t / 2`` on a chaotic one.  Parameters as
+    :func:`lyapunov`."""
+    return _indicator("megno", system, q0, p0, t_span, v0, solve_options)

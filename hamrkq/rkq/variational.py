@@ -1,0 +1,43 @@
+"""The tangent (variational) sweep along a finished run, for chaos indicators.
+
+:func:`sweep` carries a unit tangent vector ``v`` from node to node with the
+exact linearisation of one quencher step (:func:`hamrkq.rkq.steps.tangent_increment`
+from ``y_i`` over ``h_i = t_{i+1} - t_i``), renormalising it every step and
+recording ``log|v_{i+1}| - log|v_i|``: the maximal Lyapunov exponent and MEGNO
+are sums over these (:mod:`hamrkq.analysis.chaos`).  ``@jitable``: interpreted,
+or compiled by numba with the compiled ``rhs_jvp``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hamrkq.rkq import steps
+from hamrkq.rkq.jit import jitable
+
+__all__ = ["sweep"]
+
+
+@jitable
+def sweep(tangent, tab, params, t_nodes, y_nodes, v, work, log_growth):
+    """``log_growth[i] = log(|v_{i+1}| / |v_i|)`` along the nodes, ``v``
+    (unit length on entry) renormalised after every step and left holding
+    the final direction.  Returns the Jacobian-vector products made."""
+    d = y_nodes.shape[1]
+    njev = 0
+    for i in range(t_nodes.shape[0] - 1):
+        h = t_nodes[i + 1] - t_nodes[i]
+        for c in range(d):
+            work.zhi[c] = y_nodes[i, c]
+            work.zlo[c] = 0.0
+        njev += steps.tangent_increment(
+            tangent, t_nodes[i], work.zhi, work.zlo, h, tab, params, work, v
+        )
+        norm = 0.0
+        for c in range(d):
+            norm += work.dinc[c] * work.dinc[c]
+        norm = math.sqrt(norm)
+        log_growth[i] = math.log(norm)
+        for c in range(d):
+            v[c] = work.dinc[c] / norm
+    return njev

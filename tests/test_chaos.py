@@ -1,0 +1,59 @@
+"""Chaos indicators: maximal Lyapunov exponent and MEGNO on orbits whose
+character is known."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.analysis.chaos import lyapunov, megno
+from hamrkq.analysis.poincare import energy_orbits
+from hamrkq.catalogue.problems import load_problem
+
+pytest.importorskip("numba")  # the interpreted sweep over thousands of nodes is minutes
+
+q, p = sp.symbols("q p", real=True)
+W = 1.7
+#: A harmonic oscillator of frequency W: the flow is linear and periodic, so
+#: |v(t)| stays bounded and oscillates (it is not a pure rotation for W != 1).
+OSC = hamrkq.Hamiltonian(p**2 / 2 + W**2 * q**2 / 2, q=[q], p=[p])
+
+
+def test_harmonic_lyapunov_decays_like_one_over_t_and_megno_to_zero():
+    lam = lyapunov(OSC, [1.0], [0.0], (0.0, 400.0), atol=1e-10)
+    assert lam.success
+    # The exact tangent flow: v(t) = M(t) v0 with |M| <= W (1/W), so
+    # log|v| stays within log W of zero at all times: lambda t is bounded.
+    assert np.max(np.abs(lam.value[1:] * (lam.t[1:] - lam.t[0]))) < math.log(W) + 1e-6
+    assert abs(lam.value[-1]) < math.log(W) / 400.0
+    y = megno(OSC, [1.0], [0.0], (0.0, 400.0), atol=1e-10)
+    # <Y> of a bounded log|v| decays like 1/t to 0.
+    assert abs(y.value[-1]) < 0.02
+
+
+def test_megno_regular_henon_heiles_orbit_tends_to_two():
+    hh = load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 8, 5)
+    y = megno(hh, q0[2], p0[2], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
+    # measured 1.84 (t = 500), 1.92 (1000), 1.96 (2000): 2 - O(1/t)
+    assert abs(y.value[-1] - 2.0) < 0.1
+    lam = lyapunov(hh, q0[2], p0[2], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
+    assert lam.value[-1] < 0.005  # measured 0.0030 and falling like log(t)/t
+
+
+@pytest.mark.slow
+def test_megno_grows_linearly_on_a_chaotic_orbit():
+    hh = load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 6, 5)
+    y = megno(hh, q0[0], p0[0], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
+    lam = lyapunov(hh, q0[0], p0[0], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
+    # <Y> ~ lambda t / 2: measured 34.6, 74.1, 141.3 at t = 500, 1000, 2000.
+    late = y.t > 500
+    slope = np.polyfit(y.t[late], y.value[late], 1)[0]
+    assert y.value[-1] > 50
+    assert 0.25 * lam.value[-1] < slope < 1.0 * lam.value[-1]
+    assert lam.value[-1] > 0.05  # measured 0.131
