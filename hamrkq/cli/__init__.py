@@ -89,6 +89,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hamrkq.cli.reproduce",
     "hamrkq.cli.compare",
     "hamrkq.cli.ensemble",
+    "hamrkq.cli.poincare",
 )
 
 
