@@ -73,3 +73,31 @@ def test_bad_sections_are_rejected():
         poincare(TWO, "__import__('os') = 0", [0.1, 0.1], [0.1, 0.1], (0, 1))
     with pytest.raises(InputError, match="n_crossings"):
         poincare(TWO, "q1 = 0", [0.1, 0.1], [0.1, 0.1], (0, 1), n_crossings=0)
+
+
+def test_cli_poincare_writes_points_and_figure(tmp_path, capsys):
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    code = main(
+        ["poincare", "henon_heiles", "--energy", "1/8", "--orbits", "3", "--t-end", "60",
+         "--out", str(out), "--megno"]
+    )  # fmt: skip
+    assert code == 0
+    data = np.load(out / "section.npz")
+    assert set(np.unique(data["orbit"])) == {0, 1, 2}
+    assert np.max(np.abs(data["y"][:, 0])) < 1e-8  # q1 = 0 at every crossing
+    assert np.all(data["y"][:, 2] > 0)  # direction +1: p1 = dq1/dt > 0
+    assert (out / "section.png").stat().st_size > 1000
+    summary = __import__("json").loads((out / "summary.json").read_text())
+    assert summary["crossings"] == data["t"].size and len(summary["megno"]) == 3
+    assert "crossings of q1 = 0" in capsys.readouterr().out
+
+
+def test_cli_poincare_rejects_hostile_energy(tmp_path):
+    from hamrkq.cli import main
+
+    code = main(
+        ["poincare", "henon_heiles", "--energy", "__import__('os')", "--out", str(tmp_path / "x")]
+    )
+    assert code != 0

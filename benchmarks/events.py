@@ -1,0 +1,49 @@
+"""Cost of dense output and events against a plain run (compiled backend, warm).
+
+    python benchmarks/events.py
+
+Kepler e = 0.6 over 100 orbits at atol 1e-12 (auto): plain; dense_output=True;
+the pericentre event ``q1*p1 + q2*p2`` (direction +1); and Prentice's problem
+at atol 1e-9 with the event ``q`` (its zero crossings).  Median of 3 runs each.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+
+import hamrkq
+
+
+def timed(fn, repeat: int = 3) -> float:
+    fn()  # warm: compile or load
+    times = []
+    for _ in range(repeat):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return statistics.median(times)
+
+
+def main() -> None:
+    kepler = hamrkq.load_problem("kepler", e=0.6)
+    span = (0.0, 200 * math.pi + 1.0)
+    opts = dict(t_span=span, atol=1e-12, method="auto", gamma_limit=math.inf)
+    peri = {"expression": "q1*p1 + q2*p2", "direction": 1}
+    cases = {
+        "kepler plain": lambda: hamrkq.solve(kepler, **opts),
+        "kepler dense_output": lambda: hamrkq.solve(kepler, dense_output=True, **opts),
+        "kepler pericentre event": lambda: hamrkq.solve(kepler, events=peri, **opts),
+    }
+    prentice = hamrkq.load_problem("prentice2011")
+    cases["prentice2011 plain"] = lambda: hamrkq.solve(prentice, atol=1e-9)
+    cases["prentice2011 event q"] = lambda: hamrkq.solve(prentice, atol=1e-9, events="q")
+    results = {name: timed(fn) for name, fn in cases.items()}
+    for name, seconds in results.items():
+        base = results[name.split()[0] + " plain"]
+        print(f"{name:28s} {seconds:8.3f} s   {seconds / base:5.2f}x plain")
+
+
+if __name__ == "__main__":
+    main()
