@@ -135,3 +135,13 @@ def test_bad_event_tables_are_rejected(tmp_path):
         load_problem(path)
     with pytest.raises(InputError, match="not coordinates"):
         hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=sp.Symbol("x"))
+
+
+def test_summary_json_lists_the_events():
+    from hamrkq.io.report import summary_dict
+
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 7.0), atol=1e-10, events=["q", "p"])
+    summary = summary_dict(sol, None)
+    assert [e["label"] for e in summary["events"]] == ["q", "p"]
+    assert summary["events"][0]["t"] == pytest.approx([0.5 * math.pi, 1.5 * math.pi], abs=1e-9)
+    assert summary["events"][1]["error_bound"] == [[1e-10, 1e-10], [1e-10, 1e-10]]
