@@ -31,6 +31,7 @@ import numpy as np
 import sympy as sp
 from scipy.optimize import brentq
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, dense_tableaus, evaluate, prepare_work
@@ -189,7 +190,7 @@ def dense_output(
         args = (rhs, tab, params, t, y, np.zeros(1, np.int64), np.zeros(1))
         fast = extras.compiled_helper(evaluate, ("rhs",), *args, work, np.zeros((1, y.shape[1])))
         return DenseOutput(t, y, rhs, tab, params, compiled=fast)
-    numeric = ham.numeric
+    numeric = numeric_of(ham)
 
     def rhs(t, y, params, out):
         out[:] = numeric.rhs(t, y, params)

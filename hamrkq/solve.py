@@ -467,7 +467,7 @@ def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: boo
     z_dense = None if sol.z is None else dense.through(sol.t, sol.z)
 
     def energy(t, Y):
-        return task.ham.numeric.energy(t, Y, task.params)
+        return numeric_of(task.ham).energy(t, Y, task.params)
 
     return _events.apply(sol, specs, dense, energy, z_dense, keep_dense)
 

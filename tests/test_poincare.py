@@ -11,6 +11,7 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.analysis.poincare import energy_orbits, poincare
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import ExpressionError, InputError
 
@@ -56,13 +57,13 @@ def test_henon_heiles_energy_orbits_lie_on_the_energy_surface():
     ham = problem.hamiltonian
     q0, p0 = energy_orbits(ham, 1 / 8, 6)
     y0 = np.hstack([q0, p0])
-    energies = [ham.numeric.energy(0.0, row, problem.parameter_array) for row in y0]
+    energies = [numeric_of(ham).energy(0.0, row, problem.parameter_array) for row in y0]
     np.testing.assert_allclose(energies, 1 / 8, atol=1e-14)
     assert np.all(q0[:, 0] == 0) and np.all(p0[:, 0] > 0)
     sec = poincare(problem, "q1 = 0", q0[:2], p0[:2], (0.0, 200.0), atol=1e-9)
     assert sec.t.size > 10
     # Energy at the crossings: conserved to the tolerance.
-    e = [ham.numeric.energy(0.0, row, problem.parameter_array) for row in sec.y]
+    e = [numeric_of(ham).energy(0.0, row, problem.parameter_array) for row in sec.y]
     assert np.max(np.abs(np.array(e) - 1 / 8)) < 1e-8
 
 

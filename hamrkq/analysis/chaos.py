@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import dense_tableaus, prepare_work
@@ -92,7 +93,7 @@ def tangent_growth(
         args = (system_fns.rhs_jvp, tab, params, t, y, v, work, growth)
         extras.compiled_helper(sweep, ("rhs_jvp",), *args)(*args)
     else:
-        numeric = ham.numeric
+        numeric = numeric_of(ham)
 
         def tangent(t, y, params, v, out, dout, JM):
             out[:] = numeric.rhs(t, y, params)

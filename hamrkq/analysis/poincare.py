@@ -18,6 +18,7 @@ import numpy as np
 import sympy as sp
 from scipy.optimize import brentq
 
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError
 from hamrkq.result import Solution
@@ -192,7 +193,7 @@ def energy_orbits(
     value = float(sp.N(parse_expression(rhs, {}, key="section")))
     other = 1 - k
     params = ham.parameter_values(parameters)
-    H = ham.numeric.energy
+    H = numeric_of(ham).energy
 
     def h_at(q_other: float, p_k: float) -> float:
         y = np.zeros(4)

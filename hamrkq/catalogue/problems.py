@@ -490,6 +490,7 @@ class _FileReader:
                 value = value[0]
             exprs.append(self.expr(value, params, f"initial.{key}"))
         return exprs, [f"initial.{key}" for key in state]
+
     def events(self, symbols: Mapping[str, sp.Symbol]) -> tuple[dict[str, Any], ...]:
         """The ``[[events]]`` tables, expressions through the safe parser."""
         tables = self.data.get("events", [])
