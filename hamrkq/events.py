@@ -39,7 +39,7 @@ from hamrkq.rkq.family import Member
 from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["EventSpec", "apply", "dense_output", "event_specs", "locate"]
+__all__ = ["EventSpec", "apply", "dense_output", "event_specs", "locate", "terminal_watch"]
 
 _EPS = float(np.finfo(np.float64).eps)
 
@@ -205,15 +205,8 @@ def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]
     g = spec.rows(t, y)
     if t.size < 2:
         return np.empty(0), np.empty((0, y.shape[1]))
-    g0, g1 = g[:-1], g[1:]
-    up = (g0 < 0) & (g1 >= 0)
-    down = (g0 > 0) & (g1 <= 0)
-    if spec.direction > 0:
-        hits = up
-    elif spec.direction < 0:
-        hits = down
-    else:
-        hits = up | down
+    g1 = g[1:]
+    hits = _crossings(spec, g)
     roots = []
     for i in np.flatnonzero(hits):
         a, b = float(t[i]), float(t[i + 1])
@@ -230,6 +223,44 @@ def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]
     times = np.array(roots, dtype=float)
     states = dense.values(times) if times.size else np.empty((0, y.shape[1]))
     return times, states
+
+
+def _crossings(spec: EventSpec, g: np.ndarray) -> np.ndarray:
+    """Where ``g`` changes sign between consecutive nodes, in ``spec``'s
+    direction (a zero at the earlier node does not count)."""
+    g0, g1 = g[:-1], g[1:]
+    up = (g0 < 0) & (g1 >= 0)
+    down = (g0 > 0) & (g1 <= 0)
+    if spec.direction > 0:
+        return up
+    if spec.direction < 0:
+        return down
+    return up | down
+
+
+def terminal_watch(specs: list[EventSpec]) -> Callable[[np.ndarray, np.ndarray], bool] | None:
+    """``stop(t, y)`` for the driver: True once a terminal event has occurred
+    as often as it ends the run (it sees the nodes chunk by chunk, in order).
+    None when no event is terminal.  The event itself is located afterwards
+    by :func:`apply`, on the nodes the run kept."""
+    terminal = [spec for spec in specs if spec.terminal]
+    if not terminal:
+        return None
+    counts = [0] * len(terminal)
+    last: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def stop(t: np.ndarray, y: np.ndarray) -> bool:
+        if last:
+            t = np.concatenate([last[0][0], t])
+            y = np.vstack([last[0][1], y])
+        last[:] = [(t[-1:], y[-1:])]
+        for k, spec in enumerate(terminal):
+            counts[k] += int(np.count_nonzero(_crossings(spec, spec.rows(t, y))))
+            if counts[k] >= spec.terminal:
+                return True
+        return False
+
+    return stop
 
 
 def _bound(sol: Solution, states: np.ndarray) -> np.ndarray:

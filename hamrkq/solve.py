@@ -47,7 +47,7 @@ from hamrkq.options import (
     SolveOptions,
 )
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.driver import Integration, RunOutput, Settings, python_functions
+from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -67,6 +67,8 @@ __all__ = [
 ]
 
 Z_METHODS = Z_METHOD_NAMES
+#: Step attempts between checks for a terminal event.
+TERMINAL_BUDGET = 64
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,7 @@ class Task:
     options: SolveOptions
     t_eval: np.ndarray | None
     progress: Callable[[float, float], None] | None
+    stop: Callable[[np.ndarray, np.ndarray], bool] | None = None
 
 
 @dataclass(frozen=True)
@@ -137,7 +140,8 @@ def _run_rk(task: Task, backend: str) -> RunOutput:
         task.rtol,
         settings,
     )
-    out = run.run(task.progress)
+    # With a terminal event, shorter chunks: the run stops soon after the event.
+    out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
     out.stats["integrate_s"] = run.integrate_s
     return out
 
@@ -438,7 +442,8 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             f"backend={chosen!r} is not available for method {options.method!r}; "
             f"valid: {', '.join(map(repr, spec.backends))}"
         )
-    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar)
+    watch = _events.terminal_watch(event_list)
+    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch)
     # A failure is reported by the status; NumPy's RuntimeWarnings from the
     # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
     # singular initial node, would only be noise.

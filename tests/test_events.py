@@ -145,3 +145,17 @@ def test_summary_json_lists_the_events():
     assert [e["label"] for e in summary["events"]] == ["q", "p"]
     assert summary["events"][0]["t"] == pytest.approx([0.5 * math.pi, 1.5 * math.pi], abs=1e-9)
     assert summary["events"][1]["error_bound"] == [[1e-10, 1e-10], [1e-10, 1e-10]]
+
+
+def test_a_terminal_event_ends_the_integration_itself_not_only_the_output():
+    # The first zero of q on the oscillator (q0 = 1) is at pi/2; the run must
+    # stop there, not integrate to t = 1000 and cut afterwards.
+    problem = hamrkq.load_problem("harmonic")
+    ham = problem.hamiltonian
+    name = ham.q[0].name
+    sol = hamrkq.solve(ham, [1.0], [0.0], (0.0, 1000.0), atol=1e-10, events=[
+        {"expression": name, "terminal": True}])  # fmt: skip
+    full = hamrkq.solve(ham, [1.0], [0.0], (0.0, 1000.0), atol=1e-10)
+    assert sol.status is hamrkq.Status.TERMINAL_EVENT
+    assert abs(sol.t[-1] - np.pi / 2) < 1e-9
+    assert sol.stats["steps"] < 0.01 * full.stats["steps"]

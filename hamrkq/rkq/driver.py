@@ -41,6 +41,8 @@ __all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings", "initial_s
 
 #: Step attempts per call of the kernel: progress and Ctrl-C are seen between calls.
 BUDGET = 2000
+#: The status of a run that ``stop`` ended (Status.TERMINAL_EVENT's code).
+ST_STOPPED = 8
 #: Output rows of the first buffer; later buffers double up to MAX_BUFFER_ROWS.
 FIRST_BUFFER_ROWS = 4096
 MAX_BUFFER_ROWS = 1 << 16
@@ -269,8 +271,13 @@ class Integration:
         progress: Callable[[float, float], None] | None = None,
         budget: int = BUDGET,
         buffer_rows: int = FIRST_BUFFER_ROWS,
+        stop: Callable[[np.ndarray, np.ndarray], bool] | None = None,
     ) -> RunOutput:
-        """Integrate to the end (or a failure, or Ctrl-C) and collect the nodes."""
+        """Integrate to the end (or a failure, or Ctrl-C) and collect the nodes.
+
+        ``stop(t, y)``, if given, sees every new node after each chunk (in
+        order) and ends the run by returning True (status ``ST_STOPPED``).
+        """
         s = self.record
         d = self.work.u.shape[0]
         use_z = self.member.use_z
@@ -278,17 +285,23 @@ class Integration:
         chunks: list[tuple[np.ndarray, ...]] = []
         out = allocate_output(rows, d, use_z)
         status = ST_RUNNING
+        checked = 0  # rows of the current buffer already shown to ``stop``
         try:
             status = self.start(out)
             while status == ST_RUNNING:
                 ret = self.advance(out, budget)
                 if ret == RET_DONE:
                     status = int(s["status"])
-                elif ret == RET_BUFFER_FULL:
+                if stop is not None and s["nout"] > checked:
+                    if stop(out.t[checked : s["nout"]], out.y[checked : s["nout"]]):
+                        status = ST_STOPPED if status == ST_RUNNING else status
+                    checked = int(s["nout"])
+                if ret == RET_BUFFER_FULL:
                     chunks.append(_filled(out, s["nout"]))
                     rows = min(2 * rows, MAX_BUFFER_ROWS)
                     out = allocate_output(rows, d, use_z)
                     s["nout"] = 0
+                    checked = 0
                 if progress is not None and status == ST_RUNNING:
                     progress(float((s["t"] - self.t0) / (self.t_end - self.t0)), float(s["t"]))
         except KeyboardInterrupt:
