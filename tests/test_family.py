@@ -129,3 +129,31 @@ def test_a_kernel_that_fails_to_compile_falls_back_and_says_what_failed(monkeypa
         warnings.simplefilter("error")
         with pytest.raises(hamrkq.errors.OptionError, match="LoweringError"):
             hamrkq.solve(ham, [1.0], [0.0], (0, 1), backend="numba")
+
+
+def test_unattainable_message_gives_the_remedy_that_works():
+    # Far past the tolerance's horizon: the message must not advise a looser
+    # tolerance when the quencher's truncation error is what grew; it names a
+    # smaller max_step and other members.
+    q, p = sp.symbols("q p")
+    ham = hamrkq.Hamiltonian(p**2 / 2 - 1 / q, q=[q], p=[p])
+    sol = hamrkq.solve(ham, [1.0], [-2.0], (0, 2), atol=1e-6)  # falls into q = 0
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert "max_step" in sol.message and "another member" in sol.message
+    floor = hamrkq.solve(ham, [1.0], [0.5], (0, 1), atol=1e-17)
+    assert "loosen atol/rtol" in floor.message
+
+
+def test_scipy_solver_without_jac_warns_that_gamma_is_off():
+    from scipy.integrate import solve_ivp
+
+    def f(t, y):
+        return [y[1], -y[0]]
+
+    with pytest.warns(HamrkqWarning, match="without jac cannot estimate") as caught:
+        sol = solve_ivp(f, (0, 1), [0.0, 1.0], method=hamrkq.RK34Q8)
+    assert sol.success
+    assert len([w for w in caught if issubclass(w.category, HamrkqWarning)]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        solve_ivp(f, (0, 1), [0.0, 1.0], method=hamrkq.RK34Q8, global_error_estimate="off")
