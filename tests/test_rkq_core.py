@@ -15,6 +15,7 @@ from hamrkq.methods.tableaus import DOP853_RK8
 from hamrkq.rkq import layout, steps
 from hamrkq.rkq.driver import Integration, Settings, python_functions
 from hamrkq.rkq.family import get_member
+from hamrkq.rkq.layout import DINC, INC
 
 
 def harmonic_f(t, y, params):
@@ -83,9 +84,9 @@ def rk8_step(f, y, h):
     """One DOP853 step by the kernel; returns the new state."""
     tableaus, work = _work(y)
     steps.explicit_increment(
-        inplace(f), 0.0, y, np.zeros_like(y), h, tableaus, None, work, work.inc, False
+        inplace(f), 0.0, y, np.zeros_like(y), h, tableaus, None, work, work.V[INC], False
     )
-    return y + work.inc
+    return y + work.V[INC]
 
 
 def test_richardson_estimates_the_true_local_error_of_one_rk8_step():
@@ -107,7 +108,7 @@ def test_tangent_propagation_is_the_linearisation_of_the_rk8_step():
     njev = steps.tangent_increment(
         functions.tangent, 0.0, y, np.zeros(2), h, tableaus, None, work, v
     )
-    inc, dinc = work.inc, work.dinc
+    inc, dinc = work.V[INC], work.V[DINC]
     eps = 1e-5
     central = (rk8_step(pendulum_f, y + eps * v, h) - rk8_step(pendulum_f, y - eps * v, h)) / (
         2 * eps

@@ -22,8 +22,8 @@ import numpy as np
 
 from hamrkq.rkq import steps
 from hamrkq.rkq.family import Member
-from hamrkq.rkq.jit import jitable
-from hamrkq.rkq.layout import Tableaus, allocate_work
+from hamrkq.rkq.jit import borrow, jitable
+from hamrkq.rkq.layout import INC, ZHI, ZLO, Tableaus, allocate_work
 
 __all__ = ["DenseOutput", "dense_tableaus", "evaluate", "node_index", "prepare_work"]
 
@@ -33,6 +33,7 @@ def evaluate(rhs, tab, params, t_nodes, y_nodes, index, tq, work, out):
     """``out[k] = y(tq[k])``: one step of ``tab``'s quencher of size
     ``tq[k] - t_nodes[index[k]]`` from ``y_nodes[index[k]]``.  Returns the
     number of right-hand-side evaluations."""
+    tab, work = borrow(tab), borrow(work)
     d = y_nodes.shape[1]
     nfev = 0
     for k in range(tq.shape[0]):
@@ -42,14 +43,15 @@ def evaluate(rhs, tab, params, t_nodes, y_nodes, index, tq, work, out):
             for c in range(d):
                 out[k, c] = y_nodes[i, c]
             continue
+        zhi, zlo, inc = work.V[ZHI], work.V[ZLO], work.V[INC]
         for c in range(d):
-            work.zhi[c] = y_nodes[i, c]
-            work.zlo[c] = 0.0
+            zhi[c] = y_nodes[i, c]
+            zlo[c] = 0.0
         nfev += steps.explicit_increment(
-            rhs, t_nodes[i], work.zhi, work.zlo, h, tab, params, work, work.inc, False
+            rhs, t_nodes[i], zhi, zlo, h, tab, params, work, inc, False
         )
         for c in range(d):
-            out[k, c] = y_nodes[i, c] + work.inc[c]
+            out[k, c] = y_nodes[i, c] + inc[c]
     return nfev
 
 

@@ -23,6 +23,7 @@ from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
     GAMMA_TANGENT,
+    K1,
     RET_BUFFER_FULL,
     RET_DONE,
     ST_INTERRUPTED,
@@ -31,6 +32,7 @@ from hamrkq.rkq.layout import (
     ST_SUCCESS,
     Inputs,
     Output,
+    U,
     allocate_output,
     allocate_work,
     new_config,
@@ -222,18 +224,18 @@ class Integration:
             s["eval_index"] = int(use_teval)
         if self.t0 == self.t_end:
             return ST_SUCCESS
-        self.functions.rhs(self.t0, work.u, inputs.params, work.k1)
+        self.functions.rhs(self.t0, work.V[U], inputs.params, work.V[K1])
         s["nfev"] += 1
-        if not arith.all_finite(work.k1):
-            s["bad_component"] = arith.first_nonfinite(work.k1)
+        if not arith.all_finite(work.V[K1]):
+            s["bad_component"] = arith.first_nonfinite(work.V[K1])
             return ST_NON_FINITE
         s["k1_valid"] = 1
         if self.settings.first_step is None:
             h0 = initial_step(
                 self.functions.rhs,
                 self.t0,
-                work.u,
-                work.k1,
+                work.V[U],
+                work.V[K1],
                 self.t_end,
                 inputs,
                 self.config[0],
@@ -279,7 +281,7 @@ class Integration:
         order) and ends the run by returning True (status ``ST_STOPPED``).
         """
         s = self.record
-        d = self.work.u.shape[0]
+        d = self.work.V[U].shape[0]
         use_z = self.member.use_z
         rows = max(1, buffer_rows)
         chunks: list[tuple[np.ndarray, ...]] = []

@@ -5,6 +5,10 @@ imported: the function stays an ordinary Python function (the interpreted
 backend calls it as it is) and numba compiles it wherever a compiled function
 calls it.  Without numba it returns the function unchanged, so the
 interpreted backend works on a machine where numba is missing or broken.
+
+:func:`borrow` is how the kernel's entry points take their arrays: the
+identity in Python; compiled, the same arrays without numba's reference
+counting (see its docstring).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 F = TypeVar("F", bound=Callable)
+T = TypeVar("T")
 
 try:  # numba is a core dependency, but a broken install must not break the fallback
     from numba.extending import register_jitable as _register
@@ -25,3 +30,64 @@ def jitable(function: F) -> F:
     if _register is None:
         return function
     return _register(function)
+
+
+def borrow(value: T) -> T:
+    """``value`` (an array, or a tuple of arrays and numbers) as a borrowed
+    reference, for the duration of one call of a kernel entry point.
+
+    In Python this is the identity.  Compiled, it returns the same arrays
+    with numba's reference-counting handle (the "meminfo") left empty, so
+    passing them on costs nothing.  Without it every call of a helper that
+    takes the :class:`~hamrkq.rkq.layout.Work` tuple adds and drops a
+    reference on each of its arrays with atomic instructions, which was half
+    of the compiled kernel's run time (``docs/performance.md``).
+
+    Safe because the kernel only reads and writes the caller's arrays: it
+    allocates nothing, keeps no array beyond the call and returns only
+    numbers, while the Python caller holds the real references throughout.
+    """
+    return value
+
+
+def _register_borrow() -> None:
+    """The compiled form of :func:`borrow` (numba's public extension API)."""
+    from numba import types
+    from numba.core import cgutils
+    from numba.extending import intrinsic, overload
+
+    def borrowed(context, builder, ty, value):
+        if isinstance(ty, types.Array):
+            array = context.make_array(ty)(context, builder, value)
+            array.meminfo = cgutils.get_null_value(array.meminfo.type)
+            return array._getvalue()
+        if isinstance(ty, types.BaseTuple):
+            result = value
+            for index, member in enumerate(ty):
+                item = builder.extract_value(value, index)
+                result = builder.insert_value(
+                    result, borrowed(context, builder, member, item), index
+                )
+            return result
+        return value  # numbers and records carry no reference count
+
+    @intrinsic
+    def borrow_intrinsic(typingctx, value):
+        def codegen(context, builder, signature, args):
+            return borrowed(context, builder, signature.args[0], args[0])
+
+        return value(value), codegen
+
+    @overload(borrow)
+    def borrow_overload(value):
+        def implementation(value):
+            return borrow_intrinsic(value)
+
+        return implementation
+
+
+if _register is not None:
+    try:
+        _register_borrow()
+    except Exception:  # a numba without these APIs: the kernel runs with counting
+        _register(borrow)

@@ -140,37 +140,55 @@ class Inputs(NamedTuple):
     t_eval: np.ndarray
 
 
-class Work(NamedTuple):
-    """Vectors (length ``d``) and stage matrices of one integration."""
+#: The rows of :attr:`Work.V`, each a vector of ``d`` components.  Rows of
+#: one matrix rather than separate arrays, because numba passes every array
+#: of a tuple to each helper it calls: with 28 separate vectors, passing them
+#: was a third of the compiled kernel's time (``docs/performance.md``).
+VECTORS = (
+    ("U", "the reported solution"),
+    ("ZHI", "the quencher track, compensated: z = ZHI + ZLO"),
+    ("ZLO", ""),
+    ("GAM", "Gamma at the current node"),
+    ("RHO2", "accumulated rounding variance of z"),
+    ("SHI", "the shadow track (GAMMA_SHADOW), compensated"),
+    ("SLO", ""),
+    ("K1", "f(t, u)"),
+    ("CAND", "the pair's candidate"),
+    ("ERR", "the pair's error estimate"),
+    ("DELTA", "tolerance per component"),
+    ("YT", "stage argument"),
+    ("DY", "stage argument of the tangent"),
+    ("INC", "an increment"),
+    ("INC_LO", "the other increment of the pair"),
+    ("DINC", "tangent increment"),
+    ("INCA", "Richardson half steps"),
+    ("INCB", ""),
+    ("MHI", "Richardson midpoint, compensated"),
+    ("MLO", ""),
+    ("NHI", "the quencher's candidate, compensated"),
+    ("NLO", ""),
+    ("NSHI", "the shadow's candidate, compensated"),
+    ("NSLO", ""),
+    ("GNEW", "Gamma's candidate"),
+    ("NOISE", "rounding of this step"),
+    ("TMP", "scratch"),
+    ("TMP2", "scratch"),
+)
+(
+    U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
+    INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, GNEW, NOISE, TMP, TMP2,
+) = range(len(VECTORS))  # fmt: skip
 
-    u: np.ndarray  # the reported solution
-    zhi: np.ndarray  # the quencher track, compensated: z = zhi + zlo
-    zlo: np.ndarray
-    gam: np.ndarray  # Gamma at the current node
-    rho2: np.ndarray  # accumulated rounding variance of z
-    shi: np.ndarray  # the shadow track (GAMMA_SHADOW), compensated
-    slo: np.ndarray
-    k1: np.ndarray  # f(t, u)
-    w: np.ndarray  # the pair's candidate
-    err: np.ndarray  # the pair's error estimate
-    delta: np.ndarray  # tolerance per component
-    yt: np.ndarray  # stage argument
-    dy: np.ndarray  # stage argument of the tangent
-    inc: np.ndarray  # an increment
-    inc_lo: np.ndarray  # the other increment of the pair
-    dinc: np.ndarray  # tangent increment
-    inca: np.ndarray  # Richardson half steps
-    incb: np.ndarray
-    mhi: np.ndarray  # Richardson midpoint, compensated
-    mlo: np.ndarray
-    nhi: np.ndarray  # the quencher's candidate, compensated
-    nlo: np.ndarray
-    nshi: np.ndarray  # the shadow's candidate, compensated
-    nslo: np.ndarray
-    gnew: np.ndarray  # Gamma's candidate
-    noise: np.ndarray  # rounding of this step
-    tmp: np.ndarray
-    tmp2: np.ndarray
+
+class Work(NamedTuple):
+    """The vectors and stage matrices of one integration.
+
+    ``V[ROW]`` is the vector named by a row constant of this module
+    (:data:`VECTORS` says what each holds, e.g. ``V[U]`` the reported
+    solution, ``V[ZHI]`` the quencher track).
+    """
+
+    V: np.ndarray  # (len(VECTORS), d)
     K: np.ndarray  # the pair's stages (s x d)
     Kz: np.ndarray  # the quencher's stages (sz x d)
     dKz: np.ndarray  # their tangents
@@ -187,24 +205,19 @@ class Output(NamedTuple):
     quenched: np.ndarray
 
 
-_VECTORS = [name for name in Work._fields if name not in ("K", "Kz", "dKz", "JM")]
-
-
 def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
     """Zeroed work arrays for a state of ``d = y0.size`` components, loaded
     with ``y0`` (the reported and the quencher tracks start there)."""
     d = y0.shape[0]
-    vectors = {name: np.zeros(d) for name in _VECTORS}
     work = Work(
-        **vectors,
+        V=np.zeros((len(VECTORS), d)),
         K=np.zeros((stages, d)),
         Kz=np.zeros((max(z_stages, 1), d)),
         dKz=np.zeros((max(z_stages, 1), d)),
         JM=np.zeros((d, d)),
     )
-    work.u[:] = y0
-    work.zhi[:] = y0
-    work.shi[:] = y0
+    for row in (U, ZHI, SHI):
+        work.V[row] = y0
     return work
 
 

@@ -28,20 +28,38 @@ from __future__ import annotations
 import math
 
 from hamrkq.rkq import arith, steps
-from hamrkq.rkq.jit import jitable
+from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
+    CAND,
+    DELTA,
     EPS,
+    ERR,
+    GAM,
+    GNEW,
+    K1,
     MIN_SUBNORMAL,
+    NHI,
+    NLO,
+    NOISE,
+    NSHI,
+    NSLO,
     QUENCH_REDO,
     RET_BUDGET,
     RET_BUFFER_FULL,
     RET_DONE,
+    RHO2,
+    SHI,
+    SLO,
     ST_MAX_STEPS,
     ST_NON_FINITE,
     ST_RUNNING,
     ST_SUCCESS,
     ST_UNATTAINABLE,
     ST_UNDERFLOW,
+    TMP2,
+    ZHI,
+    ZLO,
+    U,
 )
 
 # Step-size control (Hairer, Norsett & Wanner, Solving ODEs I, II.4).
@@ -56,10 +74,10 @@ def write_node(t, quenched, work, out, state, use_z):
     """Append the current node to the output buffers."""
     n = state["nout"]
     out.t[n] = t
-    arith.copy(work.u, out.y[n])
+    arith.copy(work.V[U], out.y[n])
     if use_z:
-        arith.copy(work.zhi, out.z[n])
-        arith.copy(work.gam, out.gamma[n])
+        arith.copy(work.V[ZHI], out.z[n])
+        arith.copy(work.V[GAM], out.gamma[n])
         out.quenched[n] = quenched
     # Count the node only once it is complete: an interrupt never leaves half a row.
     state["nout"] = n + 1
@@ -113,13 +131,13 @@ def attainability(work, problem, cfg, unew):
     """max_k (|Gamma_k| + rho_k + eps |z_k|) / delta_k at the candidate node:
     the quencher's estimated error, its accumulated rounding and the rounding
     of the stored value, against the tolerance at the new solution ``unew``."""
-    arith.tolerance(
-        problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], work.delta
-    )
+    V = work.V
+    delta = V[DELTA]
+    arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
     top = -math.inf
     for i in range(unew.shape[0]):
-        rho = math.sqrt(work.rho2[i] + work.noise[i])
-        value = ((rho + abs(work.nhi[i]) * EPS) + abs(work.gnew[i])) / work.delta[i]
+        rho = math.sqrt(V[RHO2, i] + V[NOISE, i])
+        value = ((rho + abs(V[NHI, i]) * EPS) + abs(V[GNEW, i])) / delta[i]
         if value != value:
             return value
         if value > top:
@@ -130,13 +148,11 @@ def attainability(work, problem, cfg, unew):
 @jitable
 def commit_quencher(work, state):
     """The quencher's candidate becomes the current track."""
-    arith.copy(work.nhi, work.zhi)
-    arith.copy(work.nlo, work.zlo)
-    arith.copy(work.nshi, work.shi)
-    arith.copy(work.nslo, work.slo)
-    arith.copy(work.gnew, work.gam)
-    for i in range(work.rho2.shape[0]):
-        work.rho2[i] += work.noise[i]
+    V = work.V
+    for new, current in ((NHI, ZHI), (NLO, ZLO), (NSHI, SHI), (NSLO, SLO), (GNEW, GAM)):
+        arith.copy(V[new], V[current])
+    for i in range(V.shape[1]):
+        V[RHO2, i] += V[NOISE, i]
     state["roundoff_steps"] += state["cached_roundoff"]
     state["z_cached"] = 0
 
@@ -180,8 +196,9 @@ def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
     ``state`` are one-row record arrays.  Returns ``RET_DONE`` (the run ended;
     the state's ``status`` says why), ``RET_BUFFER_FULL`` or ``RET_BUDGET``.
     """
-    c = cfg[0]
-    s = state[0]
+    problem, tab, work, out = borrow(problem), borrow(tab), borrow(work), borrow(out)
+    c = borrow(cfg)[0]
+    s = borrow(state)[0]
     attempts = 0
     while True:
         if s["nout"] >= out.t.shape[0]:
@@ -232,14 +249,13 @@ def pair_phase(rhs, problem, tab, c, s, work, h):
     """The pair's step of size ``h`` from the current node and its error norm;
     a rejected attempt shrinks the step and returns -1."""
     s["nfev"] += steps.pair_step(rhs, s["t"], h, tab, problem.params, work)
-    if not (arith.all_finite(work.err) and arith.all_finite(work.w)):
+    if not (arith.all_finite(work.V[ERR]) and arith.all_finite(work.V[CAND])):
         s["bad_component"] = first_bad_derivative(work.K)
         reject(s, h, MIN_FACTOR, 1)
         return -1.0
-    arith.tolerance(
-        problem.atol, problem.rtol, work.u, work.w, c["relative"], c["rule"], work.delta
-    )
-    err = arith.weighted_norm(work.err, work.delta)
+    V = work.V
+    arith.tolerance(problem.atol, problem.rtol, V[U], V[CAND], c["relative"], c["rule"], V[DELTA])
+    err = arith.weighted_norm(V[ERR], V[DELTA])
     if err > 1.0:
         reject(s, h, max(MIN_FACTOR, c["safety"] * err ** -c["error_exponent"]), 0)
         return -1.0
@@ -253,24 +269,24 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     retries).  Returns 0 or 1 (the node is quenched), -1 (the attempt is
     over: rejected, or restarted from the quencher's value) or ``-1 - RET_DONE``
     (the run ends at the current node)."""
+    V = work.V
+    nhi, cand = V[NHI], V[CAND]
     if not (s["z_cached"] and s["cached_h"] == h):
         steps.quencher_step(rhs, tangent, jac, s["t"], h, tab, c, problem.params, work, s)
-        if not arith.all_finite(work.nhi):
-            s["bad_component"] = arith.first_nonfinite(work.nhi)
+        if not arith.all_finite(nhi):
+            s["bad_component"] = arith.first_nonfinite(nhi)
             reject(s, h, MIN_FACTOR, 1)
             return -1
         s["z_cached"] = 1
         s["cached_h"] = h
     # The global error of the candidate at the new node, against its tolerance.
-    for i in range(work.tmp2.shape[0]):
-        work.tmp2[i] = work.w[i] - work.nhi[i]
-    arith.tolerance(
-        problem.atol, problem.rtol, work.w, work.w, c["relative"], c["rule"], work.delta
-    )
-    quench = arith.weighted_norm(work.tmp2, work.delta) > c["theta"]
+    for i in range(V.shape[1]):
+        V[TMP2, i] = cand[i] - nhi[i]
+    arith.tolerance(problem.atol, problem.rtol, cand, cand, c["relative"], c["rule"], V[DELTA])
+    quench = arith.weighted_norm(V[TMP2], V[DELTA]) > c["theta"]
     if quench and c["quench_mode"] == QUENCH_REDO and not s["redo"]:
         # Restart the same step from the quencher's value at t.
-        arith.copy(work.zhi, work.u)
+        arith.copy(V[ZHI], V[U])
         s["redo"] = 1
         s["quenches"] += 1
         s["k1_valid"] = 0
@@ -278,17 +294,17 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     # The promise must hold at the new node: where the quencher can no longer
     # be trusted to within gamma_limit of the tolerance, the run ends at t,
     # the last node where it held.
-    ratio = attainability(work, problem, c, work.nhi if quench else work.w)
+    ratio = attainability(work, problem, c, nhi if quench else cand)
     if ratio > s["max_ratio"] or ratio != ratio:
         s["max_ratio"] = ratio
     if not ratio <= c["gamma_limit"]:
         stop(ST_UNATTAINABLE, work, out, s, c)
         return -1 - RET_DONE
     if quench:
-        arith.copy(work.nhi, work.u)
+        arith.copy(nhi, V[U])
         s["quenches"] += 1
     else:
-        arith.copy(work.w, work.u)
+        arith.copy(cand, V[U])
     commit_quencher(work, s)
     return 1 if (quench or s["redo"]) else 0
 
@@ -301,11 +317,11 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
         s["failed_h"] = h
         return stop(ST_NON_FINITE if s["last_nonfinite"] else ST_UNDERFLOW, work, out, s, c)
     if not s["k1_valid"]:
-        rhs(s["t"], work.u, problem.params, work.k1)
+        rhs(s["t"], work.V[U], problem.params, work.V[K1])
         s["nfev"] += 1
-        if not arith.all_finite(work.k1):
+        if not arith.all_finite(work.V[K1]):
             s["failed_h"] = h
-            s["bad_component"] = arith.first_nonfinite(work.k1)
+            s["bad_component"] = arith.first_nonfinite(work.V[K1])
             return stop(ST_NON_FINITE, work, out, s, c)
         s["k1_valid"] = 1
     # 1. The reported pair, locally extrapolated.
@@ -326,7 +342,7 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
         if quenched < 0:
             return RET_DONE if quenched == -1 - RET_DONE else -1
     else:
-        arith.copy(work.w, work.u)
+        arith.copy(work.V[CAND], work.V[U])
     s["err_prev"] = err
     return accept(c, s, work, out, problem.t_eval, h, h_next, clipped, target, quenched)
 
@@ -340,7 +356,7 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched):
     s["steps"] += 1
     fsal = c["fsal"] and not quenched
     if fsal:
-        arith.copy(work.K[work.K.shape[0] - 1], work.k1)
+        arith.copy(work.K[work.K.shape[0] - 1], work.V[K1])
     s["k1_valid"] = 1 if fsal else 0
     s["prev_rejected"] = 0
     s["last_nonfinite"] = 0

@@ -51,6 +51,7 @@ from hamrkq.result import Status
 from hamrkq.rkq import layout
 from hamrkq.rkq.driver import Integration, Settings, initial_step, python_functions
 from hamrkq.rkq.family import Z_METHODS, get_member
+from hamrkq.rkq.layout import GAM, K1, ZHI, U
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
@@ -302,9 +303,9 @@ class RK34Q8(OdeSolver):
         interval = abs(t_bound - t0)
         if t_bound == t0:
             return
-        self._rhs(t0, work.u, _NO_PARAMS, work.k1)
+        self._rhs(t0, work.V[U], _NO_PARAMS, work.V[K1])
         s["nfev"] += 1
-        self._f[:] = work.k1
+        self._f[:] = work.V[K1]
         finite = bool(np.all(np.isfinite(self._f)))
         # With a non-finite f(t0, y0) the first step recomputes it and fails
         # with a message; otherwise f(t0, y0) is its first stage.
@@ -318,7 +319,15 @@ class RK34Q8(OdeSolver):
                 )
         elif finite:
             h0 = initial_step(
-                self._rhs, t0, work.u, work.k1, t_bound, run.inputs, run.config[0], 3, max_step
+                self._rhs,
+                t0,
+                work.V[U],
+                work.V[K1],
+                t_bound,
+                run.inputs,
+                run.config[0],
+                3,
+                max_step,
             )
             s["nfev"] += 1
         else:
@@ -345,9 +354,9 @@ class RK34Q8(OdeSolver):
         self.t = float(self._out.t[0])
         self.y = self._out.y[0].copy()
         self.quenched = bool(self._out.quenched[0])
-        self._rhs(self.t, self.y, _NO_PARAMS, work.k1)
+        self._rhs(self.t, self.y, _NO_PARAMS, work.V[K1])
         s["nfev"] += 1
-        self._f = work.k1.copy()
+        self._f = work.V[K1].copy()
         # f at the new node is the next step's first stage, unless it is not
         # finite: then the next step evaluates it again and reports the failure.
         s["k1_valid"] = int(bool(np.all(np.isfinite(self._f))))
@@ -378,19 +387,19 @@ class RK34Q8(OdeSolver):
     @property
     def z(self) -> np.ndarray:
         """The RK8 track at ``self.t``."""
-        return self._run.work.zhi.copy()
+        return self._run.work.V[ZHI].copy()
 
     @property
     def global_error(self) -> np.ndarray:
         """Estimated global error of ``y``: ``y - z`` (numerical minus exact)."""
-        return self.y - self._run.work.zhi
+        return self.y - self._run.work.V[ZHI]
 
     @property
     def gamma(self) -> np.ndarray | None:
         """Estimated global error of the RK8 track (None when not propagated)."""
         if self.global_error_estimate == "off":
             return None
-        return self._run.work.gam.copy()
+        return self._run.work.V[GAM].copy()
 
     @property
     def stats(self) -> dict[str, int]:

@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 
 from hamrkq.rkq import steps
-from hamrkq.rkq.jit import jitable
+from hamrkq.rkq.jit import borrow, jitable
+from hamrkq.rkq.layout import DINC, ZHI, ZLO
 
 __all__ = ["sweep"]
 
@@ -23,21 +24,22 @@ def sweep(tangent, tab, params, t_nodes, y_nodes, v, work, log_growth):
     """``log_growth[i] = log(|v_{i+1}| / |v_i|)`` along the nodes, ``v``
     (unit length on entry) renormalised after every step and left holding
     the final direction.  Returns the Jacobian-vector products made."""
+    tab, work = borrow(tab), borrow(work)
     d = y_nodes.shape[1]
     njev = 0
     for i in range(t_nodes.shape[0] - 1):
         h = t_nodes[i + 1] - t_nodes[i]
         for c in range(d):
-            work.zhi[c] = y_nodes[i, c]
-            work.zlo[c] = 0.0
+            work.V[ZHI, c] = y_nodes[i, c]
+            work.V[ZLO, c] = 0.0
         njev += steps.tangent_increment(
-            tangent, t_nodes[i], work.zhi, work.zlo, h, tab, params, work, v
+            tangent, t_nodes[i], work.V[ZHI], work.V[ZLO], h, tab, params, work, v
         )
         norm = 0.0
         for c in range(d):
-            norm += work.dinc[c] * work.dinc[c]
+            norm += work.V[DINC, c] * work.V[DINC, c]
         norm = math.sqrt(norm)
         log_growth[i] = math.log(norm)
         for c in range(d):
-            v[c] = work.dinc[c] / norm
+            v[c] = work.V[DINC, c] / norm
     return njev
