@@ -20,12 +20,8 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 
-import sympy as sp
-
 from hamrkq._version import __version__
-from hamrkq.catalogue.problems import list_problems, load_problem
 from hamrkq.errors import HamrkqError
-from hamrkq.io.report import close_all
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -160,10 +156,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"hamrkq: error: cannot write output: {exc}", file=sys.stderr)
             return EXIT_WRITE_FAILED
         finally:
-            close_all()  # release every --out claimed, however the command ended
+            _release_outputs()
+
+
+def _release_outputs() -> None:
+    """Release every ``--out`` claimed, however the command ended (nothing
+    was claimed if the report module was never imported)."""
+    report = sys.modules.get("hamrkq.io.report")
+    if report is not None:
+        report.close_all()
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
+    from hamrkq.catalogue.problems import list_problems, load_problem
+
     rows = []
     for name in list_problems():
         try:
@@ -179,6 +185,10 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
+    import sympy as sp
+
+    from hamrkq.catalogue.problems import load_problem
+
     problem = load_problem(args.problem)
     ham = problem.hamiltonian
     fmt = sp.latex if args.latex else sp.sstr

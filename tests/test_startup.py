@@ -1,0 +1,83 @@
+"""Start-up: ``import hamrkq`` loads the heavy libraries only when a name needs
+them, the public names are what they were, and Ctrl-C while the command line
+starts ends with the CLI's message, not a traceback (reliability issue, item 10:
+before, ``import hamrkq`` imported SymPy, SciPy and numba, about 1.3 s, before
+the command line could install its handler)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+HEAVY = ("sympy", "scipy", "numba", "matplotlib", "numpy")
+
+
+def _python(code: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=ENV, cwd=ROOT, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout.strip()
+
+
+def test_importing_the_package_or_the_cli_loads_no_heavy_library():
+    loaded = _python(
+        f"import sys, hamrkq, hamrkq.cli; print(sorted(m for m in {HEAVY!r} if m in sys.modules))"
+    )
+    assert loaded == "[]"
+
+
+def test_public_names_resolve_and_solve_stays_the_function():
+    """A submodule named like a public function (hamrkq.solve, hamrkq.ensemble)
+    never replaces the function, whichever is imported first."""
+    out = _python(
+        "import hamrkq.ensemble, hamrkq.solve, hamrkq\n"
+        "from hamrkq.solve import solve\n"
+        "import types\n"
+        "assert hamrkq.solve is solve and callable(hamrkq.ensemble)\n"
+        "missing = [n for n in hamrkq.__all__ if getattr(hamrkq, n, None) is None]\n"
+        "modules = [n for n in hamrkq.__all__ if n != 'errors'\n"
+        "           and isinstance(getattr(hamrkq, n), types.ModuleType)]\n"
+        "print(missing, modules, sorted(set(hamrkq.__all__) - set(dir(hamrkq))))"
+    )
+    assert out == "[] [] []"
+
+
+def test_an_unknown_name_is_an_attribute_error():
+    import hamrkq
+
+    with pytest.raises(AttributeError, match="no attribute 'no_such_name'"):
+        hamrkq.no_such_name  # noqa: B018
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("delay", [0.3, 0.8])
+def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, delay):
+    """SIGINT while ``hamrkq run`` imports SymPy, numba and the rest (well
+    within the first second of a run of a few seconds) ends with
+    ``hamrkq: interrupted`` and exit status 1."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hamrkq", "run", "harmonic", "--no-plots"],
+        cwd=tmp_path,
+        env=ENV,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert "Traceback" not in stderr + stdout, stderr
+    if proc.returncode == 0:
+        pytest.skip("the run finished before the signal (a fast machine)")
+    assert proc.returncode == 1, stderr
+    assert "interrupted" in stderr
