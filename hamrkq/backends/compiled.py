@@ -182,6 +182,7 @@ def _types():
         "rhs_type": nt.FunctionType(rhs),
         "jac_type": nt.FunctionType(jac),
         "rhs_jvp_type": nt.FunctionType(rhs_jvp),
+        "energy_type": nt.FunctionType(nt.float64(nt.float64, vec, vec)),
     }
 
 
@@ -284,7 +285,7 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
 # -- the kernel --------------------------------------------------------------------
 
 #: The modules whose functions make up the compiled kernel (their text keys its cache).
-KERNEL_MODULES = ("jit", "layout", "arith", "steps", "loop")
+KERNEL_MODULES = ("jit", "layout", "arith", "steps", "loop", "start", "batch")
 
 
 def _kernel_key() -> str:

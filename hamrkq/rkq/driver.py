@@ -23,13 +23,10 @@ from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
     GAMMA_TANGENT,
-    K1,
     RET_BUFFER_FULL,
     RET_DONE,
     ST_INTERRUPTED,
-    ST_NON_FINITE,
     ST_RUNNING,
-    ST_SUCCESS,
     Inputs,
     Output,
     U,
@@ -38,8 +35,9 @@ from hamrkq.rkq.layout import (
     new_config,
     new_state,
 )
+from hamrkq.rkq.start import begin
 
-__all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings", "initial_step"]
+__all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings"]
 
 #: Step attempts per call of the kernel: progress and Ctrl-C are seen between calls.
 BUDGET = 2000
@@ -114,34 +112,6 @@ def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
 
-def initial_step(rhs, t0, y0, f0, t_end, inputs: Inputs, config, order, max_step) -> float:
-    """First step size by the heuristic of Hairer, Norsett & Wanner (Solving
-    ODEs I, II.4), as in SciPy's ``select_initial_step``, for a method of
-    order ``order``, with hamrkq's weighted max norm.  Costs one evaluation
-    of ``rhs`` (``f0 = f(t0, y0)`` is given).  Returns a positive step size."""
-    interval = abs(t_end - t0)
-    direction = 1.0 if t_end >= t0 else -1.0
-    relative, rule = config["relative"], config["rule"]
-    delta, y1, f1 = np.zeros_like(y0), np.zeros_like(y0), np.zeros_like(y0)
-    arith.tolerance(inputs.atol, inputs.rtol, y0, y0, relative, rule, delta)
-    d0 = arith.weighted_norm(y0, delta)
-    d1 = arith.weighted_norm(f0, delta)
-    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-    h0 = min(h0, interval)
-    np.multiply(f0, direction * h0, y1)
-    np.add(y1, y0, y1)
-    rhs(t0 + direction * h0, y1, inputs.params, f1)
-    np.subtract(f1, f0, f1)
-    d2 = arith.weighted_norm(f1, delta) / h0
-    if not math.isfinite(d2):
-        h1 = h0
-    elif max(d1, d2) <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
-    return min(100.0 * h0, h1, interval, max_step)
-
-
 class Integration:
     """One RKQ (or pair-only) integration from ``(t0, y0)`` to ``t_end``.
 
@@ -194,6 +164,7 @@ class Integration:
             safety=settings.safety,
             theta=settings.theta,
             max_step=settings.max_step,
+            first_step=0.0 if settings.first_step is None else float(settings.first_step),
             gamma_limit=settings.gamma_limit,
             t_end=self.t_end,
             richardson=member.richardson,
@@ -216,38 +187,13 @@ class Integration:
 
     def start(self, out: Output) -> int:
         """Write the first node (unless ``t_eval`` skips it), evaluate
-        ``f(t0, y0)`` and choose the first step.  Returns the status so far."""
-        s, inputs, work = self.record, self.inputs, self.work
-        use_teval = self.settings.t_eval is not None
-        if not use_teval or (inputs.t_eval.size and inputs.t_eval[0] == self.t0):
-            loop.write_node(self.t0, 0, work, out, s, int(self.member.use_z))
-            s["eval_index"] = int(use_teval)
-        if self.t0 == self.t_end:
-            return ST_SUCCESS
-        self.functions.rhs(self.t0, work.V[U], inputs.params, work.V[K1])
-        s["nfev"] += 1
-        if not arith.all_finite(work.V[K1]):
-            s["bad_component"] = arith.first_nonfinite(work.V[K1])
-            return ST_NON_FINITE
-        s["k1_valid"] = 1
-        if self.settings.first_step is None:
-            h0 = initial_step(
-                self.functions.rhs,
-                self.t0,
-                work.V[U],
-                work.V[K1],
-                self.t_end,
-                inputs,
-                self.config[0],
-                self.member.error_order,
-                self.settings.max_step,
-            )
-            s["nfev"] += 1
-        else:
-            h0 = float(self.settings.first_step)
-        self.first_step = h0
-        s["h"] = h0 if self.t_end > self.t0 else -h0
-        return ST_RUNNING
+        ``f(t0, y0)`` and choose the first step (:func:`hamrkq.rkq.start.begin`).
+        Returns the status so far."""
+        status = begin(
+            self.functions.rhs, self.inputs, self.config[0], self.record, self.work, out
+        )
+        self.first_step = abs(float(self.record["h"]))
+        return int(status)
 
     def advance(self, out: Output, budget: int = BUDGET) -> int:
         """Run the kernel once; returns its code (``RET_*``)."""

@@ -72,6 +72,7 @@ CONFIG = np.dtype(
         ("safety", _F),
         ("theta", _F),  # quench threshold
         ("max_step", _F),
+        ("first_step", _F),  # 0: chosen by the heuristic (hamrkq.rkq.start)
         ("gamma_limit", _F),
         ("t_end", _F),
         ("richardson", _F),  # 2^z / (2^z - 1)

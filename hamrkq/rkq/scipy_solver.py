@@ -49,9 +49,10 @@ from hamrkq._validate import choice, tolerance
 from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.result import Status
 from hamrkq.rkq import layout
-from hamrkq.rkq.driver import Integration, Settings, initial_step, python_functions
+from hamrkq.rkq.driver import Integration, Settings, python_functions
 from hamrkq.rkq.family import Z_METHODS, get_member
 from hamrkq.rkq.layout import GAM, K1, ZHI, U
+from hamrkq.rkq.start import initial_step
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
@@ -318,17 +319,8 @@ class RK34Q8(OdeSolver):
                     f"got {first_step!r}"
                 )
         elif finite:
-            h0 = initial_step(
-                self._rhs,
-                t0,
-                work.V[U],
-                work.V[K1],
-                t_bound,
-                run.inputs,
-                run.config[0],
-                3,
-                max_step,
-            )
+            # The config's error exponent is 1/4: the heuristic for order 3.
+            h0 = float(initial_step(self._rhs, t0, t_bound, run.inputs, run.config[0], work))
             s["nfev"] += 1
         else:
             h0 = interval

@@ -1,0 +1,173 @@
+"""Many members of an ensemble through one call of the kernel.
+
+:func:`run_members` integrates member after member (initial state and
+parameter values per member, everything else shared) without returning to
+Python: each starts from a fresh state exactly as :class:`~hamrkq.rkq.driver.Integration`
+starts a single run (:func:`hamrkq.rkq.start.begin`), then runs the same step
+loop (:func:`hamrkq.rkq.loop.advance`), so a member's numbers are the bits of
+the same run alone.  What an ensemble keeps of each member is folded in as the
+output buffer fills: the states at the ``t_eval`` times (or the last node), the
+largest ``|y - z|`` and the largest energy drift over the nodes a single run
+would keep, the last time reached, the status and the counters.
+
+Kernel code (``@jitable``; see :mod:`hamrkq.rkq.loop` for the conventions).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from hamrkq.rkq import arith
+from hamrkq.rkq.jit import borrow, jitable
+from hamrkq.rkq.layout import (
+    RET_DONE,
+    SHI,
+    ST_RUNNING,
+    STATE,
+    ZHI,
+    Output,
+    U,
+)
+from hamrkq.rkq.loop import advance
+from hamrkq.rkq.start import begin
+
+__all__ = ["COUNTERS", "Batch", "allocate_batch", "run_members"]
+
+#: The counters kept per member, in the order of :attr:`Batch.stats`' columns.
+COUNTERS = ("steps", "rejected", "quenches", "nfev", "njev")
+#: Step attempts per call of ``advance`` inside the batch: the run's own
+#: ``max_steps`` is the limit that matters.
+_NO_BUDGET = np.iinfo(np.int64).max
+
+
+class Batch(NamedTuple):
+    """The members' inputs and what is kept of them.
+
+    ``y0`` (M, d) and ``params`` (M, P) per member; ``fresh`` a one-row
+    :data:`~hamrkq.rkq.layout.STATE` at ``t0``, the state every member starts
+    from; ``out`` the node buffer (the ``t_eval`` rows, or a few rows folded
+    as they fill).  Results: ``y`` (M, T, d) the kept states (NaN where a
+    member stopped short), ``t_last``, ``status``, ``max_error`` (max
+    ``|y - z|``, NaN without a quencher), ``energy0`` and ``energy_drift``
+    (max ``|H - H(t0)|`` over the kept nodes), ``stats`` (M, len(COUNTERS)).
+    """
+
+    y0: np.ndarray
+    params: np.ndarray
+    fresh: np.ndarray
+    out: Output
+    y: np.ndarray
+    t_last: np.ndarray
+    status: np.ndarray
+    max_error: np.ndarray
+    energy0: np.ndarray
+    energy_drift: np.ndarray
+    stats: np.ndarray
+
+
+def allocate_batch(y0, params, t0: float, times: int, out: Output) -> Batch:
+    """Result arrays for the members ``y0``/``params`` (NaN-filled), keeping
+    ``times`` states each, with the node buffer ``out``."""
+    m, d = y0.shape
+    fresh = np.zeros(1, dtype=STATE)
+    fresh[0]["t"] = t0
+    fresh[0]["status"] = ST_RUNNING
+    fresh[0]["bad_component"] = -1
+    return Batch(
+        y0=np.ascontiguousarray(y0, dtype=np.float64),
+        params=np.ascontiguousarray(params, dtype=np.float64),
+        fresh=fresh,
+        out=out,
+        y=np.full((m, times, d), np.nan),
+        t_last=np.full(m, np.nan),
+        status=np.zeros(m, dtype=np.int64),
+        max_error=np.full(m, np.nan),
+        energy0=np.full(m, np.nan),
+        energy_drift=np.full(m, np.nan),
+        stats=np.zeros((m, len(COUNTERS)), dtype=np.int64),
+    )
+
+
+@jitable
+def nan_max(top, value):
+    """``max`` as ``ndarray.max`` takes it: a NaN anywhere wins."""
+    if top != top or value != value:
+        return value if value != value else top
+    return value if value > top else top
+
+
+@jitable
+def load_member(problem, state, work, batch, m):
+    """Member ``m``'s fresh state, work arrays and parameter values, as a
+    single run of it would allocate them."""
+    state[0] = batch.fresh[0]
+    work.V[:, :] = 0.0
+    work.K[:, :] = 0.0
+    work.Kz[:, :] = 0.0
+    work.dKz[:, :] = 0.0
+    work.JM[:, :] = 0.0
+    for row in (U, ZHI, SHI):
+        arith.copy(batch.y0[m], work.V[row])
+    arith.copy(batch.params[m], problem.params)
+
+
+@jitable
+def fold_nodes(energy, params, c, s, batch, m, kept):
+    """Fold the buffer's nodes (rows ``0 .. s.nout``) into member ``m``'s
+    results, ``kept`` nodes having been folded before; empties the buffer and
+    returns the new count.  The drift is taken against ``energy0``, set from
+    the first node (at ``t0``) or before the run when ``t_eval`` skips it."""
+    out = batch.out
+    n = s["nout"]
+    for r in range(n):
+        value = abs(energy(out.t[r], out.y[r], params) - batch.energy0[m])
+        drift = batch.energy_drift[m]
+        batch.energy_drift[m] = value if kept + r == 0 else nan_max(drift, value)
+        if c["use_z"]:
+            top = batch.max_error[m]
+            for k in range(out.y.shape[1]):
+                err = abs(out.y[r, k] - out.z[r, k])
+                top = err if (kept + r == 0 and k == 0) else nan_max(top, err)
+            batch.max_error[m] = top
+        if c["use_t_eval"]:
+            arith.copy(out.y[r], batch.y[m, kept + r])
+    if n > 0:
+        if not c["use_t_eval"]:
+            arith.copy(out.y[n - 1], batch.y[m, 0])
+        batch.t_last[m] = out.t[n - 1]
+    s["nout"] = 0
+    return kept + n
+
+
+@jitable
+def run_members(rhs, tangent, jac, energy, problem, tab, cfg, state, work, batch):
+    """Integrate every member of ``batch`` (see the module docstring) with
+    the shared ``problem`` (its ``params`` row is overwritten per member),
+    tableaus, configuration and work arrays.  Returns the number of members."""
+    problem, tab, work, batch = borrow(problem), borrow(tab), borrow(work), borrow(batch)
+    cfg, state = borrow(cfg), borrow(state)
+    c = cfg[0]
+    for m in range(batch.y0.shape[0]):
+        load_member(problem, state, work, batch, m)
+        s = state[0]
+        batch.energy0[m] = energy(s["t"], batch.y0[m], problem.params)
+        status = begin(rhs, problem, c, s, work, batch.out)
+        kept = 0
+        while status == ST_RUNNING:
+            ret = advance(rhs, tangent, jac, problem, tab, cfg, state, work, batch.out, _NO_BUDGET)
+            if ret == RET_DONE:
+                status = s["status"]
+            kept = fold_nodes(energy, problem.params, c, s, batch, m, kept)
+        kept = fold_nodes(energy, problem.params, c, s, batch, m, kept)
+        if kept == 0:
+            batch.energy0[m] = np.nan
+        batch.status[m] = status
+        # In the order of COUNTERS (numba needs the field names as literals).
+        batch.stats[m, 0] = s["steps"]
+        batch.stats[m, 1] = s["rejected"]
+        batch.stats[m, 2] = s["quenches"]
+        batch.stats[m, 3] = s["nfev"]
+        batch.stats[m, 4] = s["njev"]
+    return batch.y0.shape[0]

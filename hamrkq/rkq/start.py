@@ -1,0 +1,92 @@
+"""The start of a run: the first node, ``f(t0, y0)`` and the first step size.
+
+Kernel code (``@jitable``, see :mod:`hamrkq.rkq.loop` for the conventions):
+the driver calls :func:`begin` in Python before the compiled step loop, and the
+batch loop (:mod:`hamrkq.rkq.batch`) calls it compiled for every member, so a
+member of an ensemble starts exactly as the same run alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hamrkq.rkq import arith
+from hamrkq.rkq.jit import jitable
+from hamrkq.rkq.layout import (
+    CAND,
+    DELTA,
+    K1,
+    ST_NON_FINITE,
+    ST_RUNNING,
+    ST_SUCCESS,
+    TMP,
+    U,
+)
+from hamrkq.rkq.loop import write_node
+
+__all__ = ["begin", "initial_step"]
+
+
+@jitable
+def initial_step(rhs, t0, t_end, problem, c, work):
+    """First step size by the heuristic of Hairer, Norsett & Wanner (Solving
+    ODEs I, II.4), as in SciPy's ``select_initial_step``, with hamrkq's
+    weighted max norm, from ``V[U]`` with ``V[K1] = f(t0, u)`` given, for a
+    method whose error exponent is ``c["error_exponent"]`` (``1 / (order + 1)``),
+    at most ``c["max_step"]``.  Costs one evaluation of ``rhs``; uses the rows
+    ``DELTA``, ``CAND`` and ``TMP`` as scratch.  Returns a positive step size."""
+    V = work.V
+    y0, f0, delta, y1, f1 = V[U], V[K1], V[DELTA], V[CAND], V[TMP]
+    interval = abs(t_end - t0)
+    direction = 1.0 if t_end >= t0 else -1.0
+    arith.tolerance(problem.atol, problem.rtol, y0, y0, c["relative"], c["rule"], delta)
+    d0 = arith.weighted_norm(y0, delta)
+    d1 = arith.weighted_norm(f0, delta)
+    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    for i in range(y0.shape[0]):
+        y1[i] = f0[i] * (direction * h0) + y0[i]
+    rhs(t0 + direction * h0, y1, problem.params, f1)
+    for i in range(y0.shape[0]):
+        f1[i] = f1[i] - f0[i]
+    d2 = arith.weighted_norm(f1, delta) / h0
+    if not math.isfinite(d2):
+        h1 = h0
+    elif max(d1, d2) <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** c["error_exponent"]
+    return min(100.0 * h0, h1, interval, c["max_step"])
+
+
+@jitable
+def begin(rhs, problem, c, s, work, out):
+    """Start the run held in the state record ``s`` (at ``s["t"]``, with
+    ``V[U] = y0``): write the first node unless ``t_eval`` skips it, evaluate
+    ``f(t0, y0)`` and set the first step (``c["first_step"]``, or the
+    heuristic when it is 0).  Sets and returns the status (``ST_RUNNING`` to
+    go on)."""
+    t0 = s["t"]
+    t_end = c["t_end"]
+    use_t_eval = c["use_t_eval"]
+    t_eval = problem.t_eval
+    if not use_t_eval or (t_eval.shape[0] > 0 and t_eval[0] == t0):
+        write_node(t0, 0, work, out, s, c["use_z"])
+        s["eval_index"] = use_t_eval
+    if t0 == t_end:
+        s["status"] = ST_SUCCESS
+        return ST_SUCCESS
+    V = work.V
+    rhs(t0, V[U], problem.params, V[K1])
+    s["nfev"] += 1
+    if not arith.all_finite(V[K1]):
+        s["bad_component"] = arith.first_nonfinite(V[K1])
+        s["status"] = ST_NON_FINITE
+        return ST_NON_FINITE
+    s["k1_valid"] = 1
+    h0 = c["first_step"]
+    if h0 == 0.0:
+        h0 = initial_step(rhs, t0, t_end, problem, c, work)
+        s["nfev"] += 1
+    s["h"] = h0 if t_end > t0 else -h0
+    return ST_RUNNING
