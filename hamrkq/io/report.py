@@ -8,8 +8,9 @@
   counters, wall times, the status and the package versions.
 - :func:`summary_rows` and :func:`format_table`: the text table printed on
   stdout.
-- :class:`ProgressBar`: a progress bar on a terminal that appears only once a
-  run has lasted about a second, and never when stderr is not a terminal.
+- :class:`ProgressBar`: a progress bar (tqdm) on a terminal that appears only
+  once a run has lasted about a second, and never when stderr is not a
+  terminal (defined in :mod:`hamrkq._progress`, importable from here).
 """
 
 from __future__ import annotations
@@ -17,13 +18,12 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import platform
-import sys
-import time
 from collections.abc import Iterable, Mapping
 from importlib import metadata
-from typing import Any, TextIO
+from typing import Any
 
 from hamrkq._files import jsonable, write_atomic
+from hamrkq._progress import ProgressBar
 from hamrkq.io.output_dir import (
     LOCK_NAME,
     MAX_DPI,
@@ -215,73 +215,3 @@ def format_table(rows: Iterable[tuple[str, str]]) -> str:
     rows = list(rows)
     width = max((len(label) for label, _ in rows), default=0)
     return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)
-
-
-# -- progress ----------------------------------------------------------------
-class ProgressBar:
-    """``progress(fraction, t)`` for :func:`hamrkq.solve`: a bar on a terminal.
-
-    Nothing is drawn before ``delay`` seconds have passed (short runs stay
-    quiet) or when ``stream`` is not a terminal (pipes, files, CI logs).
-
-    Parameters
-    ----------
-    label : str
-        Shown before the bar.
-    stream : file, optional
-        Default ``sys.stderr``.
-    delay : float
-        Seconds before the bar first appears.
-    enabled : bool, optional
-        Force the bar on or off; default: whether ``stream`` is a terminal.
-    """
-
-    def __init__(
-        self,
-        label: str,
-        *,
-        stream: TextIO | None = None,
-        delay: float = 1.0,
-        enabled: bool | None = None,
-        width: int = 30,
-    ):
-        self.label = label
-        self.stream = sys.stderr if stream is None else stream
-        if enabled is None:
-            isatty = getattr(self.stream, "isatty", None)
-            enabled = bool(isatty and isatty())
-        self.enabled = enabled
-        self.delay = delay
-        self.width = width
-        self.start = time.monotonic()
-        self.drawn = False
-
-    def __call__(self, fraction: float, t: float) -> None:
-        if not self.enabled:
-            return
-        elapsed = time.monotonic() - self.start
-        if elapsed < self.delay:
-            return
-        fraction = min(max(fraction, 0.0), 1.0)
-        filled = int(self.width * fraction)
-        eta = elapsed * (1 - fraction) / fraction if fraction > 0 else float("nan")
-        eta_text = f"{eta:5.0f} s left" if math.isfinite(eta) else ""
-        bar = "#" * filled + "." * (self.width - filled)
-        self.stream.write(
-            f"\r{self.label} [{bar}] {fraction:6.1%}  t={t:<10.6g} {elapsed:5.0f} s {eta_text}"
-        )
-        self.stream.flush()
-        self.drawn = True
-
-    def close(self) -> None:
-        """End the bar's line (if one was drawn)."""
-        if self.drawn:
-            self.stream.write("\n")
-            self.stream.flush()
-            self.drawn = False
-
-    def __enter__(self) -> ProgressBar:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -23,7 +23,6 @@ The package's modules:
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq import events as _events
+from hamrkq._progress import ProgressBar
 from hamrkq._validate import span as _span
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
@@ -175,7 +175,8 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         otherwise Python with one :class:`~hamrkq.errors.HamrkqWarning`.
         Both give the same nodes and values, bit for bit.
     progress : bool or callable, optional
-        True: a progress bar on stderr when it is a terminal.  A callable is
+        True: a progress bar (tqdm) on stderr when it is a terminal, with the
+        share of the time span done and the current ``t``.  A callable is
         called as ``progress(fraction, t)`` every few thousand steps.
     dense_output : bool, default False
         Attach the continuous solution ``sol.sol(t)`` (RKQ family only; one
@@ -251,7 +252,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             f"(method={options.method!r}, keep_every={options.keep_every!r}, "
             f"t_eval {'given' if t_eval_v is not None else 'not given'})"
         )
-    bar = arguments.progress_callback(progress)
+    bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
     chosen = resolve_backend(options.backend, ham, spec)
     compile_s = time.perf_counter() - started
@@ -267,10 +268,12 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     # singular initial node, would only be noise.
     with np.errstate(all="ignore"):
         started = time.perf_counter()
-        out = spec.run(task, chosen)
+        try:
+            out = spec.run(task, chosen)
+        finally:
+            if progress is True and isinstance(bar, ProgressBar):
+                bar.close()  # its own bar (not a caller's): leave it on its own line
         elapsed = time.perf_counter() - started
-        if bar is not None and progress is True:
-            sys.stderr.write("\n")  # leave the finished bar on its own line
         if isinstance(out, Solution):  # the baselines build their own
             return out
         out.stats.setdefault("integrate_s", elapsed)

@@ -9,13 +9,13 @@ system are checked by :class:`~hamrkq.options.SolveOptions`.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 import sympy as sp
 
+from hamrkq._progress import ProgressBar
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import tolerance as _tolerance
@@ -129,20 +129,15 @@ def eval_times(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
     return times
 
 
-def progress_callback(progress: Any) -> Callable[[float, float], None] | None:
+def progress_callback(progress: Any, label: str) -> Callable[[float, float], None] | None:
+    """``progress`` as the driver's callback: None for no reports, a
+    :class:`~hamrkq._progress.ProgressBar` named ``label`` for True (only when
+    stderr is a terminal), or the caller's own callable."""
     if progress is None or progress is False:
         return None
     if progress is True:
-        return _terminal_bar() if sys.stderr is not None and sys.stderr.isatty() else None
+        bar = ProgressBar(label, delay=0.0)
+        return bar if bar.enabled else None
     if callable(progress):
         return progress
     raise InputTypeError(f"progress must be a bool or a callable, got {_show(progress)}")
-
-
-def _terminal_bar(width: int = 40) -> Callable[[float, float], None]:
-    def show(fraction: float, t: float) -> None:
-        filled = int(width * min(max(fraction, 0.0), 1.0))
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {fraction:6.1%} t={t:.6g}")
-        sys.stderr.flush()
-
-    return show
