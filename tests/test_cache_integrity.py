@@ -17,7 +17,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.backends import codegen, compiled
+from hamrkq.backends import codegen, compiled, source_cache
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning
 from hamrkq.result import Status
@@ -33,7 +33,7 @@ def _system(tag: float) -> hamrkq.Hamiltonian:
 
 def _forget(path: Path) -> None:
     """What a new process would see: nothing of ``path`` imported yet."""
-    module = codegen._LOADED.pop(str(path), None)
+    module = source_cache._LOADED.pop(str(path), None)
     if module is not None:
         sys.modules.pop(module.__name__, None)
 
@@ -91,8 +91,8 @@ def test_a_damaged_generated_file_is_rebuilt_with_one_warning(tmp_path, damage):
 def test_every_cached_file_ends_with_the_checksum_of_its_text(tmp_path):
     module = codegen.load_module(_system(0.01), tmp_path)
     body, last = Path(module.__file__).read_text().rstrip("\n").rsplit("\n", 1)
-    assert last == codegen._checksum_line(body + "\n")
-    assert codegen._damage(Path(module.__file__)) is None
+    assert last == source_cache._checksum_line(body + "\n")
+    assert source_cache.damage_of(Path(module.__file__)) is None
 
 
 SCRIPT = textwrap.dedent(

@@ -263,12 +263,13 @@ def test_progress_bar_only_on_a_terminal_and_after_the_delay():
     terminal = _Terminal()
     slow = ProgressBar("x", stream=terminal, delay=3600.0)
     slow(0.5, 1.0)
+    slow.close()
     assert terminal.getvalue() == ""  # a short run stays quiet
     bar = ProgressBar("run", stream=terminal, delay=0.0)
     bar(0.25, 12.5)
     bar.close()
     text = terminal.getvalue()
-    assert text.startswith("\rrun [") and "25.0%" in text and "t=12.5" in text
+    assert text.startswith("\rrun: [") and "25.0%" in text and "t=12.5" in text
     assert text.endswith("\n")
 
 

@@ -14,7 +14,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.backends import codegen
+from hamrkq.backends import codegen, source_cache
 from hamrkq.backends.codegen import CodegenError
 from hamrkq.backends.numeric import numeric_of
 
@@ -307,7 +307,7 @@ def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
     """A second process finds the file: nothing is derived or printed again."""
     ham = hamrkq.load_problem("toda").hamiltonian
     path = tmp_path / f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"
-    path.write_text(codegen._sealed(codegen.generate_source(ham)))
+    path.write_text(source_cache.sealed(codegen.generate_source(ham)))
     monkeypatch.setattr(codegen, "generate_source", lambda ham: pytest.fail("regenerated"))
     module = codegen.load_module(ham, tmp_path)
     assert module.DIM == 6

@@ -24,7 +24,7 @@ import pytest
 from hamrkq.result import Solution, Status
 
 ROOT = Path(__file__).resolve().parent.parent
-BAR = re.compile(rb"\[[#.]+\]\s+([0-9.]+)%\s+t=([0-9.eE+-]+)")
+BAR = re.compile(rb"\[[#.]+\]\s+([0-9.]+)%,\s+t=([0-9.eE+-]+)")
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pseudo-terminal")
 

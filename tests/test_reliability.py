@@ -34,7 +34,7 @@ from hamrkq.errors import (
     InputTypeError,
     SolutionFileError,
 )
-from hamrkq.io import report
+from hamrkq.io import output_dir
 from hamrkq.io.report import LOCK_NAME, MAX_DPI, OutputDir, check_dpi
 from hamrkq.options import MIN_ATOL
 from hamrkq.result import Solution, Status
@@ -379,7 +379,7 @@ def test_10_a_full_disk_keeps_the_table_and_exits_3(tmp_path, monkeypatch):
     def no_space(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(report, "write_atomic", no_space)
+    monkeypatch.setattr(output_dir, "write_atomic", no_space)
     monkeypatch.setattr(Solution, "save", no_space)
     out = tmp_path / "o"
     args = ["run", "harmonic", "--t-end", "2", "--backend", "python", "--out", str(out)]

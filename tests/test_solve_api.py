@@ -2,6 +2,10 @@
 selection, interruption and the Solution it returns, checked against exact
 solutions where numbers are involved."""
 
+import io
+import re
+import sys
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -138,6 +142,28 @@ def test_progress_reports_increasing_fractions():
     seen = []
     solve(load_problem("pendulum"), atol=1e-8, progress=lambda f, t: seen.append(f))
     assert len(seen) >= 1 and all(0 < f < 1 for f in seen) and seen == sorted(seen)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_true_draws_a_bar_on_a_terminal_stderr_only(monkeypatch):
+    problem = load_problem("pendulum")
+    quiet = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", quiet)
+    solve(problem, atol=1e-8, progress=True)
+    assert quiet.getvalue() == ""  # not a terminal: nothing drawn
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    sol = solve(problem, atol=1e-8, progress=True)
+    shown = re.findall(r"rk34q8: \[[#.]+\]\s+([0-9.]+)%, t=([0-9.eE+-]+)", terminal.getvalue())
+    assert shown, terminal.getvalue()
+    fractions = [float(f) for f, _ in shown]
+    assert all(0 <= f < 100 for f in fractions) and fractions == sorted(fractions)
+    assert 0 < float(shown[-1][1]) < sol.t[-1]  # the time reached, as the bar last showed it
+    assert terminal.getvalue().endswith("\n")  # the finished bar keeps its own line
 
 
 def test_max_steps_status_and_message():

@@ -40,11 +40,11 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from hamrkq.analysis.comparison_runs import Comparison, Run
 from hamrkq.analysis.diagnostics import drift_summary
 from hamrkq.analysis.reference import hamiltonian_reference
 from hamrkq.errors import InputError, OptionError
@@ -99,115 +99,6 @@ def default_methods(problem: Any) -> list[str]:
     """:data:`DEFAULT_METHODS`, without the splitting methods for a non-separable H."""
     separable = problem.hamiltonian.is_separable
     return [m for m in DEFAULT_METHODS if separable or m not in SPLITTING_SCHEMES]
-
-
-@dataclass(frozen=True, eq=False)
-class Run:
-    """One integration of the sweep and what was measured on it.
-
-    ``settings`` are the keywords given to :func:`hamrkq.solve` (tolerances or
-    ``step``); ``factor`` their multiple of the base setting.  The errors are
-    nan until :func:`compare` has the reference.
-    """
-
-    method: str
-    factor: float
-    settings: dict[str, Any]
-    solution: Solution
-    wall_time: float
-    max_error: float = math.nan
-    max_energy_error: float = math.nan
-    relative_energy_error: float = math.nan
-    drift: float = math.nan
-    drift_stderr: float = math.nan
-    selected: bool = False
-
-    @property
-    def success(self) -> bool:
-        return self.solution.success
-
-    @property
-    def nfev(self) -> int:
-        return self.solution.nfev
-
-    def describe(self) -> str:
-        """The settings in a few characters: ``"atol=1e-08 rtol=0"`` or ``"h=0.0125"``."""
-        parts = []
-        for key, value in self.settings.items():
-            array = np.ravel(value)
-            shown = f"{array[0]:.3g}" if np.all(array == array[0]) else f"{array.max():.3g}(max)"
-            parts.append(f"{'h' if key == 'step' else key}={shown}")
-        return " ".join(parts)
-
-    def row(self) -> dict[str, Any]:
-        """One table row, plain values."""
-        sol = self.solution
-        return {
-            "method": self.method,
-            "settings": self.describe(),
-            "factor": self.factor,
-            "selected": self.selected,
-            "steps": int(sol.stats.get("steps", 0)),
-            "nfev": self.nfev,
-            "wall_time_s": self.wall_time,
-            "max_true_error": self.max_error,
-            "max_abs_energy_error": self.max_energy_error,
-            "max_rel_energy_error": self.relative_energy_error,
-            "drift_slope": self.drift,
-            "drift_stderr": self.drift_stderr,
-            "status": sol.status.name,
-            "t_final": float(sol.t[-1]) if len(sol) else math.nan,
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class Comparison:
-    """Every run of :func:`compare` and how they were chosen and measured."""
-
-    problem: str
-    t_span: tuple[float, float]
-    runs: tuple[Run, ...]
-    match: str
-    target: float  # the anchor's max true error (match="error") or nfev ("cost")
-    anchor: Run
-    reference: str
-    reference_accuracy: float
-    backend: str
-    notes: tuple[str, ...] = field(default_factory=tuple)
-
-    def selected(self) -> list[Run]:
-        """The headline run of each method, in the order the methods were given."""
-        return [run for run in self.runs if run.selected]
-
-    def rows(self) -> list[dict[str, Any]]:
-        return [run.row() for run in self.runs]
-
-    def matched_by(self) -> str:
-        """One sentence: what the headline rows have in common."""
-        if self.match == "error":
-            return (
-                f"matched error: for each method the cheapest run (fewest f evaluations) "
-                f"whose max true error is at most {self.target:.3g}, that of rk34q8 at the "
-                "problem's default tolerance"
-            )
-        return (
-            f"matched cost: for each method the run whose f evaluations are nearest to "
-            f"{self.target:.0f}, those of rk34q8 at the problem's default tolerance"
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "problem": self.problem,
-            "t_span": list(self.t_span),
-            "match": self.match,
-            "matched_by": self.matched_by(),
-            "target": self.target,
-            "reference": self.reference,
-            "reference_accuracy": self.reference_accuracy,
-            "backend": self.backend,
-            "notes": list(self.notes),
-            "runs": self.rows(),
-        }
 
 
 # -- running -------------------------------------------------------------------------

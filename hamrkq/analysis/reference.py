@@ -28,9 +28,9 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from scipy.integrate import DOP853, solve_ivp
-from scipy.optimize import brentq
+from scipy.integrate import solve_ivp
 
+from hamrkq.analysis.periodic_orbit import PILOT_RTOL, find_return, periodic_orbit
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, IntegrationError
 
@@ -58,15 +58,9 @@ CHECK_FACTOR = 10.0
 SETTLE_FACTOR = 8.0
 #: The check orbit of a periodic reference runs at this many times the rtol.
 CHECK_RTOL_FACTOR = 4.0
-#: The pilot runs (period search, component scales) need only a few digits.
-PILOT_RTOL = 1e-10
-#: A crossing of the Poincare section counts as a return only this close to
-#: the start, relative to the orbit's extent: other crossings are far away.
-RETURN_RADIUS = 1e-2
 #: After Newton, an orbit whose return mismatch exceeds this fraction of its
 #: extent is not periodic (quasi-periodic or chaotic), and we say so.
 CLOSURE_LIMIT = 1e-7
-MAX_NEWTON = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,95 +150,6 @@ def _scales(samples: np.ndarray) -> np.ndarray:
     scale = np.max(np.abs(samples), axis=0)
     top = float(scale.max())
     return np.where(scale > 100 * _EPS * top, scale, top if top > 0 else 1.0)
-
-
-# -- periodic orbits ---------------------------------------------------------
-@dataclass(frozen=True)
-class _Orbit:
-    t0: float
-    period: float
-    shift: np.ndarray
-    dense: Any  # scipy OdeSolution over one period
-    closure: float  # |y(T) - y0 - shift| left after Newton (max-norm)
-    nfev: int
-    steps: int
-    speed: float  # max-norm of f over the period's nodes
-
-    def rounding_floor(self, periods: float) -> float:
-        """Random-walk rounding of the states plus its effect on the phase."""
-        walk = np.sqrt(self.steps) * _EPS
-        scale = float(np.max(np.abs(self.dense(self.dense.ts))))
-        return float(walk * scale + periods * walk * self.period * self.speed)
-
-    def evaluate(self, t: np.ndarray) -> np.ndarray:
-        tau = t - self.t0
-        # The reduction t mod T loses eps*|t| of phase; that is the accuracy
-        # with which the node time itself is known, so nothing better exists.
-        k = np.floor(tau / self.period)
-        s = np.clip(tau - k * self.period, 0.0, self.period)
-        return self.dense(self.t0 + s).T + k[:, None] * self.shift
-
-
-def _find_return(fun, t0, y0, shift, max_period, atol) -> tuple[float, np.ndarray, int]:
-    """First return to the section through ``y0 + shift`` normal to the flow.
-
-    Returns the approximate period, the per-component scales seen on the way,
-    and the number of function evaluations.
-    """
-    normal = fun(t0, y0)
-    target = y0 + shift
-    solver = DOP853(fun, t0, y0, t0 + max_period, rtol=PILOT_RTOL, atol=atol)
-    g_old, extent, peak = 0.0, 0.0, np.abs(y0)
-    while solver.status == "running":
-        t_old = solver.t
-        message = solver.step()
-        if solver.status == "failed":
-            raise IntegrationError(f"period search failed at t={solver.t!r}: {message}")
-        extent = max(extent, float(np.max(np.abs(solver.y - y0))))
-        peak = np.maximum(peak, np.abs(solver.y))
-        g_new = float(normal @ (solver.y - target))
-        if g_old < 0.0 <= g_new:
-            dense = solver.dense_output()
-
-            def section(s: float, dense=dense) -> float:
-                return float(normal @ (dense(s) - target))
-
-            t_cross = brentq(section, t_old, solver.t, xtol=1e-15)
-            if np.max(np.abs(dense(t_cross) - target)) <= RETURN_RADIUS * extent:
-                return t_cross - t0, peak, solver.nfev
-        g_old = g_new
-    raise InputError(
-        f"the orbit does not return to y0 within max_period={max_period!r}; it may not "
-        "be periodic (use integrate_reference) or its period is longer (pass max_period)"
-    )
-
-
-def _periodic_orbit(fun, t0, y0, shift, guess, rtol, atol, steps_per_period) -> _Orbit:
-    """Refine the period by Newton's method on the section and keep one period."""
-    normal = fun(t0, y0)
-    period, nfev, closure = guess, 0, np.inf
-    for _ in range(MAX_NEWTON):
-        sol = solve_ivp(
-            fun, (t0, t0 + period), y0, method="DOP853", rtol=rtol, atol=atol,
-            max_step=period / steps_per_period, dense_output=True,
-        )  # fmt: skip
-        nfev += sol.nfev
-        if not sol.success:
-            raise IntegrationError(f"reference integration failed: {sol.message}")
-        end = sol.y[:, -1]
-        mismatch = end - y0 - shift
-        flow = fun(t0 + period, end)
-        # The return time T solves normal . (y(T) - y0 - shift) = 0; its
-        # derivative in T is normal . f(y(T)).
-        correction = -float(normal @ mismatch) / float(normal @ flow)
-        period += correction
-        closure = float(np.max(np.abs(mismatch + correction * flow)))
-        if abs(correction) <= 8 * _EPS * period:
-            break
-    # The interpolant was built over [t0, t0 + T_previous]; the last correction
-    # is a few ulp of T, so reading it at T_final is a negligible extrapolation.
-    speed = max(float(np.max(np.abs(fun(t0, y)))) for y in sol.y.T)
-    return _Orbit(t0, period, shift, sol.sol, closure, nfev, sol.t.size - 1, speed)
 
 
 def periodic_reference(
@@ -344,7 +249,7 @@ def periodic_reference(
         raise InputError(f"max_period must be positive, got {max_period!r}")
 
     pilot_atol = PILOT_RTOL * _scales(y0[None, :])
-    guess, peak, nfev = _find_return(fun, t0, y0, shift, max_period, pilot_atol)
+    guess, peak, nfev = find_return(fun, t0, y0, shift, max_period, pilot_atol)
     scale = _scales(peak[None, :])
     atol = rtol * scale
     period = guess
@@ -354,11 +259,11 @@ def periodic_reference(
         # the step cap binds) and a looser rtol (where DOP853's own control
         # binds, e.g. at a Kepler pericentre); refining only one of them can
         # leave both orbits wrong by the same amount.
-        coarse = _periodic_orbit(
+        coarse = periodic_orbit(
             fun, t0, y0, shift, period, CHECK_RTOL_FACTOR * rtol, CHECK_RTOL_FACTOR * atol,
             steps // 2,
         )  # fmt: skip
-        fine = _periodic_orbit(fun, t0, y0, shift, coarse.period, rtol, atol, steps)
+        fine = periodic_orbit(fun, t0, y0, shift, coarse.period, rtol, atol, steps)
         nfev += coarse.nfev + fine.nfev
         period = fine.period
         settled = SETTLE_FACTOR * np.sqrt(fine.steps) * _EPS * fine.period

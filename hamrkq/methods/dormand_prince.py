@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from fractions import Fraction as F
 
-from hamrkq.methods.tableaus import ButcherTableau, matrix_from_entries
+from hamrkq.methods.butcher import ButcherTableau, matrix_from_entries
 
 __all__ = ["DORMAND_PRINCE_54"]
 

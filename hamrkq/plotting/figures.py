@@ -23,12 +23,16 @@ orbits; Figures 2 and 4 draw the max-norm over the ``q``'s and over the
 ``p``'s, the norm the tolerance bounds, divided by ``delta_k`` when the
 tolerance differs between components or along the run.  Curves are labelled
 with the problem's own coordinate names; a partial run's end is marked.
+
+The thinning and the log-scale curves are :mod:`hamrkq.plotting.series`'s;
+what the figures take and share (runs, diagnostics, axes, the ``q`` and ``p``
+groups) is :mod:`hamrkq.plotting.figure_inputs`'s.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,12 +40,25 @@ import numpy as np
 
 from hamrkq._files import atomic_file
 from hamrkq.errors import InputError
+from hamrkq.plotting.figure_inputs import diagnostics_for as _diagnostics_for
+from hamrkq.plotting.figure_inputs import first_periods as _first_periods
+from hamrkq.plotting.figure_inputs import group_label as _group_label
+from hamrkq.plotting.figure_inputs import groups as _groups
+from hamrkq.plotting.figure_inputs import labelled_runs as _runs
+from hamrkq.plotting.figure_inputs import new_axes as _new_axes
+from hamrkq.plotting.figure_inputs import pair_style as _pair_style
+from hamrkq.plotting.figure_inputs import per_delta as _per_delta
+from hamrkq.plotting.figure_inputs import tolerance_of as _delta
+from hamrkq.plotting.series import ENVELOPE_BINS as ENVELOPE_BINS
+from hamrkq.plotting.series import MAX_POINTS as MAX_POINTS
+from hamrkq.plotting.series import downsample_indices, upper_envelope
+from hamrkq.plotting.series import log_series as _log_series
+from hamrkq.plotting.series import thin as _thin
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from hamrkq.analysis.diagnostics import Diagnostics
     from hamrkq.result import Solution
 
 __all__ = [
@@ -56,160 +73,11 @@ __all__ = [
     "upper_envelope",
 ]
 
-#: Points drawn per curve; a 62 000-node run is thinned to this many.
-MAX_POINTS = 4000
 #: Points of the phase portrait (a uniform stride through the run).
 PHASE_POINTS = 20000
-#: Bins of the upper envelope drawn over a long error series.
-ENVELOPE_BINS = 400
 #: Figure 1 draws a phase portrait for each of the first this many degrees of freedom.
 MAX_PAIRS = 6
 _STYLES = ({"color": "C0", "lw": 1.0}, {"color": "C3", "lw": 1.0, "ls": "--"})
-
-
-# -- thinning ----------------------------------------------------------------
-def downsample_indices(values: Any, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Indices of at most ``max_points`` (+2) samples that keep every bin's extremes.
-
-    The series is cut into ``max_points // 2`` bins of consecutive samples and
-    the positions of each bin's smallest and largest finite value are kept,
-    with the first and last sample.  The global maximum and minimum are
-    therefore always kept; non-finite values (nan, or zeros masked for a log
-    axis) are never chosen.
-    """
-    values = np.asarray(values, dtype=float).reshape(-1)
-    size = values.size
-    if size <= max_points:
-        return np.flatnonzero(np.isfinite(values)) if size else np.arange(0)
-    bins = max(1, int(max_points) // 2)
-    width = -(-size // bins)  # ceiling division
-    padded = np.full(bins * width, np.nan)
-    padded[:size] = values
-    blocks = padded.reshape(bins, width)
-    finite = np.isfinite(blocks)
-    low = np.argmin(np.where(finite, blocks, np.inf), axis=1)
-    high = np.argmax(np.where(finite, blocks, -np.inf), axis=1)
-    keep = np.concatenate([low, high]) + np.tile(np.arange(bins) * width, 2)
-    keep = np.unique(np.concatenate([keep[keep < size], [0, size - 1]]))
-    return keep[np.isfinite(values[keep])]
-
-
-def _thin(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    index = downsample_indices(values)
-    return t[index], values[index]
-
-
-def upper_envelope(
-    t: Any, values: Any, bins: int = ENVELOPE_BINS
-) -> tuple[np.ndarray, np.ndarray]:
-    """The largest finite value of each of ``bins`` consecutive bins, and its time.
-
-    Bins without a finite value are dropped.  The global maximum is one of
-    the points returned.
-    """
-    t, values = np.asarray(t, dtype=float), np.asarray(values, dtype=float).reshape(-1)
-    width = max(1, -(-values.size // int(bins)))
-    count = -(-values.size // width)
-    padded = np.full(count * width, -np.inf)
-    padded[: values.size] = np.where(np.isfinite(values), values, -np.inf)
-    index = np.argmax(padded.reshape(count, width), axis=1) + np.arange(count) * width
-    index = index[np.isfinite(padded[index])]
-    return t[index], values[index]
-
-
-def _log_series(ax: Axes, t: np.ndarray, values: np.ndarray, label: str, style: dict) -> None:
-    """A long error series on a log axis: the per-bin maximum as a line over a
-    faint band of the thinned series, so the maximum error stands out."""
-    positive = _positive(values)
-    ax.plot(*_thin(t, positive), **{**style, "lw": 0.5, "alpha": 0.25})
-    ax.plot(*upper_envelope(t, positive), label=label, **style)
-
-
-def _positive(values: np.ndarray) -> np.ndarray:
-    """|values| with zeros masked: quenched nodes have no place on a log axis."""
-    out = np.abs(np.asarray(values, dtype=float))
-    out[out == 0] = np.nan
-    return out
-
-
-# -- inputs ------------------------------------------------------------------
-def _runs(runs: Any) -> list[tuple[str, Solution]]:
-    """Normalise a Solution, a sequence of them or a mapping label -> Solution."""
-    if isinstance(runs, Mapping):
-        items = list(runs.items())
-    elif isinstance(runs, Sequence) and not isinstance(runs, str):
-        items = [(sol.method.upper(), sol) for sol in runs]
-    else:
-        items = [(runs.method.upper(), runs)]
-    if not items:
-        raise InputError("runs must hold at least one solution")
-    return [(str(label), sol) for label, sol in items]
-
-
-def _diagnostics_for(diagnostics: Any, labels: list[str]) -> dict[str, Diagnostics]:
-    if diagnostics is None:
-        return {}
-    if isinstance(diagnostics, Mapping):
-        return dict(diagnostics)
-    if isinstance(diagnostics, Sequence):
-        return dict(zip(labels, diagnostics, strict=True))
-    return {labels[0]: diagnostics}
-
-
-def _new_axes(axes: Any, count: int, figsize: tuple[float, float], layout=None):
-    from matplotlib.figure import Figure
-
-    if axes is not None:
-        axes = list(np.ravel(axes))
-        if len(axes) != count:
-            raise InputError(f"axes must hold {count} Axes, got {len(axes)}")
-        return axes[0].figure, axes
-    fig = Figure(figsize=figsize, layout="constrained")
-    rows, cols = layout or (count, 1)
-    return fig, list(np.ravel(fig.subplots(rows, cols, squeeze=False)))
-
-
-def _groups(sol: Solution) -> list[tuple[str, slice]]:
-    n = sol.n
-    return [("q", slice(0, n)), ("p", slice(n, 2 * n))]
-
-
-def _group_label(sol: Solution, name: str) -> str:
-    """``q`` (one degree of freedom: its own name) or ``max over x, y, ...``."""
-    offset = 0 if name == "q" else sol.n
-    names = sol.names[offset : offset + sol.n]
-    if sol.n == 1:
-        return names[0]
-    shown = ", ".join(names) if sol.n <= 4 else f"{names[0]}, ..., {names[-1]}"
-    return f"max over {shown}"
-
-
-def _delta(sol: Solution) -> np.ndarray:
-    from hamrkq.analysis.diagnostics import tolerance
-
-    rule = str(sol.options.get("tolerance_rule", "componentwise"))
-    return tolerance(sol.y, sol.atol, sol.rtol, rule)
-
-
-def _per_delta(sol: Solution) -> bool:
-    """Plot errors per tolerance (``|e_k| / delta_k``) when ``delta`` differs
-    between components or along the run: raw errors of components with other
-    tolerances (positions in AU, momenta of 1e-11) cannot share one line."""
-    return bool(np.ptp(_delta(sol)) > 0)
-
-
-def _pair_style(style: dict, k: int, n: int) -> dict:
-    """For n > 1 the pair k has its own colour; the run keeps its line style."""
-    return style if n == 1 else {**style, "color": f"C{k}"}
-
-
-def _first_periods(t: np.ndarray, q: np.ndarray, periods: int) -> float:
-    """End of the first ``periods`` oscillations of ``q`` (upward mean crossings)."""
-    centred = q - q.mean()
-    ups = np.flatnonzero((centred[:-1] < 0) & (centred[1:] >= 0))
-    if ups.size > periods:
-        return float(t[ups[periods] + 1])
-    return float(t[-1])
 
 
 # -- the figures -------------------------------------------------------------

@@ -13,24 +13,27 @@ log sqrt Abs``, and the constants ``pi`` and ``E``.  Everything else (attribute
 access, subscripts, strings, lambdas, comprehensions, keyword arguments,
 comparisons, unlisted functions, dunder names, ...) is rejected with an
 :class:`~hamrkq.errors.ExpressionError` that names the offending piece.
+
+Two helpers live beside it: :mod:`~hamrkq.symbolic.long_chains` cuts a sum of
+thousands of terms (too long for :func:`ast.parse`) into its terms, and
+:mod:`~hamrkq.symbolic.float_constants` refuses a constant that is not a
+finite real double.
 """
 
 from __future__ import annotations
 
 import ast
-import io
 import keyword
 import math
-import re
-import tokenize
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 from pathlib import Path
 
-import numpy as np
 import sympy as sp
 
 from hamrkq.errors import ExpressionError
+from hamrkq.symbolic.float_constants import MAX_MAGNITUDE, check_constants
+from hamrkq.symbolic.long_chains import CALL, split_chain, wrapped
 
 __all__ = [
     "CONSTANTS",
@@ -68,12 +71,6 @@ MAX_DIGITS = 100
 #: product of a few hundred long literals a number that Python refuses to
 #: print (more than 4 300 digits), failing far from the file.
 MAX_NUMBER_BITS = 4096
-
-#: Largest magnitude a constant subexpression may have: the largest double.
-#: Constants are evaluated in double precision when a file is read, so that
-#: ``exp(exp(exp(1000)))`` is refused there (and not left to overflow, or to
-#: run SymPy's arbitrary-precision arithmetic out of memory, in a run).
-MAX_MAGNITUDE = float(np.finfo(float).max)
 
 #: Values that mean the text is undefined (``1/0``, ``0/0``, ``log(0)``) or
 #: not real (``sqrt(-1)``): a problem file has no use for them, and they would
@@ -231,155 +228,8 @@ def parse_expression(
             piece=text.strip()[:60],
             **where,
         )
-    _check_constants(result, where)
+    check_constants(result, where)
     return result
-
-
-# -- constants, evaluated in double precision -----------------------------------
-_FLOAT_FUNCTIONS: Mapping[type, Callable[..., float]] = {
-    sp.sin: math.sin,
-    sp.cos: math.cos,
-    sp.tan: math.tan,
-    sp.asin: math.asin,
-    sp.acos: math.acos,
-    sp.atan: math.atan,
-    sp.atan2: math.atan2,
-    sp.sinh: math.sinh,
-    sp.cosh: math.cosh,
-    sp.tanh: math.tanh,
-    sp.exp: math.exp,
-    sp.log: math.log,
-    sp.Abs: abs,
-}
-
-
-def _float_value(expr: sp.Expr) -> float:
-    """``expr`` (no free symbols) in double precision, bottom-up, with Python floats.
-
-    Raises OverflowError, ValueError or ZeroDivisionError where double
-    precision cannot represent a value (never calls SymPy's arbitrary-precision
-    evaluation, which ``exp(exp(1000))`` would run out of memory).
-    """
-    if expr.is_Rational:
-        value = expr.p / expr.q  # int / int: exact rounding, OverflowError if too large
-    elif expr.is_Float:
-        value = float(expr)
-    elif expr is sp.pi:
-        value = math.pi
-    elif expr is sp.E:
-        value = math.e
-    elif expr.is_Add:
-        value = math.fsum(_float_value(arg) for arg in expr.args)
-    elif expr.is_Mul:
-        value = 1.0
-        for arg in expr.args:
-            value *= _float_value(arg)
-    elif expr.is_Pow:
-        base, exponent = (_float_value(arg) for arg in expr.args)
-        if base == 0 and exponent < 0:
-            raise ZeroDivisionError("0 to a negative power")
-        value = base**exponent
-        if isinstance(value, complex):
-            raise ValueError("not real")
-    elif type(expr) is sp.exp:  # exp(x) is a Pow in some SymPy versions, a function in others
-        value = math.exp(_float_value(expr.args[0]))
-    elif type(expr) in _FLOAT_FUNCTIONS:
-        value = _FLOAT_FUNCTIONS[type(expr)](*(_float_value(arg) for arg in expr.args))
-    else:
-        value = complex(sp.N(expr, 17))  # anything else SymPy built: a small known constant
-        if value.imag != 0:
-            raise ValueError("not real")
-        value = value.real
-    value = float(value)
-    if not math.isfinite(value):
-        raise OverflowError("not finite")
-    return value
-
-
-def _check_constants(expr: sp.Expr, where: dict) -> None:
-    """Refuse a constant subexpression that is not a finite real double."""
-    if not expr.args and not expr.is_Number:
-        return  # a symbol, or a named constant (pi, E)
-    if expr.free_symbols:
-        for arg in expr.args:
-            _check_constants(arg, where)
-        return
-    try:
-        value = _float_value(expr)
-    except (OverflowError, ValueError, ZeroDivisionError, TypeError):
-        value = None
-    if value is None or abs(value) > MAX_MAGNITUDE:
-        raise ExpressionError(
-            "a constant in the expression is not a finite real number in double precision "
-            "(overflow, or outside the function's domain)",
-            piece=str(expr)[:60],
-            **where,
-        )
-
-
-# -- long flat chains, which Python's parser cannot take in one piece ------------
-_CALL = re.compile(r"([A-Za-z]\w*)\s*\(")
-
-
-def _wrapped(text: str) -> bool:
-    """True when the whole of ``text`` is inside one pair of parentheses."""
-    if not (text.startswith("(") and text.endswith(")")):
-        return False
-    depth = 0
-    for index, char in enumerate(text):
-        depth += {"(": 1, ")": -1}.get(char, 0)
-        if depth == 0:
-            return index == len(text) - 1
-    return False
-
-
-def _split_chain(text: str) -> tuple[list[str], list[str]] | None:
-    """Split ``text`` at its outermost binary ``+``/``-`` (or, failing that,
-    ``*``/``/``): ``(pieces, operators)``; ``None`` when there is no such split.
-
-    Python's :func:`ast.parse` builds ``a + b + c + ...`` as a left-nested
-    tree and gives up (a RecursionError) after about a thousand terms.  The
-    tokenizer works in a loop, so the text is cut into its terms here and each
-    term parsed on its own.
-    """
-    try:
-        tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
-    except (tokenize.TokenError, SyntaxError, IndentationError):
-        return None
-    lines = text.split("\n")
-    if len(lines) != 1:
-        return None
-    for ops in (("+", "-"), ("*", "/")):
-        depth = 0
-        previous = None
-        cuts: list[tuple[int, int, str]] = []  # (start, end) columns of the operator
-        for tok in tokens:
-            if tok.type == tokenize.OP and tok.string in "([{":
-                depth += 1
-            elif tok.type == tokenize.OP and tok.string in ")]}":
-                depth -= 1
-            elif (
-                depth == 0
-                and tok.type == tokenize.OP
-                and tok.string in ops
-                and previous is not None
-                and (
-                    previous.type in (tokenize.NAME, tokenize.NUMBER)
-                    or previous.string in (")", "]", "}")
-                )
-            ):
-                cuts.append((tok.start[1], tok.end[1], tok.string))
-            if tok.type not in (tokenize.NL, tokenize.NEWLINE, tokenize.ENDMARKER):
-                previous = tok
-        if cuts:
-            pieces, operators, start = [], [], 0
-            for begin, end, op in cuts:
-                pieces.append(text[start:begin])
-                operators.append(op)
-                start = end
-            pieces.append(text[start:])
-            return pieces, operators
-    return None
 
 
 def _bits(number: sp.Rational) -> int:
@@ -418,11 +268,11 @@ class _Builder:
             ) from None
         except (ValueError, RecursionError, MemoryError):
             # Too long a chain for Python's parser: parse it term by term.
-            split = _split_chain(text)
-            if split is None and _wrapped(text):
+            split = split_chain(text)
+            if split is None and wrapped(text):
                 return self.parse(text[1:-1].strip(), depth + 1)
-            call = _CALL.match(text)
-            if split is None and call and _wrapped(text[call.end() - 1 :]):
+            call = CALL.match(text)
+            if split is None and call and wrapped(text[call.end() - 1 :]):
                 # f(<long chain>): a listed one-argument function of a long sum.
                 name = call.group(1)
                 if name not in FUNCTIONS:

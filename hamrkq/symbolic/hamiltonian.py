@@ -3,15 +3,16 @@
 A :class:`Hamiltonian` holds ``H(q, p; parameters, t)`` and the symbols that
 play each role.  Everything derived from it (Hamilton's equations, the
 Jacobian, Poisson brackets, the numerical functions) is computed on first use
-and cached; the object itself is immutable.
+and cached; the object itself is immutable.  What it is declared from is
+checked by :mod:`~hamrkq.symbolic.declaration`, and the numbers given for its
+symbols (parameter and initial values) by :mod:`~hamrkq.symbolic.values`.
 """
 
 from __future__ import annotations
 
-import math
 import numbers
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from typing import Any
 
@@ -26,14 +27,21 @@ from hamrkq.errors import (
     InputTypeError,
     UndeclaredSymbolError,
 )
+from hamrkq.symbolic.declaration import (
+    TIME,
+    ParameterSpec,
+    check_scalar,
+    complex_kinks,
+    declared_parameters,
+    shadowed_constants,
+    symbol_tuple,
+    time_symbol,
+    undeclared_hints,
+)
 from hamrkq.symbolic.supported import check_supported
+from hamrkq.symbolic.values import as_number, assumption_conflict, show_value
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
-
-#: The time symbol used when H does not bring its own ``t``.
-TIME = sp.Symbol("t", real=True)
-
-ParameterSpec = Mapping[Any, Any] | Sequence[sp.Symbol] | None
 
 
 def is_zero(expr: sp.Expr) -> bool:
@@ -63,78 +71,6 @@ def _cancel(expr: sp.Expr) -> sp.Expr:
 
 def _trig_expand(expr: sp.Expr) -> sp.Expr:
     return sp.expand(sp.expand_trig(expr))
-
-
-def _as_number(value: Any, what: str) -> float:
-    """A finite float from a number or a SymPy expression without free symbols."""
-    if isinstance(value, str | bytes):
-        raise InputTypeError(f"{what} must be a number, not the string {value!r}")
-    if isinstance(value, sp.Basic):
-        if value.free_symbols:
-            names = ", ".join(sorted(str(s) for s in value.free_symbols))
-            raise InputError(f"{what} = {value} has free symbols ({names})")
-        try:
-            number = complex(sp.N(value, 17))
-        except (TypeError, ValueError):
-            raise InputError(f"{what} = {value} is not a number") from None
-        if number.imag != 0:
-            raise InputError(f"{what} = {value} is not real")
-        value = number.real
-    elif isinstance(value, bool) or not isinstance(value, numbers.Real | np.floating):
-        raise InputTypeError(f"{what} must be a real number, not {type(value).__name__}")
-    try:
-        value = float(value)
-    except OverflowError:
-        raise InputError(f"{what} must be finite, got a number too large for a float") from None
-    if not math.isfinite(value):
-        raise InputError(f"{what} must be finite, got {value}")
-    return value
-
-
-#: Assumptions a symbol may carry that a real number can be checked against.
-#: SymPy simplifies H under them (``sqrt(q**2)`` is ``q`` for a positive
-#: ``q``), so a value that breaks one gives a silently wrong answer.  Others
-#: (``rational``, ``algebraic``, ...) say nothing a float can honestly decide.
-CHECKED_ASSUMPTIONS = (
-    "positive",
-    "negative",
-    "nonnegative",
-    "nonpositive",
-    "zero",
-    "nonzero",
-    "integer",
-    "noninteger",
-    "even",
-    "odd",
-    "prime",
-    "composite",
-    "extended_positive",
-    "extended_negative",
-    "extended_nonnegative",
-    "extended_nonpositive",
-    "extended_nonzero",
-)
-
-
-def _assumption_conflict(symbol: Any, value: float) -> str | None:
-    """Why ``value`` contradicts an assumption declared on ``symbol``, or None."""
-    declared = getattr(symbol, "assumptions0", {})
-    if not any(name in declared for name in CHECKED_ASSUMPTIONS):
-        return None
-    number = sp.Rational(*float(value).as_integer_ratio())  # the float, exactly
-    for name in CHECKED_ASSUMPTIONS:
-        wanted = declared.get(name)
-        if wanted is None:
-            continue
-        actual = getattr(number, f"is_{name}")
-        if actual is not None and actual != wanted:
-            return (
-                f"{symbol} is declared {name}={wanted} but is given the value {value!r}; "
-                "SymPy has already simplified H under that assumption, so the result "
-                "would be wrong. Give a value that satisfies it, or declare the symbol "
-                "without the assumption"
-            )
-    return None
 
 
 class Hamiltonian:
@@ -189,9 +125,9 @@ class Hamiltonian:
         name: str | None = None,
     ):
         problems: list[str] = []
-        H = _check_scalar(H, problems)
-        q = _symbol_tuple(q, "q", problems)
-        p = _symbol_tuple(p, "p", problems)
+        H = check_scalar(H, problems)
+        q = symbol_tuple(q, "q", problems)
+        p = symbol_tuple(p, "p", problems)
         if len(q) != len(p):
             problems.append(
                 f"q has {len(q)} symbol{'s' if len(q) != 1 else ''} but p has {len(p)}: "
@@ -201,10 +137,10 @@ class Hamiltonian:
         if not q and not p:
             problems.append("q and p are empty: at least one degree of freedom is needed")
         free = H.free_symbols if H is not None else set()
-        t = _time_symbol(t, free, q, p, problems)
-        params, defaults = _parameters(parameters, free, problems)
+        t = time_symbol(t, free, q, p, problems)
+        params, defaults = declared_parameters(parameters, free, problems)
         if H is not None:
-            problems += _shadowed_constants(H, params)
+            problems += shadowed_constants(H, params)
         declared = [*q, *p, *params, t]
         seen: set[sp.Symbol] = set()
         duplicated = sorted({str(s) for s in declared if s in seen or seen.add(s)})
@@ -213,10 +149,10 @@ class Hamiltonian:
         undeclared = {s for s in free if s not in set(declared)}
         if undeclared:
             raise UndeclaredSymbolError(
-                {str(s) for s in undeclared}, problems + _undeclared_hints(undeclared, declared)
+                {str(s) for s in undeclared}, problems + undeclared_hints(undeclared, declared)
             )
         if H is not None:
-            problems += _complex_kinks(H)
+            problems += complex_kinks(H)
             # Only what every numerical backend can evaluate: elementary
             # functions, finite real numbers, the declared symbols.
             try:
@@ -426,8 +362,8 @@ class Hamiltonian:
             if symbol not in self._params:
                 known = ", ".join(by_name) or "none"
                 raise InputError(f"unknown parameter {key!s} (parameters: {known})")
-            chosen[symbol] = _as_number(value, f"parameter {symbol}")
-            conflict = _assumption_conflict(symbol, chosen[symbol])
+            chosen[symbol] = as_number(value, f"parameter {symbol}")
+            conflict = assumption_conflict(symbol, chosen[symbol])
             if conflict is not None:
                 raise InputError(f"parameter {conflict}")
         missing = [s.name for s in self._params if s not in chosen]
@@ -471,14 +407,14 @@ class Hamiltonian:
                     f"{label} has {len(seq)} values but the system has {self.n} "
                     f"degree{'s' if self.n != 1 else ''} of freedom"
                 )
-            parts.extend(_as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
+            parts.extend(as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
         for symbol, value, label in zip(
             self.state,
             parts,
             [f"q0[{i}]" for i in range(self.n)] + [f"p0[{i}]" for i in range(self.n)],
             strict=True,
         ):
-            conflict = _assumption_conflict(symbol, value)
+            conflict = assumption_conflict(symbol, value)
             if conflict is not None:
                 raise InputError(f"{label}: {conflict}")
         return np.array(parts, dtype=float)
@@ -502,163 +438,23 @@ class Hamiltonian:
                         f"{label} binds {', '.join(by_name)}"
                     )
                 raise InputError(
-                    f"{label}: unknown {role} {shown!r} = {_show_value(value)}; the "
+                    f"{label}: unknown {role} {shown!r} = {show_value(value)}; the "
                     f"{'coordinates' if label == 'q0' else 'momenta'} are {', '.join(by_name)}"
                 )
             if symbol in bound:
                 raise InputError(
                     f"{label}: {symbol.name} is bound twice (by name and by symbol): "
-                    f"{_show_value(bound[symbol])} and {_show_value(value)}"
+                    f"{show_value(bound[symbol])} and {show_value(value)}"
                 )
             bound[symbol] = value
         missing = [s.name for s in symbols if s not in bound]
         if missing:
             raise InputError(f"{label}: no value for {', '.join(missing)}")
-        return [_as_number(bound[s], f"{label}[{s.name!r}]") for s in symbols]
-
-
-def _show_value(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
+        return [as_number(bound[s], f"{label}[{s.name!r}]") for s in symbols]
 
 
 def _unpickle(H, q, p, parameters, t, name) -> Hamiltonian:
     return Hamiltonian(H, q, p, parameters, t=t, name=name)
-
-
-def _check_scalar(H: Any, problems: list[str]) -> sp.Expr | None:
-    if isinstance(H, str):
-        problems.append(
-            "H is a string; build a SymPy expression (or use hamrkq.parse_expression "
-            "or a problem file): hamrkq never evaluates text"
-        )
-        return None
-    if isinstance(H, sp.MatrixBase | list | tuple | np.ndarray):
-        shape = getattr(H, "shape", (len(H),))
-        problems.append(f"H must be a scalar expression, got an array of shape {shape}")
-        return None
-    if isinstance(H, numbers.Number) and not isinstance(H, bool | sp.Basic):
-        return sp.Float(H) if isinstance(H, float) else sp.Integer(H)
-    if not isinstance(H, sp.Expr):
-        problems.append(f"H must be a SymPy expression, got {type(H).__name__}")
-        return None
-    if isinstance(H, sp.Eq | sp.Rel):
-        problems.append("H must be an expression, not a relation")
-        return None
-    return H
-
-
-def _scalar_array(value: Any) -> bool:
-    """A 0-d NumPy array: Iterable by type, but not iterable."""
-    return isinstance(value, np.ndarray) and value.ndim == 0
-
-
-def _symbol_tuple(symbols: Any, label: str, problems: list[str]) -> tuple[sp.Symbol, ...]:
-    if isinstance(symbols, sp.Symbol):
-        symbols = [symbols]
-    if isinstance(symbols, str) or not isinstance(symbols, Iterable) or _scalar_array(symbols):
-        problems.append(f"{label} must be a sequence of SymPy symbols, got {symbols!r}")
-        return ()
-    result = []
-    for item in symbols:
-        if isinstance(item, sp.Symbol):
-            result.append(item)
-        else:
-            problems.append(
-                f"{label} contains {item!r}, which is not a SymPy Symbol{_constant_hint(item)}"
-            )
-    return tuple(result)
-
-
-def _constant_hint(item: Any) -> str:
-    """Why a name like ``E`` is not a symbol: ``from sympy import *`` binds
-    ``E`` to Euler's number, ``I`` to the imaginary unit, ``pi``, ``S``, ``N``..."""
-    if isinstance(item, sp.NumberSymbol | sp.core.numbers.ImaginaryUnit):
-        return (
-            f" but the SymPy constant {item} = {sp.N(item, 6)} (`from sympy import *` "
-            f"binds the name {item} to it); declare your own symbol, for example "
-            f"{item}_ = sympy.Symbol('{item}')"
-        )
-    if callable(item) and not isinstance(item, sp.Basic):
-        name = getattr(item, "__name__", repr(item))
-        return f" but the SymPy function or class {name}; declare a symbol with sympy.Symbol"
-    return ""
-
-
-def _undeclared_hints(undeclared: set, declared: list) -> list[str]:
-    """Explain the undeclared symbols that look like declared ones: SymPy treats
-    ``Symbol('q')`` and ``Symbol('q', real=True)`` as different symbols."""
-    hints = []
-    by_name = {s.name: s for s in declared}
-    for symbol in sorted(undeclared, key=str):
-        twin = by_name.get(symbol.name)
-        if twin is None:
-            continue
-        mine = {k: v for k, v in symbol.assumptions0.items() if k in ("real", "positive")}
-        theirs = {k: v for k, v in twin.assumptions0.items() if k in ("real", "positive")}
-        hints.append(
-            f"H uses a symbol {symbol.name} ({_assumptions(mine)}) that is not the declared "
-            f"{twin.name} ({_assumptions(theirs)}): SymPy treats symbols with other "
-            "assumptions as different symbols; create both with the same call, for example "
-            f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
-        )
-    return hints
-
-
-def _time_symbol(t: Any, free: set, q: tuple, p: tuple, problems: list[str]) -> sp.Symbol:
-    """The time symbol: the given one, else H's symbol named ``t``, else :data:`TIME`."""
-    if t is not None:
-        if isinstance(t, sp.Symbol):
-            return t
-        problems.append(f"t must be a sympy Symbol, got {t!r}")
-        return TIME
-    named_t = [s for s in free if s.name == "t"]
-    t = named_t[0] if len(named_t) == 1 else TIME
-    for label, symbols in (("coordinate", q), ("momentum", p)):
-        if t in symbols:
-            # Otherwise reported as "duplicated symbols: t", which does not
-            # say that t is the time.
-            problems.append(
-                f"the {label} is called 't', the name of the time symbol: rename it "
-                "(for example 'theta'), or pass the time symbol explicitly "
-                "(t=sympy.Symbol('tau'))"
-            )
-            return sp.Dummy("t", real=True)
-    return t
-
-
-def _shadowed_constants(H: sp.Expr, params: tuple[sp.Symbol, ...]) -> list[str]:
-    """``H = p**2/2 + E*q**2`` after ``from sympy import *``: the E in H is
-    Euler's number, and a parameter named E would silently do nothing."""
-    constants = {str(c): c for c in H.atoms(sp.NumberSymbol, sp.core.numbers.ImaginaryUnit)}
-    return [
-        f"parameter {s.name} does not occur in H, but H contains the SymPy constant "
-        f"{s.name} = {sp.N(constants[s.name], 6)} (`from sympy import *` binds the name "
-        f"{s.name} to it): build H with {s.name} = sympy.Symbol('{s.name}')"
-        for s in params
-        if s not in H.free_symbols and s.name in constants
-    ]
-
-
-def _complex_kinks(H: sp.Expr) -> list[str]:
-    """``Abs(q)`` of a symbol not declared real: SymPy differentiates it as a
-    complex function (``re``, ``im``, ``Derivative``), which nothing can evaluate."""
-    loose = {
-        s.name for node in H.atoms(sp.Abs, sp.sign) for s in node.free_symbols if not s.is_real
-    }
-    if not loose:
-        return []
-    names = ", ".join(sorted(loose))
-    return [
-        f"H takes Abs or sign of {names}, not declared real: SymPy then differentiates "
-        "it as a complex function (re, im), which cannot be evaluated; declare the "
-        f"symbols real, sympy.symbols('{' '.join(sorted(loose))}', real=True)"
-    ]
-
-
-def _assumptions(values: Mapping[str, bool]) -> str:
-    shown = ", ".join(f"{k}={v}" for k, v in sorted(values.items()))
-    return shown or "no assumptions"
 
 
 def _drop_delta(matrix: sp.Matrix) -> sp.Matrix:
@@ -666,41 +462,3 @@ def _drop_delta(matrix: sp.Matrix) -> sp.Matrix:
     if not matrix.has(sp.DiracDelta):
         return matrix
     return matrix.replace(sp.DiracDelta, lambda *args: sp.S.Zero)
-
-
-def _parameters(
-    spec: ParameterSpec, free: set, problems: list[str]
-) -> tuple[tuple[sp.Symbol, ...], dict[sp.Symbol, float]]:
-    if spec is None:
-        return (), {}
-    items: Iterable[tuple[Any, Any]]
-    if isinstance(spec, Mapping):
-        items = spec.items()
-    elif isinstance(spec, str) or not isinstance(spec, Iterable) or _scalar_array(spec):
-        problems.append(f"parameters must be a mapping or a sequence of symbols, got {spec!r}")
-        return (), {}
-    else:
-        items = ((s, None) for s in spec)
-    by_name = {s.name: s for s in free}
-    symbols: list[sp.Symbol] = []
-    defaults: dict[sp.Symbol, float] = {}
-    for key, value in items:
-        symbol = key
-        if isinstance(key, str):
-            symbol = by_name.get(key, sp.Symbol(key, real=True))
-        if not isinstance(symbol, sp.Symbol):
-            problems.append(
-                f"parameter {key!r} is not a SymPy Symbol or a name{_constant_hint(key)}"
-            )
-            continue
-        symbols.append(symbol)
-        if value is not None:
-            try:
-                defaults[symbol] = _as_number(value, f"parameter {symbol}")
-            except (InputError, InputTypeError) as exc:
-                problems.append(str(exc))
-                continue
-            conflict = _assumption_conflict(symbol, defaults[symbol])
-            if conflict is not None:
-                problems.append(f"parameter {conflict}")
-    return tuple(sorted(symbols, key=lambda s: s.name)), defaults

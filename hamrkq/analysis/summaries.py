@@ -1,0 +1,365 @@
+"""What :func:`~hamrkq.analysis.diagnostics.diagnose` returns, as frozen records.
+
+:class:`DriftSummary` says how a quantity that should be conserved changed,
+:class:`ErrorSummary` how large a global error was against its bound, and
+:class:`Diagnostics` holds them all for one run, with
+:meth:`~Diagnostics.to_dict` (plain numbers for ``summary.json``) and
+:meth:`~Diagnostics.table` (a text report).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hamrkq.analysis.bounds import bound_ratio, trajectory_bound, trajectory_error
+
+__all__ = [
+    "NOT_CONSERVED",
+    "Diagnostics",
+    "DriftSummary",
+    "ErrorSummary",
+    "drift_summary",
+    "error_summary",
+    "unmeasured_error",
+]
+
+
+@dataclass(frozen=True)
+class DriftSummary:
+    """How a quantity that should be conserved (H, an invariant) changed.
+
+    ``max_abs`` and ``final`` are of ``F(y_i) - F(y_0)``; ``drift`` is the
+    slope of its least-squares line in ``t`` and ``drift_stderr`` the slope's
+    standard error (which assumes independent residuals, so it understates
+    the uncertainty when the error oscillates slowly).
+    """
+
+    name: str
+    initial: float
+    max_abs: float
+    t_max: float
+    final: float
+    drift: float
+    drift_stderr: float
+
+    @property
+    def relative_max(self) -> float:
+        """``max_abs / |initial|`` (nan when the initial value is zero)."""
+        return self.max_abs / abs(self.initial) if self.initial else float("nan")
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain floats, including ``relative_max``."""
+        out = {k: v for k, v in self.__dict__.items() if k != "name"}
+        out["relative_max"] = self.relative_max
+        return {k: float(v) for k, v in out.items()}
+
+
+def drift_summary(name: str, t: Any, values: Any) -> DriftSummary:
+    """Summarise ``values[i] - values[0]`` along the nodes ``t``."""
+    t, values = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
+    error = values - values[0]
+    i = int(np.argmax(np.abs(error)))
+    slope, stderr = float("nan"), float("nan")
+    if t.size >= 2:
+        centred = t - t.mean()  # centring keeps the normal equations well conditioned
+        spread = float(centred @ centred)
+        if spread > 0:
+            slope = float(centred @ error) / spread
+            if t.size >= 3:
+                residual = error - error.mean() - slope * centred
+                stderr = float(np.sqrt(residual @ residual / (t.size - 2) / spread))
+    return DriftSummary(
+        name=name,
+        initial=float(values[0]),
+        max_abs=float(abs(error[i])),
+        t_max=float(t[i]),
+        final=float(error[-1]),
+        drift=slope,
+        drift_stderr=stderr,
+    )
+
+
+@dataclass(frozen=True)
+class ErrorSummary:
+    """Global error of a run against one reference.
+
+    Attributes
+    ----------
+    source : str
+        ``"rk8"`` (the run's own RK8 track, the paper's yardstick), ``"exact"``
+        or ``"independent"``.
+    description : str
+        How the reference was obtained.
+    reference_accuracy : float
+        Estimated max error of the reference itself (for ``"rk8"`` the largest
+        ``|Gamma|``; nan when unknown).
+    names : tuple of str
+        Component names.
+    max_abs : tuple of float
+        Largest ``|y_k - ref_k|`` per component.
+    max_trajectory, t_max_trajectory, final_trajectory : float
+        Largest Euclidean error, where, and at the end.
+    bound_ratio, t_bound_ratio : float
+        Largest trajectory error over ``sqrt(sum delta_k**2)``, and where.
+    """
+
+    source: str
+    description: str
+    reference_accuracy: float
+    names: tuple[str, ...]
+    max_abs: tuple[float, ...]
+    max_trajectory: float
+    t_max_trajectory: float
+    final_trajectory: float
+    bound_ratio: float
+    t_bound_ratio: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values; per-component maxima keyed by component name."""
+        out: dict[str, Any] = {"source": self.source, "description": self.description}
+        for key in (
+            "reference_accuracy",
+            "max_trajectory",
+            "t_max_trajectory",
+            "final_trajectory",
+            "bound_ratio",
+            "t_bound_ratio",
+        ):
+            out[key] = float(getattr(self, key))
+        out["max_abs"] = {n: float(v) for n, v in zip(self.names, self.max_abs, strict=True)}
+        return out
+
+
+def error_summary(
+    t: Any,
+    error: Any,
+    delta: Any,
+    *,
+    source: str,
+    description: str,
+    reference_accuracy: float,
+    names: tuple[str, ...],
+) -> ErrorSummary:
+    """Summarise a global error array (N, 2n) against its tolerance ``delta``."""
+    t, error = np.asarray(t, dtype=float), np.asarray(error, dtype=float)
+    distance = trajectory_error(error)
+    i = int(np.argmax(distance))
+    ratio, t_ratio = bound_ratio(distance, trajectory_bound(delta), t)
+    return ErrorSummary(
+        source=source,
+        description=description,
+        reference_accuracy=float(reference_accuracy),
+        names=tuple(names),
+        max_abs=tuple(float(v) for v in np.max(np.abs(error), axis=0)),
+        max_trajectory=float(distance[i]),
+        t_max_trajectory=float(t[i]),
+        final_trajectory=float(distance[-1]),
+        bound_ratio=ratio,
+        t_bound_ratio=t_ratio,
+    )
+
+
+#: What the reports say instead of an energy error when H depends on t.
+NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accuracy)"
+
+
+def unmeasured_error(summary: ErrorSummary, delta: np.ndarray) -> str:
+    """Why a true error is not shown: its reference is no more accurate than the
+    tolerance, so the difference would be mostly the reference's own error."""
+    return (
+        f"not measured: the reference ({summary.description}) is accurate only to "
+        f"~{summary.reference_accuracy:.1e}, not below the tolerance {float(np.min(delta)):.1e}"
+    )
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: floats stay floats, nan and inf become None (strict JSON)."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, bool | str) or value is None:
+        return value
+    if isinstance(value, int | np.integer):
+        return int(value)
+    number = float(value)
+    return number if np.isfinite(number) else None
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnostics:
+    """Everything :func:`~hamrkq.analysis.diagnostics.diagnose` found out about one run.
+
+    Attributes
+    ----------
+    method, status, message : str
+        From the solution.
+    nodes : int
+    stats : mapping
+        The solution's counters (steps, rejected, quenches, nfev, ...).
+    tolerance_rule : str
+        How ``delta`` was formed (``"componentwise"`` or ``"prentice"``).
+    energy : DriftSummary or None
+        ``H(y_i) - H(y_0)``.
+    energy_bound_ratio, t_energy_bound_ratio : float
+        Largest ``|H(y_i) - H(y_0)| / sum_k |dH/dy_k| delta_k`` and where (nan
+        without a gradient).
+    invariants : tuple of DriftSummary
+    estimated : ErrorSummary or None
+        The run's own estimate ``G = y - z`` (the paper's "global error").
+    error : ErrorSummary or None
+        Against the chosen reference (``estimated`` itself for ``"rk8"``).
+    gamma_max : float
+        Largest ``|Gamma|``, the estimated global error of the RK8 track.
+    notes : tuple of str
+        Caveats a reader should see.
+    series : mapping of str to ndarray
+        Per-node arrays for plots: ``t``, ``energy_error``, ``energy_bound``,
+        ``delta``, ``trajectory_bound`` and, where available,
+        ``estimated_error``, ``error``, ``reference``, ``gamma``.
+    time_dependent : bool
+        H depends on t explicitly: the energy is not conserved, and reports
+        say so instead of showing its error (:attr:`energy_note`).
+    """
+
+    method: str
+    status: str
+    message: str
+    nodes: int
+    stats: Mapping[str, Any]
+    tolerance_rule: str
+    energy: DriftSummary | None
+    energy_bound_ratio: float
+    t_energy_bound_ratio: float
+    invariants: tuple[DriftSummary, ...]
+    estimated: ErrorSummary | None
+    error: ErrorSummary | None
+    gamma_max: float
+    notes: tuple[str, ...]
+    series: Mapping[str, np.ndarray]
+    time_dependent: bool = False
+
+    @property
+    def energy_conserved(self) -> bool:
+        """False when H depends on t: its change along the run measures nothing."""
+        return not self.time_dependent
+
+    @property
+    def error_measured(self) -> bool:
+        """True when :attr:`error` is a true error worth showing: measured against a
+        reference (not the run's own RK8 track) whose own accuracy is finite and
+        below the smallest tolerance.  Otherwise the "true error" would be mostly
+        the reference's error."""
+        if self.error is None or self.error is self.estimated:
+            return False
+        accuracy = self.error.reference_accuracy
+        return bool(np.isfinite(accuracy) and accuracy < float(np.min(self.series["delta"])))
+
+    @property
+    def energy_note(self) -> str | None:
+        """What reports show instead of the energy error, or None to show it."""
+        return None if self.energy_conserved else NOT_CONSERVED
+
+    @property
+    def error_note(self) -> str | None:
+        """Why the true error is not shown (its reference is too inaccurate), or None."""
+        if self.error is None or self.error is self.estimated or self.error_measured:
+            return None
+        return unmeasured_error(self.error, self.series["delta"])
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain numbers and strings for ``summary.json`` (nan and inf become None)."""
+        return _plain(
+            {
+                "method": self.method,
+                "status": self.status,
+                "message": self.message,
+                "nodes": self.nodes,
+                "stats": dict(self.stats),
+                "tolerance_rule": self.tolerance_rule,
+                "energy": None if self.energy is None else self.energy.to_dict(),
+                "energy_conserved": self.energy_conserved,
+                # the bound assumes a conserved H; for H(t) the ratio means nothing
+                "energy_bound_ratio": self.energy_bound_ratio if self.energy_conserved else None,
+                "t_energy_bound_ratio": self.t_energy_bound_ratio
+                if self.energy_conserved
+                else None,
+                "invariants": {s.name: s.to_dict() for s in self.invariants},
+                "estimated_global_error": None
+                if self.estimated is None
+                else self.estimated.to_dict(),
+                "global_error": None if self.error is None else self.error.to_dict(),
+                "true_error_measured": self.error_measured,
+                "rk8_estimated_global_error_max": self.gamma_max,
+                "notes": list(self.notes),
+            }
+        )
+
+    def table(self) -> str:
+        """A text report, one quantity per line."""
+        stats = self.stats
+        rows = [
+            ("run", f"{self.method}: {self.nodes} nodes, {self.status}"),
+            (
+                "steps",
+                f"{stats.get('steps', '?')} accepted, {stats.get('rejected', '?')} "
+                f"rejected, {stats.get('quenches', 0)} quenches, "
+                f"{stats.get('nfev', '?')} f-evaluations",
+            ),
+        ]
+        delta = self.series["delta"]
+        rows.append(
+            ("tolerance delta", f"{delta.min():.3e} .. {delta.max():.3e} ({self.tolerance_rule})")
+        )
+        if self.energy is not None and not self.energy_conserved:
+            rows.append(("energy", self.energy_note))
+        for summary in (self.energy if self.energy_conserved else None, *self.invariants):
+            if summary is not None:
+                rows.append(
+                    (
+                        f"{summary.name} error",
+                        f"max {summary.max_abs:.3e} (t={summary.t_max:g}), "
+                        f"end {summary.final:+.3e}, drift {summary.drift:+.2e} "
+                        f"+/- {summary.drift_stderr:.1e} per unit t",
+                    )
+                )
+        if np.isfinite(self.energy_bound_ratio) and self.energy_conserved:
+            rows.append(
+                (
+                    "energy / bound",
+                    f"max {self.energy_bound_ratio:.4f} (t={self.t_energy_bound_ratio:g})",
+                )
+            )
+        seen = []
+        for label, summary in (("estimated error", self.estimated), ("true error", self.error)):
+            if summary is None or any(summary is other for other in seen):
+                continue
+            seen.append(summary)
+            if label == "true error" and not self.error_measured:
+                rows.append((label, self.error_note))
+                continue
+            parts = ", ".join(
+                f"{n} {v:.3e}" for n, v in zip(summary.names, summary.max_abs, strict=True)
+            )
+            rows.append((label, f"{parts}; trajectory {summary.max_trajectory:.3e}"))
+            rows.append(
+                (
+                    "  reference",
+                    f"{summary.description} (accurate to ~{summary.reference_accuracy:.1e})",
+                )
+            )
+            rows.append(
+                (
+                    "  trajectory / bound",
+                    f"max {summary.bound_ratio:.4f} (t={summary.t_bound_ratio:g})",
+                )
+            )
+        if np.isfinite(self.gamma_max):
+            rows.append(("RK8 track |Gamma|", f"max {self.gamma_max:.3e}"))
+        rows += [("note", note) for note in self.notes]
+        width = max(len(label) for label, _ in rows)
+        return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)

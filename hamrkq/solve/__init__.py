@@ -1,0 +1,298 @@
+"""`solve`: the one public entry for integrating a Hamiltonian system.
+
+:func:`solve` validates its whole input first (every message names the
+parameter and the value; :class:`~hamrkq.options.SolveOptions` holds the
+options' vocabulary and checks), fills in defaults from a catalogue
+:class:`~hamrkq.catalogue.problems.Problem`, only then chooses and prepares a
+backend (which may compile), dispatches to a method through a small table
+(:data:`METHODS`) and packs the result into a :class:`~hamrkq.result.Solution`.
+The numerics live elsewhere: the RKQ kernel in :mod:`hamrkq.rkq`, the
+fixed-step baselines in :mod:`hamrkq.fixed_step`, the SciPy baselines in
+:mod:`hamrkq.baselines`.
+
+The package's modules:
+
+- :mod:`hamrkq.solve.arguments`: the checks of the arguments that need the
+  system (tolerances, ``step``, ``t_eval``, ``progress``) and the defaults a
+  Problem supplies;
+- :mod:`hamrkq.solve.dispatch`: :class:`Task`, :class:`MethodSpec` and the
+  dispatch table :data:`METHODS` with each method's runner;
+- :mod:`hamrkq.solve.outcome`: the Solution of an RKQ-family run, with the
+  message that names what ended it and what helps.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from hamrkq import events as _events
+from hamrkq._progress import ProgressBar
+from hamrkq._validate import span as _span
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.catalogue.problems import Problem
+from hamrkq.errors import InputError, OptionError
+from hamrkq.options import (
+    BACKENDS,
+    DEFAULT_GAMMA_LIMIT,
+    DEFAULT_MAX_STEPS,
+    GAMMA_MODES,
+    MIN_RTOL,
+    QUENCH_MODES,
+    TOLERANCE_RULES,
+    Z_METHOD_NAMES,
+    SolveOptions,
+)
+from hamrkq.result import Solution
+from hamrkq.solve import arguments, outcome
+from hamrkq.solve.dispatch import METHODS, MethodSpec, Task, member_of, resolve_backend, run_rk
+
+__all__ = [
+    "BACKENDS",
+    "DEFAULT_GAMMA_LIMIT",
+    "DEFAULT_MAX_STEPS",
+    "GAMMA_MODES",
+    "METHODS",
+    "MIN_RTOL",
+    "QUENCH_MODES",
+    "TOLERANCE_RULES",
+    "Z_METHODS",
+    "MethodSpec",
+    "Task",
+    "solve",
+]
+
+Z_METHODS = Z_METHOD_NAMES
+
+
+def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented setting
+    system_or_problem: Any,
+    q0: Any = None,
+    p0: Any = None,
+    t_span: Any = None,
+    *,
+    method: str | None = None,
+    atol: Any = None,
+    rtol: Any = None,
+    parameters: Mapping[Any, Any] | None = None,
+    quench: str | None = None,
+    quench_threshold: float | None = None,
+    safety: float | None = None,
+    tolerance_rule: str | None = None,
+    global_error_estimate: str | None = None,
+    z_method: str | None = None,
+    z_substeps: int | None = None,
+    first_step: float | None = None,
+    max_step: float | None = None,
+    step: float | None = None,
+    max_steps: int | None = None,
+    gamma_limit: float | None = None,
+    keep_every: int = 1,
+    t_eval: Any = None,
+    backend: str = "auto",
+    progress: bool | Callable[[float, float], None] | None = None,
+    dense_output: bool = False,
+    events: Any = None,
+) -> Solution:
+    """Integrate Hamilton's equations with RKQ (or RK34) and return the nodes.
+
+    Parameters
+    ----------
+    system_or_problem : Hamiltonian or Problem
+        The system.  With a catalogue :class:`~hamrkq.catalogue.problems.Problem`, its
+        ``q0``, ``p0``, ``t_span`` and ``integration`` settings are the
+        defaults and the keywords below override them.
+    q0, p0 : sequence of n numbers
+        Initial coordinates and momenta: numbers, SymPy numbers or SymPy
+        expressions without free symbols.
+    t_span : (t0, t_end)
+        Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
+        t0`` returns the single initial node.
+    method : str
+        ``"rk34q8"`` (default): Prentice's RKQ.  ``"rk34"``: RK3/RK4 local
+        extrapolation only (no RK8 track: ``z``, ``global_error``, ``gamma``
+        and ``quenched`` are None).  Fixed-step symplectic baselines
+        (:mod:`hamrkq.fixed_step.symplectic`, they need ``step``): ``"midpoint"``,
+        ``"gauss4"``, ``"gauss6"``, ``"verlet"`` and ``"yoshida4"`` (the last
+        two for separable H only).  SciPy baselines (:mod:`hamrkq.baselines.scipy_ivp`):
+        ``"scipy:RK23"``, ``"scipy:RK45"``, ``"scipy:DOP853"``,
+        ``"scipy:Radau"``, ``"scipy:BDF"``, ``"scipy:LSODA"`` (the symbolic
+        Jacobian goes to the last three) and ``"scipy:RK34Q8"`` (this RKQ
+        through SciPy's solver interface, :class:`hamrkq.RK34Q8`).
+    atol : float or array of 2n floats, default 1e-6
+        Absolute tolerance, positive.
+    rtol : float or array of 2n floats, default 0
+        Relative tolerance, zero or positive; values below 100 eps are
+        raised to 100 eps with a :class:`~hamrkq.errors.HamrkqWarning`.
+    parameters : mapping, optional
+        Parameter values by symbol or name, overriding the defaults (with a
+        Problem whose initial values depend on them, those follow).
+    quench : {"node", "redo"}, default "node"
+        ``"node"``: where ``|y - z| > theta delta`` replace the node by the
+        RK8 value.  ``"redo"``: restart that step from the RK8 value at its
+        start (once; if it fails again, quench the node).
+    quench_threshold : float, default 1
+        theta, positive.
+    safety : float, default 0.9
+        Safety factor of the step-size controller, in (0, 1].
+    tolerance_rule : {"componentwise", "prentice"}, default "componentwise"
+        ``delta_k = max(atol_k, rtol_k |y_k|)`` per component, or the paper's
+        scalar ``delta = min_k max(atol_k, rtol_k |y_k|)``.
+    global_error_estimate : {"tangent", "paper", "off"}, default "tangent"
+        How Gamma (the RK8 track's global error) is propagated: the exact
+        linearisation of the RK8 step, the paper's ``(I + h J)``, or not at
+        all (then ``gamma`` is None).
+    z_method : {"dop853", "cooper_verner"}, default "dop853"
+        The RK8 tableau of the track.
+    first_step : float, optional
+        Initial step size; by default Hairer-Norsett-Wanner's heuristic for
+        order 3 (as SciPy's ``select_initial_step``).
+    max_step : float, default inf
+        Largest step size.
+    step : float
+        The step size h of a fixed-step method (required there, and an error
+        for any other method).  The last step is shortened to land on
+        ``t_end``.
+    max_steps : int, default 1 000 000
+        Limit on step attempts (accepted plus rejected).
+    gamma_limit : float, default 0.05
+        The run stops with ``Status.TOLERANCE_UNATTAINABLE`` at the first node
+        where ``max_k (|Gamma_k| + rounding_k) / delta_k`` exceeds it (``inf``
+        disables the check); see ``docs/algorithm.md``.
+    keep_every : int, default 1
+        Keep every k-th accepted node (and the first and last).
+    t_eval : array, optional
+        Keep only these times (inside ``t_span``, strictly monotonic in the
+        direction of integration); steps are clipped to land on them.
+    backend : {"auto", "numba", "python"}, default "auto"
+        Where the step loop of ``rk34q8``/``rk34`` runs: ``"numba"``
+        compiles it with the generated functions (cached on disk, see
+        :mod:`hamrkq.backends.compiled`); ``"python"`` interprets it; ``"auto"`` uses
+        numba when it can (``HAMRKQ_DISABLE_NUMBA=1`` turns it off) and
+        otherwise Python with one :class:`~hamrkq.errors.HamrkqWarning`.
+        Both give the same nodes and values, bit for bit.
+    progress : bool or callable, optional
+        True: a progress bar (tqdm) on stderr when it is a terminal, with the
+        share of the time span done and the current ``t``.  A callable is
+        called as ``progress(fraction, t)`` every few thousand steps.
+    dense_output : bool, default False
+        Attach the continuous solution ``sol.sol(t)`` (RKQ family only; one
+        quencher step from the node before ``t``, see ``docs/events.md``).
+    events : callable, expression, str, or a list of them, optional
+        Event functions ``g(t, y)`` (SciPy's convention, with ``terminal``
+        and ``direction`` attributes), SymPy expressions or strings in the
+        system's names; roots go to ``sol.t_events``/``sol.y_events`` and a
+        terminal one ends the run with ``Status.TERMINAL_EVENT``.  A
+        Problem's ``[[events]]`` are the default.  See :mod:`hamrkq.events`.
+
+    Returns
+    -------
+    Solution
+        Nodes, error estimates, energy, counters and the status.  Numerical
+        failures (step-size underflow, non-finite values, the step limit, an
+        unattainable tolerance, Ctrl-C) are not raised: the nodes computed so
+        far come back with ``success=False`` and a message naming ``t``.
+
+    Raises
+    ------
+    InputError, InputTypeError, OptionError
+        Bad input, with the parameter and value named.
+
+    References
+    ----------
+    J.S.C. Prentice, "Global Error Control in the Runge-Kutta Solution of a
+    Hamiltonian System using the RKQ Algorithm", arXiv:1111.6996 (2011).
+    """
+    ham, defaults, q0, p0, t_span, parameters = arguments.system(
+        system_or_problem, q0, p0, t_span, parameters
+    )
+    given = dict(
+        method=method,
+        quench=quench,
+        quench_threshold=quench_threshold,
+        safety=safety,
+        tolerance_rule=tolerance_rule,
+        global_error_estimate=global_error_estimate,
+        z_method=z_method,
+        z_substeps=z_substeps,
+        first_step=first_step,
+        max_step=max_step,
+        step=step,
+        max_steps=max_steps,
+        gamma_limit=gamma_limit,
+        keep_every=keep_every,
+        backend=backend,
+    )
+    options = SolveOptions.resolve(given, defaults)
+    # Everything is validated before a backend is chosen: choosing numba may compile.
+    params = ham.parameter_values(parameters)
+    y0 = ham.state_values(q0, p0)
+    t0, t_end = _span(t_span)
+    t_eval_v = arguments.eval_times(t_eval, t0, t_end)
+    arguments.step_rules(options, step, atol, rtol, first_step, t_eval_v, t0, t_end)
+    atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
+    options = options.with_auto(float(np.min(np.maximum(atol_v, rtol_v * np.abs(y0)))))
+    spec = METHODS[options.method]
+    if t_eval_v is not None and options.keep_every != 1:
+        raise InputError(
+            f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
+            "chooses the nodes that are kept"
+        )
+    if events is None and isinstance(system_or_problem, Problem):
+        events = list(system_or_problem.events) or None
+    event_list = _events.event_specs(events, ham, params)
+    if (dense_output or event_list) and (
+        spec.run is not run_rk or options.keep_every != 1 or t_eval_v is not None
+    ):
+        raise InputError(
+            "dense_output and events need an RKQ-family method with every node kept "
+            f"(method={options.method!r}, keep_every={options.keep_every!r}, "
+            f"t_eval {'given' if t_eval_v is not None else 'not given'})"
+        )
+    bar = arguments.progress_callback(progress, options.method)
+    started = time.perf_counter()
+    chosen = resolve_backend(options.backend, ham, spec)
+    compile_s = time.perf_counter() - started
+    if chosen not in spec.backends:
+        raise OptionError(
+            f"backend={chosen!r} is not available for method {options.method!r}; "
+            f"valid: {', '.join(map(repr, spec.backends))}"
+        )
+    watch = _events.terminal_watch(event_list)
+    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch)
+    # A failure is reported by the status; NumPy's RuntimeWarnings from the
+    # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
+    # singular initial node, would only be noise.
+    with np.errstate(all="ignore"):
+        started = time.perf_counter()
+        try:
+            out = spec.run(task, chosen)
+        finally:
+            if progress is True and isinstance(bar, ProgressBar):
+                bar.close()  # its own bar (not a caller's): leave it on its own line
+        elapsed = time.perf_counter() - started
+        if isinstance(out, Solution):  # the baselines build their own
+            return out
+        out.stats.setdefault("integrate_s", elapsed)
+        out.stats["compile_s"] = compile_s
+        sol = outcome.solution(task, spec, out, chosen)
+        if dense_output or event_list:
+            sol = _with_events(task, sol, chosen, event_list, dense_output)
+        return sol
+
+
+def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
+    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run."""
+    member = member_of(task)
+    dense = _events.dense_output(task.ham, member, backend, task.params, sol.t, sol.y)
+    if not specs:
+        return sol.replace(sol=dense)
+    z_dense = None if sol.z is None else dense.through(sol.t, sol.z)
+
+    def energy(t, Y):
+        return numeric_of(task.ham).energy(t, Y, task.params)
+
+    return _events.apply(sol, specs, dense, energy, z_dense, keep_dense)

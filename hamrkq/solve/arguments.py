@@ -1,0 +1,143 @@
+"""The arguments of :func:`hamrkq.solve` that need the system to be checked.
+
+The system and the defaults a catalogue Problem supplies, the tolerances as
+arrays of the state's size, the rules that tie ``step`` to the fixed-step
+methods, ``t_eval`` and ``progress``.  Every message names the parameter and
+the value (:mod:`hamrkq._validate`); the options that do not depend on the
+system are checked by :class:`~hamrkq.options.SolveOptions`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from hamrkq._progress import ProgressBar
+from hamrkq._validate import real as _real
+from hamrkq._validate import show as _show
+from hamrkq._validate import tolerance as _tolerance
+from hamrkq.catalogue.problems import Problem
+from hamrkq.errors import InputError, InputTypeError, OptionError, warn
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
+from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
+__all__ = ["eval_times", "progress_callback", "step_rules", "system", "tolerances"]
+
+
+def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, t_end):
+    """``step`` is required by the fixed-step methods and refused by the others;
+    tolerances, ``first_step`` and ``t_eval`` mean nothing to a fixed step."""
+    if not options.is_fixed_step:
+        if step is not None:
+            raise OptionError(
+                f"step={_show(step)} applies only to the fixed-step methods "
+                f"({', '.join(map(repr, FIXED_STEP_METHODS))}); method {options.method!r} "
+                "chooses its own steps (see first_step and max_step)"
+            )
+        if options.first_step is not None and t_end != t0:
+            if options.first_step > abs(t_end - t0):
+                raise InputError(
+                    f"first_step={options.first_step!r} exceeds the length of t_span "
+                    f"({abs(t_end - t0)!r})"
+                )
+        return
+    if options.step is None:
+        raise InputError(
+            f"method {options.method!r} is a fixed-step method: step (h) must be given"
+        )
+    for name, other in (
+        ("atol", atol),
+        ("rtol", rtol),
+        ("first_step", first_step),
+        ("t_eval", t_eval),
+    ):
+        if other is not None:
+            raise OptionError(
+                f"{name} does not apply to the fixed-step method {options.method!r} (it has "
+                "no error control and no dense output); give step only"
+            )
+
+
+def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
+    """``atol`` and ``rtol`` as arrays of ``dim`` values (keyword, else the
+    problem's, else 1e-6 and 0); an rtol below 100 eps is raised to it."""
+    atol_given = atol if atol is not None else defaults.get("atol", 1e-6)
+    rtol_given = rtol if rtol is not None else defaults.get("rtol", 0.0)
+    atol_v = _tolerance("atol", atol_given, dim, positive=True)
+    rtol_v = _tolerance("rtol", rtol_given, dim, positive=False)
+    if np.any(atol_v < MIN_ATOL):
+        raise InputError(
+            f"atol={_show(atol_given)} is below {MIN_ATOL:g}, which no double-precision "
+            "step can resolve; use a larger atol (or rtol for relative control)"
+        )
+    if np.any((rtol_v > 0) & (rtol_v < MIN_RTOL)):
+        warn(f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}")
+        rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
+    return atol_v, rtol_v
+
+
+def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
+    """The Hamiltonian and the defaults a Problem supplies."""
+    if parameters is not None and not isinstance(parameters, Mapping):
+        raise InputTypeError(
+            f"parameters must be a mapping of names or symbols to numbers, got {parameters!r}"
+        )
+    if isinstance(obj, Hamiltonian):
+        missing = [name for name, v in (("q0", q0), ("p0", p0), ("t_span", t_span)) if v is None]
+        if missing:
+            raise InputError(f"{', '.join(missing)} must be given when solving a Hamiltonian")
+        return obj, {}, q0, p0, t_span, parameters
+    if isinstance(obj, Problem):
+        problem = obj
+        if parameters:
+            names = {(k.name if isinstance(k, sp.Symbol) else k): v for k, v in parameters.items()}
+            problem = problem.with_parameters(**names)
+        merged = {**problem.parameters, **(parameters or {})}
+        return (
+            problem.hamiltonian,
+            dict(problem.integration),
+            problem.q0 if q0 is None else q0,
+            problem.p0 if p0 is None else p0,
+            problem.t_span if t_span is None else t_span,
+            merged,
+        )
+    raise InputTypeError(
+        "system_or_problem must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
+        f"got {type(obj).__name__}"
+    )
+
+
+def eval_times(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
+    if t_eval is None:
+        return None
+    try:
+        times = np.array([_real("t_eval", v) for v in np.ravel(np.asarray(t_eval, dtype=object))])
+    except TypeError:
+        raise InputTypeError(f"t_eval must be an array of numbers, got {_show(t_eval)}") from None
+    if np.ndim(t_eval) != 1 or times.size == 0:
+        raise InputError(f"t_eval must be a non-empty 1-D array, got {_show(t_eval)}")
+    lo, hi = min(t0, t_end), max(t0, t_end)
+    if not np.all(np.isfinite(times)) or times.min() < lo or times.max() > hi:
+        raise InputError(f"t_eval must lie within t_span ({t0!r}, {t_end!r})")
+    steps = np.diff(times) * (1.0 if t_end >= t0 else -1.0)
+    if np.any(steps <= 0):
+        raise InputError("t_eval must be strictly monotonic in the direction of integration")
+    return times
+
+
+def progress_callback(progress: Any, label: str) -> Callable[[float, float], None] | None:
+    """``progress`` as the driver's callback: None for no reports, a
+    :class:`~hamrkq._progress.ProgressBar` named ``label`` for True (only when
+    stderr is a terminal), or the caller's own callable."""
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        bar = ProgressBar(label, delay=0.0)
+        return bar if bar.enabled else None
+    if callable(progress):
+        return progress
+    raise InputTypeError(f"progress must be a bool or a callable, got {_show(progress)}")

@@ -1,0 +1,218 @@
+"""The methods :func:`hamrkq.solve` dispatches to, and the request each one receives.
+
+:class:`Task` is a validated request; :class:`MethodSpec` describes one method
+(its runner, the backends it has, whether it carries the RK8 track);
+:data:`METHODS` maps every method name to its spec: the RKQ family (the
+kernel of :mod:`hamrkq.rkq`, interpreted or compiled), the fixed-step
+baselines of :mod:`hamrkq.fixed_step` and the SciPy baselines of
+:mod:`hamrkq.baselines`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
+from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
+from hamrkq.options import SolveOptions
+from hamrkq.result import Solution
+from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
+from hamrkq.rkq.family import MEMBERS
+from hamrkq.symbolic.hamiltonian import Hamiltonian
+
+__all__ = [
+    "METHODS",
+    "TERMINAL_BUDGET",
+    "MethodSpec",
+    "Task",
+    "member_of",
+    "resolve_backend",
+    "run_rk",
+]
+
+#: Step attempts between checks for a terminal event.
+TERMINAL_BUDGET = 64
+
+
+@dataclass(frozen=True)
+class Task:
+    """A validated integration request, handed to a method's runner."""
+
+    ham: Hamiltonian
+    params: np.ndarray
+    t0: float
+    t_end: float
+    y0: np.ndarray
+    atol: np.ndarray
+    rtol: np.ndarray
+    options: SolveOptions
+    t_eval: np.ndarray | None
+    progress: Callable[[float, float], None] | None
+    stop: Callable[[np.ndarray, np.ndarray], bool] | None = None
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """A method :func:`hamrkq.solve` can dispatch to.
+
+    ``run(task, backend) -> RunOutput`` (or a finished
+    :class:`~hamrkq.result.Solution`, for the baselines); ``rk8`` says whether
+    the method produces the quencher track (``z``, ``gamma``, ``quenched``).
+    """
+
+    name: str
+    summary: str
+    run: Callable[[Task, str], RunOutput | Solution]
+    backends: tuple[str, ...]
+    rk8: bool
+
+
+def member_of(task: Task):
+    return task.options.member()
+
+
+def run_rk(task: Task, backend: str) -> RunOutput:
+    o = task.options
+    member = member_of(task)
+    settings = Settings(
+        **o.codes(),
+        safety=o.safety,
+        theta=o.quench_threshold,
+        max_step=o.max_step,
+        max_steps=o.max_steps,
+        gamma_limit=o.gamma_limit,
+        keep_every=o.keep_every,
+        t_eval=task.t_eval,
+        first_step=o.first_step,
+    )
+    if backend == "numba":
+        from hamrkq.backends import compiled
+
+        functions = compiled.kernel_functions(task.ham)
+    else:
+        numeric = numeric_of(task.ham)
+        functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
+    run = Integration(
+        functions,
+        member,
+        task.params,
+        task.t0,
+        task.y0,
+        task.t_end,
+        task.atol,
+        task.rtol,
+        settings,
+    )
+    # With a terminal event, shorter chunks: the run stops soon after the event.
+    out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
+    out.stats["integrate_s"] = run.integrate_s
+    return out
+
+
+def _inplace(fun: Callable, matrix: bool) -> Callable:
+    """``fun(t, y, params) -> array`` as ``fun(t, y, params, out)``."""
+    if matrix:
+
+        def wrapped(t, y, params, out):
+            out[:, :] = fun(t, y, params)
+
+    else:
+
+        def wrapped(t, y, params, out):
+            out[:] = fun(t, y, params)
+
+    return wrapped
+
+
+def resolve_backend(backend: str, ham: Hamiltonian, spec: MethodSpec) -> str:
+    """``"auto"`` -> ``"numba"`` when the method has a compiled runner and
+    numba can be used (else ``"python"``, with one HamrkqWarning when numba
+    was expected but cannot be used)."""
+    if backend == "python" or "numba" not in spec.backends:
+        return "python" if backend == "auto" else backend
+    from hamrkq.backends import compiled
+
+    return compiled.resolve_backend(backend, ham)
+
+
+def _run_fixed(task: Task, backend: str) -> Solution:
+    o = task.options
+    return solve_fixed(
+        task.ham,
+        task.y0,
+        (task.t0, task.t_end),
+        o.method,
+        o.step,
+        task.params,
+        keep_every=o.keep_every,
+        max_steps=o.max_steps,
+    )
+
+
+#: Options of :func:`hamrkq.solve` that hamrkq's RK34Q8 takes in its SciPy form too.
+_RKQ_OPTIONS = (
+    "quench",
+    "quench_threshold",
+    "safety",
+    "tolerance_rule",
+    "global_error_estimate",
+    "z_method",
+    "gamma_limit",
+)
+
+
+def _run_scipy(task: Task, backend: str) -> Solution:
+    o = task.options
+    name = o.method[len(SCIPY_PREFIX) :]
+    return solve_scipy(
+        task.ham,
+        task.y0,
+        (task.t0, task.t_end),
+        name,
+        task.params,
+        atol=task.atol,
+        rtol=task.rtol,
+        first_step=o.first_step,
+        max_step=o.max_step,
+        max_steps=o.max_steps,
+        keep_every=o.keep_every,
+        t_eval=task.t_eval,
+        progress=task.progress,
+        options={k: getattr(o, k) for k in _RKQ_OPTIONS} if name == "RK34Q8" else None,
+    )
+
+
+_FIXED_SUMMARIES = {
+    "midpoint": "implicit midpoint rule, fixed step (symplectic, order 2)",
+    "gauss4": "2-stage Gauss-Legendre collocation, fixed step (symplectic, order 4)",
+    "gauss6": "3-stage Gauss-Legendre collocation, fixed step (symplectic, order 6)",
+    "verlet": "Stormer-Verlet, fixed step (symplectic, order 2; separable H only)",
+    "yoshida4": "Yoshida's triple jump of Verlet, fixed step (symplectic, order 4; separable H)",
+}
+
+#: Dispatch table: method name -> :class:`MethodSpec`.
+METHODS: dict[str, MethodSpec] = {
+    **{
+        name: MethodSpec(name, member.summary, run_rk, ("python", "numba"), member.use_z)
+        for name, member in MEMBERS.items()
+    },
+    **{
+        name: MethodSpec(name, _FIXED_SUMMARIES[name], _run_fixed, ("python",), rk8=False)
+        for name in FIXED_STEP_METHODS
+    },
+    **{
+        SCIPY_PREFIX + name: MethodSpec(
+            SCIPY_PREFIX + name,
+            f"SciPy solver {SCIPY_METHODS[name].__module__.split('._')[0]}.{name}",
+            _run_scipy,
+            ("python",),
+            rk8=name == "RK34Q8",
+        )
+        for name in SCIPY_METHODS
+    },
+}

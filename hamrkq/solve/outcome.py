@@ -1,0 +1,170 @@
+"""The :class:`~hamrkq.result.Solution` a finished RKQ-family run becomes.
+
+:func:`solution` adds H at the nodes, the record of the options the run
+actually used, the status and a message: what ended the run, at which ``t``,
+and for an unattainable tolerance the remedy that works.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.driver import RunOutput
+from hamrkq.rkq.family import MEMBERS
+from hamrkq.solve.dispatch import MethodSpec, Task, member_of
+
+__all__ = ["solution"]
+
+_STATUS_BY_CODE = {status.code: status for status in Status}
+
+
+def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solution:
+    o = task.options
+    member = member_of(task)
+    gamma_mode = o.gamma_name if spec.rk8 else "off"
+    nfev_step, njev_step = member.evaluations_per_step(gamma_mode)
+    stats = dict(out.stats)
+    status = _STATUS_BY_CODE[out.status]
+    if not out.t.size:
+        energy = out.t
+    elif backend == "numba":
+        from hamrkq.backends import compiled
+
+        energy = compiled.energy(task.ham, out.t, out.y, task.params)
+    else:
+        energy = numeric_of(task.ham).energy(out.t, out.y, task.params)
+    options: dict[str, Any] = {
+        "method": o.method,
+        "backend": backend,
+        "t_span": [task.t0, task.t_end],
+        "atol": task.atol.tolist(),
+        "rtol": task.rtol.tolist(),
+        "tolerance_rule": o.tolerance_rule,
+        "safety": o.safety,
+        "first_step": out.first_step,
+        "first_step_rule": "given" if o.first_step is not None else "hairer-norsett-wanner",
+        "max_step": None if math.isinf(o.max_step) else o.max_step,
+        "max_steps": o.max_steps,
+        "keep_every": o.keep_every,
+        "t_eval": None if task.t_eval is None else task.t_eval.tolist(),
+        "parameters": {
+            s.name: float(v) for s, v in zip(task.ham.parameters, task.params, strict=True)
+        },
+        "nfev_per_step": nfev_step,
+        "njev_per_step": njev_step,
+    }
+    if spec.rk8:
+        options.update(
+            quench=o.quench,
+            quench_threshold=o.quench_threshold,
+            global_error_estimate=o.gamma_name,
+            z_method=o.z_method,
+            z_substeps=member.z_substeps,
+            gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,
+        )
+    has_gamma = spec.rk8 and gamma_mode != "off"
+    return Solution(
+        t=out.t,
+        y=out.y,
+        energy=energy,
+        status=status,
+        message=_message(status, out, task),
+        method=o.method,
+        n=task.ham.n,
+        names=task.ham.names,
+        atol=task.atol,
+        rtol=task.rtol,
+        stats=stats,
+        options=options,
+        z=out.z,
+        global_error=None if out.z is None else out.y - out.z,
+        gamma=out.gamma if has_gamma else None,
+        quenched=out.quenched,
+    )
+
+
+def _component(task: Task, index: int) -> str:
+    """Which derivative a state component's right-hand side is, in words."""
+    ham = task.ham
+    n = ham.n
+    if index < 0:
+        return "the right-hand side"
+    if index < n:
+        return f"d{ham.q[index]}/dt = dH/d{ham.p[index]}"
+    return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
+
+
+def _unattainable(out: RunOutput, task: Task) -> str:
+    o = task.options
+    t = out.t_last
+    text = (
+        f"At t = {t!r} the quencher's estimated global error plus its rounding would reach "
+        f"{out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so the "
+        "tolerance can no longer be certified; the run ends at the last node where it held."
+    )
+    if out.y.size:
+        y = np.abs(out.y[-1])
+        delta = np.maximum(task.atol, task.rtol * y)
+        floor = float(np.max(np.finfo(float).eps * y / delta))
+        if floor >= 0.5 * o.gamma_limit:
+            return text + (
+                f" The tolerance is at double precision's floor for this state (the rounding "
+                f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
+            )
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps:
+        return text + (
+            " The quencher's error has reached double precision's rounding floor here: a "
+            "looser tolerance, or a shorter interval (the horizon of double precision for "
+            "this orbit), is what works."
+        )
+    remedies = [
+        f"a smaller max_step (the quencher's error falls like h^{member_of(task).z_order})"
+    ]
+    better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
+    if better:
+        remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
+    remedies.append("a looser tolerance only if the quencher's error grows with the step")
+    return text + " What helps: " + "; ".join(remedies) + "."
+
+
+def _message(status: Status, out: RunOutput, task: Task) -> str:
+    t = out.t_last
+    if status is Status.SUCCESS:
+        text = f"The integration reached the end of the interval (t = {t!r})."
+    elif status is Status.STEP_SIZE_UNDERFLOW:
+        text = (
+            f"The step size {abs(out.h_fail):.3g} fell below the roundoff floor "
+            f"(10 eps |t|) at t = {t!r}."
+        )
+    elif status is Status.NON_FINITE:
+        text = (
+            f"The state or the right-hand side became non-finite (inf or nan) at t = {t!r}: "
+            f"{_component(task, out.bad_component)} could not be evaluated to a finite value "
+            "there (a singularity, or H outside its domain)."
+        )
+    elif status is Status.MAX_STEPS:
+        text = f"The step limit max_steps = {task.options.max_steps} was reached at t = {t!r}."
+    elif status is Status.INTERRUPTED:
+        text = f"Interrupted (KeyboardInterrupt) near t = {t!r}."
+    elif status is Status.TOLERANCE_UNATTAINABLE:
+        text = _unattainable(out, task)
+    else:  # pragma: no cover - other statuses come from other methods
+        text = f"{status.description} (t = {t!r})"
+    if not status.success:
+        text += f" The {out.t.size} nodes computed so far are kept."
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps and status is not Status.TOLERANCE_UNATTAINABLE:
+        text += (
+            f" Note: on {rounded} of {steps} steps the quencher's local error was below "
+            "double-precision rounding; there the Richardson estimate (and Gamma) "
+            "measures rounding, not truncation."
+        )
+    return text
