@@ -31,7 +31,13 @@ def _assert_member_equals_solve(ens, i, system, **kwargs):
         np.testing.assert_array_equal(ens.y[i, 0], sol.y[-1])
     else:
         np.testing.assert_array_equal(ens.y[i, : sol.t.size], sol.y)
-    assert ens.max_global_error[i] == np.abs(sol.global_error).max()
+    if sol.global_error is None:  # a pair without a quencher
+        assert np.isnan(ens.max_global_error[i])
+    else:
+        assert ens.max_global_error[i] == np.abs(sol.global_error).max()
+    if sol.t[0] == sol.options["t_span"][0]:
+        assert ens.energy0[i] == sol.energy[0]
+    assert ens.energy_drift[i] == np.abs(sol.energy - ens.energy0[i]).max()
     return sol
 
 
@@ -206,18 +212,54 @@ def test_threads_in_a_fresh_process_do_not_race_to_compile(tmp_path):
 
 def test_ctrl_c_inside_a_member_stops_the_whole_ensemble(monkeypatch):
     # solve turns Ctrl-C into Status.INTERRUPTED for its own run; an ensemble
-    # must not carry on with the next member as if nothing happened.
-    from hamrkq.ensemble import request as module
+    # run member by member (the interpreted backend) must not carry on with
+    # the next member as if nothing happened.
+    from hamrkq.ensemble import chunk, request
 
-    real, calls = module.solve, []
+    real, calls = request.solve, []
 
     def solve(*args, **kwargs):
         sol = real(*args, **kwargs)
         calls.append(1)
         return sol.replace(status=Status.INTERRUPTED) if len(calls) == 3 else sol
 
-    monkeypatch.setattr(module, "solve", solve)
+    monkeypatch.setattr(request, "solve", solve)
+    monkeypatch.setattr(chunk, "solve", solve)
     with pytest.raises(KeyboardInterrupt):
         hamrkq.ensemble(FALL, q0=[1.0], p0=np.linspace(2, 3, 6)[:, None], t_span=(0, 1),
-                        workers=1)  # fmt: skip
+                        workers=1, backend="python")  # fmt: skip
     assert len(calls) == 3  # the probe, members 0 and 1; members 2..5 never ran
+
+
+def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_member(monkeypatch):
+    """The batch loop is what runs an RKQ ensemble on the compiled backend
+    (solve_members is never called), with the bits of solve alone; the
+    interpreted backend, a baseline method and auto with rtol > 0 (each
+    member may choose its own quencher) run member by member."""
+    from hamrkq.ensemble import chunk
+
+    real, used = chunk.solve_members, []
+
+    def solve_members(request):
+        used.append(request.size)
+        return real(request)
+
+    monkeypatch.setattr(chunk, "solve_members", solve_members)
+    pend = hamrkq.load_problem("pendulum")
+    q0 = np.linspace(-2.5, 2.5, 7)[:, None]
+    t_eval = np.linspace(0.0, 4.0, 5)
+    for method in ("rk34q8", "rk78q12", "rk34"):
+        ens = hamrkq.ensemble(pend, q0=q0, p0=[[0.5]], t_span=(0, 4), t_eval=t_eval,
+                              method=method, workers=1)  # fmt: skip
+        assert used == [] and ens.all_success
+        for i in range(q0.shape[0]):
+            _assert_member_equals_solve(ens, i, pend, t_span=(0, 4), t_eval=t_eval, method=method)
+    oscillator = hamrkq.Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
+    for system, how in (
+        (pend, {"backend": "python"}),
+        (oscillator, {"method": "verlet", "step": 0.01}),
+        (pend, {"method": "auto", "rtol": 1e-9}),
+    ):
+        used.clear()
+        hamrkq.ensemble(system, q0=q0[:2], p0=[[0.5]], t_span=(0, 0.5), workers=1, **how)
+        assert sum(used) == 2, how

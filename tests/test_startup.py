@@ -79,5 +79,9 @@ def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, dela
     assert "Traceback" not in stderr + stdout, stderr
     if proc.returncode == 0:
         pytest.skip("the run finished before the signal (a fast machine)")
+    if proc.returncode == -signal.SIGINT:
+        # A loaded machine: the signal came before Python installed its
+        # handler, and the default action ended the process (no traceback).
+        pytest.skip("the signal arrived while the interpreter itself started")
     assert proc.returncode == 1, stderr
     assert "interrupted" in stderr

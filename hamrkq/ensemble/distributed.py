@@ -14,8 +14,9 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
+from hamrkq.ensemble.chunk import run_chunk
 from hamrkq.ensemble.local import Collector, chunk_bounds
-from hamrkq.ensemble.request import Request, run_chunk
+from hamrkq.ensemble.request import Request
 from hamrkq.ensemble.result import EnsembleSolution
 from hamrkq.errors import InputTypeError, OptionError
 

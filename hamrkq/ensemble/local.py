@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from hamrkq._files import plain
-from hamrkq.ensemble.request import STATS, ChunkResult, Request, run_chunk
+from hamrkq.ensemble.chunk import run_chunk
+from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.ensemble.result import EnsembleSolution
 from hamrkq.errors import InputError, OptionError
 

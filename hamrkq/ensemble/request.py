@@ -6,12 +6,9 @@ parameter values per member, the time span, the kept times and the options of
 :func:`hamrkq.solve`.  Every check happens here, before any member runs, and
 every message names the parameter (and the member) at fault.
 
-:func:`run_chunk` integrates the members of a request and returns plain arrays
-(:class:`ChunkResult`), which cross process boundaries cheaply.  It is the only
-place that integrates: the local pools and the Dask path all call it on
-:meth:`Request.subset` slices.  Today it calls :func:`hamrkq.solve` once per
-member; a batch kernel (one compiled loop over members) can replace its body
-without touching anything else.
+:class:`ChunkResult` holds what a chunk of members gives back, as plain
+arrays that cross process boundaries cheaply; :mod:`hamrkq.ensemble.chunk`
+computes it.
 """
 
 from __future__ import annotations
@@ -28,13 +25,11 @@ import sympy as sp
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
-from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
-from hamrkq.result import Status
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["STATS", "ChunkResult", "Request", "build_request", "run_chunk"]
+__all__ = ["STATS", "ChunkResult", "Request", "build_request"]
 
 #: Per-member counters kept by an ensemble (0 where a method has no such counter).
 STATS = ("steps", "rejected", "quenches", "nfev", "njev")
@@ -149,62 +144,6 @@ class ChunkResult:
     def size(self) -> int:
         """Number of members."""
         return int(self.status.size)
-
-
-def run_chunk(request: Request) -> ChunkResult:
-    """Integrate every member of ``request``; one failure never stops the others.
-
-    Each member is integrated by :func:`hamrkq.solve` with the request's
-    options, so that it equals the same member solved alone, bit for bit.
-    """
-    m, dim = request.size, request.ham.dim
-    times = request.times
-    y = np.full((m, times.size, dim), np.nan)
-    t_last = np.full(m, np.nan)
-    status = np.zeros(m, dtype=np.int8)
-    max_error = np.full(m, np.nan)
-    energy0 = np.full(m, np.nan)
-    drift = np.full(m, np.nan)
-    stats = np.zeros((m, len(STATS)), dtype=np.int64)
-    messages: dict[int, str] = {}
-    for i in range(m):
-        sol = solve(request.ham, **request.member_kwargs(i))
-        if sol.status is Status.INTERRUPTED:
-            # solve turns Ctrl-C into a status; here it must stop the whole
-            # ensemble, not just the member that was running.
-            raise KeyboardInterrupt
-        status[i] = sol.status.code
-        if not sol.success:
-            messages[i] = sol.message
-        stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
-        if sol.t.size == 0:
-            continue
-        t_last[i] = sol.t[-1]
-        if request.t_eval is not None:
-            y[i, : sol.t.size] = sol.y
-        else:
-            # A member that stopped short of t_end keeps its last state too
-            # (t_last says when), as solve keeps the nodes computed so far.
-            y[i, 0] = sol.y[-1]
-        if sol.global_error is not None:
-            max_error[i] = float(np.max(np.abs(sol.global_error)))
-        energy0[i] = _initial_energy(request, i, sol)
-        drift[i] = float(np.max(np.abs(sol.energy - energy0[i])))
-    return ChunkResult(
-        request.start, y, t_last, status, max_error, energy0, drift, stats, messages
-    )
-
-
-def _initial_energy(request: Request, i: int, sol: Any) -> float:
-    """H at the member's initial state: the first node when that is t0 (the
-    usual case), else evaluated once (``t_eval`` need not contain t0)."""
-    t0 = request.t_span[0]
-    if sol.t[0] == t0:
-        return float(sol.energy[0])
-    energy = numeric_of(request.ham).energy(
-        np.array([t0]), request.y0[i : i + 1], request.params[i]
-    )
-    return float(np.asarray(energy).ravel()[0])
 
 
 # -- validation --------------------------------------------------------------------

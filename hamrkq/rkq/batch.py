@@ -76,8 +76,9 @@ def allocate_batch(y0, params, t0: float, times: int, out: Output) -> Batch:
     fresh[0]["status"] = ST_RUNNING
     fresh[0]["bad_component"] = -1
     return Batch(
-        y0=np.ascontiguousarray(y0, dtype=np.float64),
-        params=np.ascontiguousarray(params, dtype=np.float64),
+        # Writable copies: the compiled functions take writable arrays.
+        y0=np.array(y0, dtype=np.float64, order="C"),
+        params=np.array(params, dtype=np.float64, order="C"),
         fresh=fresh,
         out=out,
         y=np.full((m, times, d), np.nan),

@@ -23,8 +23,10 @@ The package's modules:
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -61,7 +63,9 @@ __all__ = [
     "TOLERANCE_RULES",
     "Z_METHODS",
     "MethodSpec",
+    "Prepared",
     "Task",
+    "prepare",
     "solve",
 ]
 
@@ -206,25 +210,79 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     J.S.C. Prentice, "Global Error Control in the Runge-Kutta Solution of a
     Hamiltonian System using the RKQ Algorithm", arXiv:1111.6996 (2011).
     """
+    prepared = _prepare(**locals())  # every argument, by name
+    task, spec, chosen = prepared.task, prepared.spec, prepared.backend
+    # A failure is reported by the status; NumPy's RuntimeWarnings from the
+    # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
+    # singular initial node, would only be noise.
+    with np.errstate(all="ignore"):
+        started = time.perf_counter()
+        try:
+            out = spec.run(task, chosen)
+        finally:
+            if progress is True and isinstance(task.progress, ProgressBar):
+                task.progress.close()  # its own bar (not a caller's): leave it on its own line
+        elapsed = time.perf_counter() - started
+        if isinstance(out, Solution):  # the baselines build their own
+            return out
+        out.stats.setdefault("integrate_s", elapsed)
+        out.stats["compile_s"] = prepared.compile_s
+        sol = outcome.solution(task, spec, out, chosen)
+        if dense_output or prepared.events:
+            sol = _with_events(task, sol, chosen, prepared.events, dense_output)
+        return sol
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A validated call of :func:`solve`, ready to run: the :class:`Task`,
+    the method's :class:`MethodSpec`, the backend chosen (and prepared:
+    ``compile_s`` seconds) and the event specifications."""
+
+    task: Task
+    spec: MethodSpec
+    backend: str
+    compile_s: float
+    events: list
+
+
+def prepare(
+    system_or_problem: Any, q0: Any = None, p0: Any = None, t_span: Any = None, **keywords: Any
+) -> Prepared:
+    """Everything :func:`solve` does before it integrates: validate the
+    arguments (the same names and checks; an unknown keyword is a
+    ``TypeError``), fill in a problem's defaults, choose and prepare the
+    backend.  :func:`hamrkq.ensemble` runs its members from this, so that a
+    member is the same run as :func:`solve` alone.
+
+    Returns
+    -------
+    Prepared
+    """
+    bound = inspect.signature(solve).bind(system_or_problem, q0, p0, t_span, **keywords)
+    bound.apply_defaults()
+    return _prepare(**bound.arguments)
+
+
+def _prepare(  # noqa: PLR0913 - solve's arguments, by name
+    system_or_problem: Any,
+    q0: Any,
+    p0: Any,
+    t_span: Any,
+    *,
+    atol: Any,
+    rtol: Any,
+    parameters: Any,
+    t_eval: Any,
+    progress: Any,
+    dense_output: bool,
+    events: Any,
+    **given: Any,
+) -> Prepared:
+    """:func:`prepare` with every argument of :func:`solve` given by name
+    (``given`` holds the options of :class:`~hamrkq.options.SolveOptions`)."""
     ham, defaults, q0, p0, t_span, parameters = arguments.system(
         system_or_problem, q0, p0, t_span, parameters
-    )
-    given = dict(
-        method=method,
-        quench=quench,
-        quench_threshold=quench_threshold,
-        safety=safety,
-        tolerance_rule=tolerance_rule,
-        global_error_estimate=global_error_estimate,
-        z_method=z_method,
-        z_substeps=z_substeps,
-        first_step=first_step,
-        max_step=max_step,
-        step=step,
-        max_steps=max_steps,
-        gamma_limit=gamma_limit,
-        keep_every=keep_every,
-        backend=backend,
     )
     options = SolveOptions.resolve(given, defaults)
     # Everything is validated before a backend is chosen: choosing numba may compile.
@@ -232,7 +290,9 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     y0 = ham.state_values(q0, p0)
     t0, t_end = _span(t_span)
     t_eval_v = arguments.eval_times(t_eval, t0, t_end)
-    arguments.step_rules(options, step, atol, rtol, first_step, t_eval_v, t0, t_end)
+    arguments.step_rules(
+        options, given["step"], atol, rtol, given["first_step"], t_eval_v, t0, t_end
+    )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
     options = options.with_auto(float(np.min(np.maximum(atol_v, rtol_v * np.abs(y0)))))
     spec = METHODS[options.method]
@@ -263,25 +323,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         )
     watch = _events.terminal_watch(event_list)
     task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch)
-    # A failure is reported by the status; NumPy's RuntimeWarnings from the
-    # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
-    # singular initial node, would only be noise.
-    with np.errstate(all="ignore"):
-        started = time.perf_counter()
-        try:
-            out = spec.run(task, chosen)
-        finally:
-            if progress is True and isinstance(bar, ProgressBar):
-                bar.close()  # its own bar (not a caller's): leave it on its own line
-        elapsed = time.perf_counter() - started
-        if isinstance(out, Solution):  # the baselines build their own
-            return out
-        out.stats.setdefault("integrate_s", elapsed)
-        out.stats["compile_s"] = compile_s
-        sol = outcome.solution(task, spec, out, chosen)
-        if dense_output or event_list:
-            sol = _with_events(task, sol, chosen, event_list, dense_output)
-        return sol
+    return Prepared(task, spec, chosen, compile_s, event_list)
 
 
 def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:

@@ -30,6 +30,7 @@ __all__ = [
     "TERMINAL_BUDGET",
     "MethodSpec",
     "Task",
+    "integration",
     "member_of",
     "resolve_backend",
     "run_rk",
@@ -76,9 +77,10 @@ def member_of(task: Task):
     return task.options.member()
 
 
-def run_rk(task: Task, backend: str) -> RunOutput:
+def integration(task: Task, backend: str) -> Integration:
+    """The :class:`~hamrkq.rkq.driver.Integration` of an RKQ-family task on
+    ``backend`` ("numba" or "python"), ready to run."""
     o = task.options
-    member = member_of(task)
     settings = Settings(
         **o.codes(),
         safety=o.safety,
@@ -97,9 +99,9 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     else:
         numeric = numeric_of(task.ham)
         functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
-    run = Integration(
+    return Integration(
         functions,
-        member,
+        member_of(task),
         task.params,
         task.t0,
         task.y0,
@@ -108,6 +110,11 @@ def run_rk(task: Task, backend: str) -> RunOutput:
         task.rtol,
         settings,
     )
+
+
+def run_rk(task: Task, backend: str) -> RunOutput:
+    """Run an RKQ-family task (the runner of every family member in :data:`METHODS`)."""
+    run = integration(task, backend)
     # With a terminal event, shorter chunks: the run stops soon after the event.
     out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
     out.stats["integrate_s"] = run.integrate_s

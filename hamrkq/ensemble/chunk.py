@@ -1,0 +1,161 @@
+"""Integrating a chunk of an ensemble: the one place where members run.
+
+:func:`run_chunk` integrates the members of a :class:`~hamrkq.ensemble.request.Request`
+and returns a :class:`~hamrkq.ensemble.request.ChunkResult`; the local pools
+and the Dask path all call it on :meth:`~hamrkq.ensemble.request.Request.subset`
+slices.  It takes one of two paths, with the same numbers:
+
+- :func:`run_batched`: every member in one call of the compiled batch loop
+  (:func:`hamrkq.rkq.batch.run_members`): no Python runs between members, and
+  the call releases the GIL, so a thread pool keeps every core busy.  Each
+  member runs exactly as :func:`hamrkq.solve` would run it alone (the same
+  validated options, :func:`hamrkq.solve.prepare`; the same start and step
+  loop), so its numbers are the same bits.  It applies to an RKQ-family
+  method on the compiled backend, with options that are the same for every
+  member (``method="auto"`` chooses its quencher substeps from the tolerance
+  at ``y0``, so with ``rtol > 0`` members may choose differently), and
+  without events or dense output.  A member that fails is run again alone
+  for its message.
+- :func:`solve_members`: :func:`hamrkq.solve` once per member, for
+  everything else (the baselines, the interpreted backend).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.ensemble.request import STATS, ChunkResult, Request
+from hamrkq.result import Status
+from hamrkq.rkq.batch import allocate_batch, run_members
+from hamrkq.rkq.layout import allocate_output
+from hamrkq.solve import prepare, solve
+from hamrkq.solve.dispatch import integration, run_rk
+
+__all__ = ["BUFFER_ROWS", "run_batched", "run_chunk", "solve_members"]
+
+#: Nodes buffered per member between folds when only the last state is kept.
+BUFFER_ROWS = 256
+#: The kinds of the function arguments of run_members.
+_KINDS = ("rhs", "rhs_jvp", "jac", "energy")
+
+
+def run_chunk(request: Request) -> ChunkResult:
+    """Integrate every member of ``request``; one failure never stops the others."""
+    batched = run_batched(request)
+    return batched if batched is not None else solve_members(request)
+
+
+def run_batched(request: Request) -> ChunkResult | None:
+    """The members of ``request`` through the batch loop, or None where it
+    does not apply (see the module docstring)."""
+    if request.size == 0:
+        return None
+    kwargs = request.member_kwargs(0)
+    if kwargs.get("events") or kwargs.get("dense_output"):
+        return None
+    if kwargs.get("method") == "auto" and np.any(np.asarray(kwargs.get("rtol") or 0.0) > 0):
+        return None
+    prepared = prepare(request.ham, **kwargs)
+    task = prepared.task
+    if prepared.spec.run is not run_rk or prepared.backend != "numba" or task.stop:
+        return None
+    if task.options.method == "auto" and np.any(task.rtol > 0):
+        return None  # the defaults (a problem file's rtol) made auto depend on y0
+    from hamrkq.backends import compiled, extras
+
+    run = integration(task, "numba")
+    system = compiled.compile_system(request.ham)
+    times = request.times
+    rows = times.size if request.t_eval is not None else BUFFER_ROWS
+    out = allocate_output(rows, request.ham.dim, run.member.use_z)
+    params = request.params.reshape(request.size, -1)
+    batch = allocate_batch(request.y0, params, task.t0, times.size, out)
+    args = (
+        system.rhs,
+        system.rhs_jvp,
+        system.jac,
+        system.energy,
+        run.inputs,
+        run.tableaus,
+        run.config,
+        run.state,
+        run.work,
+        batch,
+    )
+    kernel = extras.compiled_helper(run_members, _KINDS, *args)
+    with np.errstate(all="ignore"):
+        kernel(*args)
+    messages = {
+        i: solve(request.ham, **request.member_kwargs(i)).message
+        for i in np.flatnonzero(batch.status != Status.SUCCESS.code).tolist()
+    }
+    return ChunkResult(
+        request.start,
+        batch.y,
+        batch.t_last,
+        batch.status.astype(np.int8),
+        batch.max_error,
+        batch.energy0,
+        batch.energy_drift,
+        batch.stats,
+        messages,
+    )
+
+
+def solve_members(request: Request) -> ChunkResult:
+    """Integrate every member of ``request``; one failure never stops the others.
+
+    Each member is integrated by :func:`hamrkq.solve` with the request's
+    options, so that it equals the same member solved alone, bit for bit.
+    """
+    m, dim = request.size, request.ham.dim
+    times = request.times
+    y = np.full((m, times.size, dim), np.nan)
+    t_last = np.full(m, np.nan)
+    status = np.zeros(m, dtype=np.int8)
+    max_error = np.full(m, np.nan)
+    energy0 = np.full(m, np.nan)
+    drift = np.full(m, np.nan)
+    stats = np.zeros((m, len(STATS)), dtype=np.int64)
+    messages: dict[int, str] = {}
+    for i in range(m):
+        sol = solve(request.ham, **request.member_kwargs(i))
+        if sol.status is Status.INTERRUPTED:
+            # solve turns Ctrl-C into a status; here it must stop the whole
+            # ensemble, not just the member that was running.
+            raise KeyboardInterrupt
+        status[i] = sol.status.code
+        if not sol.success:
+            messages[i] = sol.message
+        stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
+        if sol.t.size == 0:
+            continue
+        t_last[i] = sol.t[-1]
+        if request.t_eval is not None:
+            y[i, : sol.t.size] = sol.y
+        else:
+            # A member that stopped short of t_end keeps its last state too
+            # (t_last says when), as solve keeps the nodes computed so far.
+            y[i, 0] = sol.y[-1]
+        if sol.global_error is not None:
+            max_error[i] = float(np.max(np.abs(sol.global_error)))
+        energy0[i] = _initial_energy(request, i, sol)
+        drift[i] = float(np.max(np.abs(sol.energy - energy0[i])))
+    return ChunkResult(
+        request.start, y, t_last, status, max_error, energy0, drift, stats, messages
+    )
+
+
+def _initial_energy(request: Request, i: int, sol: Any) -> float:
+    """H at the member's initial state: the first node when that is t0 (the
+    usual case), else evaluated once (``t_eval`` need not contain t0)."""
+    t0 = request.t_span[0]
+    if sol.t[0] == t0:
+        return float(sol.energy[0])
+    energy = numeric_of(request.ham).energy(
+        np.array([t0]), request.y0[i : i + 1], request.params[i]
+    )
+    return float(np.asarray(energy).ravel()[0])
