@@ -31,6 +31,7 @@ import numpy as np
 import sympy as sp
 from scipy.optimize import brentq
 
+from hamrkq._floats import EPS
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.result import Solution, Status
@@ -40,8 +41,6 @@ from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["EventSpec", "apply", "dense_output", "event_specs", "locate", "terminal_watch"]
-
-_EPS = float(np.finfo(np.float64).eps)
 
 
 @dataclass(frozen=True)
@@ -219,7 +218,7 @@ def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]
 
         # brentq's smallest relative tolerance (4 eps); the absolute one only
         # matters for a root at t = 0.
-        roots.append(brentq(f, a, b, xtol=1e-300, rtol=4 * _EPS, maxiter=200))
+        roots.append(brentq(f, a, b, xtol=1e-300, rtol=4 * EPS, maxiter=200))
     times = np.array(roots, dtype=float)
     states = dense.values(times) if times.size else np.empty((0, y.shape[1]))
     return times, states

@@ -14,8 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
-import numpy as np
-
+from hamrkq._floats import MIN_RTOL
 from hamrkq._validate import choice, count, positive, show
 from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS
@@ -47,10 +46,8 @@ __all__ = [
     "check_setting",
 ]
 
-EPS = float(np.finfo(float).eps)
 #: Relative tolerances below this are raised to it (with a warning): below
 #: about 100 eps the local error test measures rounding, as in SciPy.
-MIN_RTOL = 100 * EPS
 #: Absolute tolerances below this are refused: no double can resolve them
 #: (a smaller atol would make every step fail until the step limit).
 MIN_ATOL = 1e-300

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._floats import EPS
 from hamrkq.analysis.comparison_runs import Comparison, Run
 from hamrkq.analysis.diagnostics import drift_summary
 from hamrkq.analysis.reference import hamiltonian_reference
@@ -297,7 +298,7 @@ def _reference(problem: Any, runs: list[Run]) -> tuple[dict[str, np.ndarray], st
     if problem.exact is not None:
         states = np.asarray(problem.exact(times), dtype=float).reshape(times.size, -1)
         scale = float(np.max(np.abs(states)))
-        description, accuracy = "exact solution", 4 * np.finfo(float).eps * scale
+        description, accuracy = "exact solution", 4 * EPS * scale
     else:
         ref = hamiltonian_reference(problem, problem.y0, times, t0=problem.t_span[0])
         states, description, accuracy = ref.y, ref.method, ref.estimated_error

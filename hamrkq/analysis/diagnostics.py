@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._floats import EPS
 from hamrkq.analysis.bounds import (
     bound_ratio,
     energy_bound,
@@ -52,7 +53,6 @@ __all__ = [
 ]
 
 REFERENCE_KINDS = ("auto", "exact", "independent", "rk8", "none")
-_EPS = float(np.finfo(float).eps)
 #: Gamma below this many ulps of the RK8 track is rounding, not truncation.
 GAMMA_ROUNDOFF_ULPS = 100
 
@@ -115,7 +115,7 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
                 f"the exact solution starts at {states[0].tolist()}, not at the run's "
                 f"initial state {sol.y[0].tolist()}; use reference='independent'"
             )
-        return states, "exact", "exact solution", 4 * _EPS * scale
+        return states, "exact", "exact solution", 4 * EPS * scale
     if kind == "independent":
         if ham is None:
             raise InputError("reference='independent' needs a problem or a Hamiltonian")
@@ -131,7 +131,7 @@ def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
     series["gamma"] = sol.gamma
     gamma_max = float(np.max(np.abs(sol.gamma)))
     track = sol.z if sol.z is not None else sol.y
-    roundoff = GAMMA_ROUNDOFF_ULPS * _EPS * float(np.max(np.abs(track)))
+    roundoff = GAMMA_ROUNDOFF_ULPS * EPS * float(np.max(np.abs(track)))
     if gamma_max < roundoff:
         notes.append(
             f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "

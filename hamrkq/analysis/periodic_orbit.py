@@ -19,11 +19,11 @@ import numpy as np
 from scipy.integrate import DOP853, solve_ivp
 from scipy.optimize import brentq
 
+from hamrkq._floats import EPS
 from hamrkq.errors import InputError, IntegrationError
 
 __all__ = ["MAX_NEWTON", "PILOT_RTOL", "RETURN_RADIUS", "Orbit", "find_return", "periodic_orbit"]
 
-_EPS = float(np.finfo(float).eps)
 
 #: The pilot runs (period search, component scales) need only a few digits.
 PILOT_RTOL = 1e-10
@@ -46,7 +46,7 @@ class Orbit:
 
     def rounding_floor(self, periods: float) -> float:
         """Random-walk rounding of the states plus its effect on the phase."""
-        walk = np.sqrt(self.steps) * _EPS
+        walk = np.sqrt(self.steps) * EPS
         scale = float(np.max(np.abs(self.dense(self.dense.ts))))
         return float(walk * scale + periods * walk * self.period * self.speed)
 
@@ -113,7 +113,7 @@ def periodic_orbit(fun, t0, y0, shift, guess, rtol, atol, steps_per_period) -> O
         correction = -float(normal @ mismatch) / float(normal @ flow)
         period += correction
         closure = float(np.max(np.abs(mismatch + correction * flow)))
-        if abs(correction) <= 8 * _EPS * period:
+        if abs(correction) <= 8 * EPS * period:
             break
     # The interpolant was built over [t0, t0 + T_previous]; the last correction
     # is a few ulp of T, so reading it at T_final is a negligible extrapolation.

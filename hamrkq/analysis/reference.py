@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from hamrkq._floats import EPS, MIN_RTOL
 from hamrkq.analysis.periodic_orbit import PILOT_RTOL, find_return, periodic_orbit
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, IntegrationError
@@ -45,10 +46,9 @@ __all__ = [
 
 Rhs = Callable[[float, np.ndarray, Any], np.ndarray]
 
-_EPS = float(np.finfo(float).eps)
 #: SciPy raises any rtol below 100 eps to this value (with a warning): the
 #: tightest relative tolerance DOP853 honours in double precision.
-TIGHTEST_RTOL = 100 * _EPS
+TIGHTEST_RTOL = MIN_RTOL
 #: Default relative tolerance of :func:`integrate_reference`.
 REFERENCE_RTOL = 1e-13
 #: Factor between the tolerance of the reference run and of the check run.
@@ -149,7 +149,7 @@ def _scales(samples: np.ndarray) -> np.ndarray:
     """
     scale = np.max(np.abs(samples), axis=0)
     top = float(scale.max())
-    return np.where(scale > 100 * _EPS * top, scale, top if top > 0 else 1.0)
+    return np.where(scale > 100 * EPS * top, scale, top if top > 0 else 1.0)
 
 
 def periodic_reference(
@@ -266,7 +266,7 @@ def periodic_reference(
         fine = periodic_orbit(fun, t0, y0, shift, coarse.period, rtol, atol, steps)
         nfev += coarse.nfev + fine.nfev
         period = fine.period
-        settled = SETTLE_FACTOR * np.sqrt(fine.steps) * _EPS * fine.period
+        settled = SETTLE_FACTOR * np.sqrt(fine.steps) * EPS * fine.period
         if abs(fine.period - coarse.period) <= settled or 2 * steps > max_steps_per_period:
             break
     if fine.closure > CLOSURE_LIMIT * float(np.max(scale)):
@@ -397,7 +397,7 @@ def integrate_reference(
         scale = atol_arr / rtol
     y, run_nfev, steps = _run(fun, t0, t_end, y0, t, rtol, atol_arr, max_step)
     nfev += run_nfev
-    floor = np.sqrt(max(steps, 1)) * _EPS * float(np.max(scale))
+    floor = np.sqrt(max(steps, 1)) * EPS * float(np.max(scale))
     if estimate_error:
         check, check_nfev, _ = _run(
             fun, t0, t_end, y0, t, CHECK_FACTOR * rtol, CHECK_FACTOR * atol_arr, max_step

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
+from hamrkq._floats import MIN_RTOL
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Solution, Status
@@ -54,9 +55,8 @@ SCIPY_METHODS: Mapping[str, type[OdeSolver]] = MappingProxyType(
 USES_JACOBIAN = frozenset({"Radau", "BDF", "LSODA", "RK34Q8"})
 #: Solvers whose ``rtol`` must be a scalar.
 SCALAR_RTOL = frozenset({"Radau", "BDF"})
-_EPS = float(np.finfo(float).eps)
 #: SciPy raises smaller relative tolerances to this, with a warning.
-SCIPY_MIN_RTOL = 100 * _EPS
+SCIPY_MIN_RTOL = MIN_RTOL
 #: Steps between calls of ``progress``.
 PROGRESS_EVERY = 1000
 

@@ -43,6 +43,7 @@ from types import MappingProxyType
 import numpy as np
 from scipy.special import ellipj, ellipk, ellipkinc
 
+from hamrkq._floats import EPS
 from hamrkq.errors import InputError, OptionError
 
 __all__ = [
@@ -244,7 +245,7 @@ def solve_kepler_equation(mean_anomaly: object, e: float) -> np.ndarray:
     hi = np.minimum(target + e, np.pi)
     E = np.clip(target + 0.85 * e, lo, hi)
     one_minus_e = 1.0 - e
-    tiny = 4.0 * np.finfo(float).eps
+    tiny = 4.0 * EPS
     for _ in range(_KEPLER_MAX_ITER):
         residual = one_minus_e * E + e * _x_minus_sin(E) - target
         # F is increasing: the sign of the residual moves one end of the bracket.

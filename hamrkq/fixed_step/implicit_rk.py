@@ -35,6 +35,8 @@ import numpy as np
 import sympy as sp
 from scipy.linalg import lapack
 
+from hamrkq._floats import EPS
+
 __all__ = [
     "GAUSS_TABLEAUS",
     "CollocationTableau",
@@ -45,7 +47,6 @@ __all__ = [
 
 Rhs = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
-EPS = float(np.finfo(float).eps)
 #: Newton has converged when every component of the increment is below
 #: NEWTON_TOL times the size of that component (of y_n or of the stages).
 NEWTON_TOL = 10.0 * EPS

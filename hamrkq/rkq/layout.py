@@ -35,7 +35,6 @@ __all__ = [
     "new_state",
 ]
 
-EPS = float(np.finfo(np.float64).eps)
 #: The smallest positive double: the step-size floor at t = 0, where 10 eps |t|
 #: would be zero and let the step shrink to nothing.
 MIN_SUBNORMAL = 5e-324

@@ -27,12 +27,12 @@ from __future__ import annotations
 
 import math
 
+from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
     CAND,
     DELTA,
-    EPS,
     ERR,
     GAM,
     GNEW,

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import DenseOutput, OdeSolver
 
+from hamrkq._floats import MIN_RTOL
 from hamrkq._validate import choice, tolerance
 from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.result import Status
@@ -56,9 +57,7 @@ from hamrkq.rkq.start import initial_step
 
 __all__ = ["RK34Q8", "HermiteDenseOutput"]
 
-EPS = float(np.finfo(float).eps)
 #: As in :func:`hamrkq.solve`: relative tolerances below 100 eps are raised.
-MIN_RTOL = 100 * EPS
 #: Step attempts per call of the kernel before control comes
 #: back to Python (a Ctrl-C is seen between calls).
 BUDGET = 1000

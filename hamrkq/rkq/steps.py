@@ -9,13 +9,13 @@ evaluations they made, and the caller counts them.
 
 from __future__ import annotations
 
+from hamrkq._floats import EPS
 from hamrkq.rkq import arith
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import (
     CAND,
     DINC,
     DY,
-    EPS,
     ERR,
     GAM,
     GAMMA_OFF,

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._floats import EPS
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import RunOutput
@@ -110,7 +111,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     if out.y.size:
         y = np.abs(out.y[-1])
         delta = np.maximum(task.atol, task.rtol * y)
-        floor = float(np.max(np.finfo(float).eps * y / delta))
+        floor = float(np.max(EPS * y / delta))
         if floor >= 0.5 * o.gamma_limit:
             return text + (
                 f" The tolerance is at double precision's floor for this state (the rounding "
