@@ -7,7 +7,8 @@ were kept, the peak would grow by kilobytes per member (every node of every
 member); chunking keeps it at the result's own few hundred bytes per member,
 twice over at the end (the collected arrays and the frozen result's copies).
 
-Run: ``python benchmarks/ensemble_memory.py > benchmarks/ensemble_memory.txt``.
+Run: ``SIZES=1000,10000,100000,1000000 WORKERS=2 python benchmarks/ensemble_memory.py
+> benchmarks/ensemble_memory.txt`` (defaults: those sizes, 1 worker).
 """
 
 from __future__ import annotations
@@ -30,10 +31,11 @@ def result_bytes(ens: hamrkq.EnsembleSolution) -> int:
 
 def main() -> None:
     problem = hamrkq.load_problem("henon_heiles")
-    sizes = [int(s) for s in os.environ.get("SIZES", "250,1000,2000").split(",")]
+    sizes = [int(s) for s in os.environ.get("SIZES", "1000,10000,100000,1000000").split(",")]
+    workers = int(os.environ.get("WORKERS", "1"))
     rng = np.random.default_rng(5)
     hamrkq.ensemble(problem, q0=[0.1, 0.1], t_span=(0, 5), workers=1)  # compile first
-    print(f"# Henon-Heiles, t in [0, 5], atol 1e-8, end states only, 1 worker; "
+    print(f"# Henon-Heiles, t in [0, 5], atol 1e-8, end states only, {workers} worker(s); "
           f"load average {os.getloadavg()[0]:.2f}")  # fmt: skip
     print(f"{'members':>8} {'result MB':>10} {'peak MB':>9} {'peak B/member':>14} "
           f"{'nodes/member':>12} {'wall s':>8}")  # fmt: skip
@@ -42,7 +44,7 @@ def main() -> None:
         tracemalloc.start()
         start = time.perf_counter()
         ens = hamrkq.ensemble(
-            problem, q0=y0[:, :2], p0=y0[:, 2:], t_span=(0, 5), workers=1, progress=False
+            problem, q0=y0[:, :2], p0=y0[:, 2:], t_span=(0, 5), workers=workers, progress=False
         )
         wall = time.perf_counter() - start
         _, peak = tracemalloc.get_traced_memory()

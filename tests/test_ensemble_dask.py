@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -49,7 +50,10 @@ def _exit_soon():
 def test_a_worker_killed_mid_run_loses_and_duplicates_nothing(client):
     pend = hamrkq.load_problem("pendulum")
     q0, p0 = _members(120)
-    local = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 3), workers=1)
+    # Long enough orbits that the batch loop still has chunks to run when the
+    # worker dies (a chunk of 4 members over t <= 100 takes tens of ms).
+    span = (0, 100)
+    local = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=span, workers=1)
     victims = []
 
     def kill_one(done, total):
@@ -70,10 +74,14 @@ def test_a_worker_killed_mid_run_loses_and_duplicates_nothing(client):
         kill_one(done, total)
 
     remote = hamrkq.ensemble(
-        pend, q0=q0, p0=p0, t_span=(0, 3), client=client, chunk_size=4, progress=progress
+        pend, q0=q0, p0=p0, t_span=span, client=client, chunk_size=4, progress=progress
     )
     assert victims, "no worker was killed"
-    assert victims[0] not in client.scheduler_info()["workers"]  # it did die
+    # It did die (the scheduler notices within moments).
+    deadline = time.monotonic() + 30
+    while victims[0] in client.scheduler_info()["workers"] and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert victims[0] not in client.scheduler_info()["workers"]
     # Every member exactly once: the collector refuses a chunk delivered twice,
     # and progress counted each member once, in 30 chunks of 4.
     assert calls[-1] == 120 and len(calls) == 30
