@@ -66,6 +66,7 @@ import json, math, time, types
 import numba
 import hamrkq
 from hamrkq.backends import codegen, compiled
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 clock = time.process_time
 out = {{"hamrkq": hamrkq.__file__}}

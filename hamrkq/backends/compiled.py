@@ -77,6 +77,8 @@ _STATS = {"compiled": 0, "loaded": 0, "compile_seconds": 0.0, "load_seconds": 0.
 _LOCK = threading.RLock()
 _SYSTEMS: dict[str, CompiledSystem] = {}
 _KERNEL: dict[str, Any] = {}
+#: Cache keys of the systems whose kernel run :func:`warm_up` has made.
+_WARM: set[str] = set()
 
 
 class BackendUnavailable(HamrkqError, RuntimeError):
@@ -401,8 +403,11 @@ def kernel_functions(ham: Hamiltonian):
 
 def warm_up(ham: Hamiltonian) -> None:
     """Compile (or load) the system and the kernel for the signatures a run
-    uses, by integrating one step of ``ham``; raises BackendUnavailable with
-    what failed."""
+    uses, by integrating one step of ``ham``, once per system and process;
+    raises BackendUnavailable with what failed."""
+    key = codegen.cache_key(ham)
+    if key in _WARM:
+        return
     from hamrkq.rkq.driver import Integration, Settings
     from hamrkq.rkq.family import get_member
     from hamrkq.rkq.layout import GAMMA_TANGENT, QUENCH_NODE, RULE_COMPONENTWISE
@@ -428,6 +433,7 @@ def warm_up(ham: Hamiltonian) -> None:
             f"numba failed to compile the RKQ kernel ({type(exc).__name__}: "
             f"{str(exc).splitlines()[0] if str(exc) else ''})"
         ) from exc
+    _WARM.add(key)
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
