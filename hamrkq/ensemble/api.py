@@ -140,13 +140,10 @@ class _Progress:
         self.progress, self.total, self.done = progress, total, 0
         self.bar = None
         if progress is None or progress is True:
-            try:
-                from tqdm.auto import tqdm
-            except ImportError:  # the bar is a nicety: tqdm is optional
-                tqdm = None
-            if tqdm is not None:
-                # disable=None: drawn only when stderr is a terminal.
-                self.bar = tqdm(total=total, unit="member", disable=None, delay=1.0)
+            from tqdm.auto import tqdm
+
+            # disable=None: drawn only when stderr is a terminal.
+            self.bar = tqdm(total=total, unit="member", disable=None, delay=1.0)
         self.started = time.monotonic()
 
     def __enter__(self) -> Callable[[int], None]:
