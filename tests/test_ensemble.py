@@ -233,9 +233,10 @@ def test_ctrl_c_inside_a_member_stops_the_whole_ensemble(monkeypatch):
 
 def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_member(monkeypatch):
     """The batch loop is what runs an RKQ ensemble on the compiled backend
-    (solve_members is never called), with the bits of solve alone; the
-    interpreted backend, a baseline method and auto with rtol > 0 (each
-    member may choose its own quencher) run member by member."""
+    (solve_members is never called), with the bits of solve alone, also for
+    method="auto" when every member's tolerance picks the same member; the
+    interpreted backend, a baseline method and auto whose members would
+    pick different members (rtol > 0) run member by member."""
     from hamrkq.ensemble import chunk
 
     real, used = chunk.solve_members, []
@@ -248,7 +249,7 @@ def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_membe
     pend = hamrkq.load_problem("pendulum")
     q0 = np.linspace(-2.5, 2.5, 7)[:, None]
     t_eval = np.linspace(0.0, 4.0, 5)
-    for method in ("rk34q8", "rk78q12", "rk34"):
+    for method in ("rk34q8", "rk78q12", "rk34", "auto"):
         ens = hamrkq.ensemble(pend, q0=q0, p0=[[0.5]], t_span=(0, 4), t_eval=t_eval,
                               method=method, workers=1)  # fmt: skip
         assert used == [] and ens.all_success
@@ -258,8 +259,16 @@ def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_membe
     for system, how in (
         (pend, {"backend": "python"}),
         (oscillator, {"method": "verlet", "step": 0.01}),
-        (pend, {"method": "auto", "rtol": 1e-9}),
     ):
         used.clear()
         hamrkq.ensemble(system, q0=q0[:2], p0=[[0.5]], t_span=(0, 0.5), workers=1, **how)
         assert sum(used) == 2, how
+    # rtol |p| = 2e-5 and 2e-6 fall on either side of auto's 1e-5 threshold:
+    # in one chunk the members cannot share the batch loop's options.
+    used.clear()
+    auto = {"method": "auto", "rtol": 1e-5, "atol": 1e-12}
+    ens = hamrkq.ensemble(pend, q0=[[2.0]], p0=[[2.0], [0.2]], t_span=(0, 0.5), workers=1,
+                          chunk_size=2, **auto)  # fmt: skip
+    assert used == [2]
+    for i in range(2):
+        _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)

@@ -12,9 +12,9 @@ slices.  It takes one of two paths, with the same numbers:
   validated options, :func:`hamrkq.solve.prepare`; the same start and step
   loop), so its numbers are the same bits.  It applies to an RKQ-family
   method on the compiled backend, with options that are the same for every
-  member (``method="auto"`` chooses its quencher substeps from the tolerance
-  at ``y0``, so with ``rtol > 0`` members may choose differently), and
-  without events or dense output.  A member that fails is run again alone
+  member (``method="auto"`` chooses its member from the tolerance at ``y0``,
+  so with ``rtol > 0`` members may choose differently: checked per member),
+  and without events or dense output.  A member that fails is run again alone
   for its message.
 - :func:`solve_members`: :func:`hamrkq.solve` once per member, for
   everything else (the baselines, the interpreted backend).
@@ -56,14 +56,12 @@ def run_batched(request: Request) -> ChunkResult | None:
     kwargs = request.member_kwargs(0)
     if kwargs.get("events") or kwargs.get("dense_output"):
         return None
-    if kwargs.get("method") == "auto" and np.any(np.asarray(kwargs.get("rtol") or 0.0) > 0):
-        return None
     prepared = prepare(request.ham, **kwargs)
     task = prepared.task
     if prepared.spec.run is not run_rk or prepared.backend != "numba" or task.stop:
         return None
-    if task.options.method == "auto" and np.any(task.rtol > 0):
-        return None  # the defaults (a problem file's rtol) made auto depend on y0
+    if not _same_options(prepared, request):
+        return None
     from hamrkq.backends import compiled, extras
 
     run = integration(task, "numba")
@@ -103,6 +101,17 @@ def run_batched(request: Request) -> ChunkResult | None:
         batch.stats,
         messages,
     )
+
+
+def _same_options(prepared, request: Request) -> bool:
+    """Whether every member resolves to the task's options: ``method="auto"``
+    chooses its member from the tightest tolerance at ``y0``, which differs
+    between members when ``rtol > 0``."""
+    if prepared.requested.method != "auto":
+        return True
+    task = prepared.task
+    tightest = np.min(np.maximum(task.atol, task.rtol * np.abs(request.y0)), axis=1)
+    return all(prepared.requested.with_auto(float(t)) == task.options for t in tightest)
 
 
 def solve_members(request: Request) -> ChunkResult:

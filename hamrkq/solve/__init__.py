@@ -237,13 +237,16 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
 class Prepared:
     """A validated call of :func:`solve`, ready to run: the :class:`Task`,
     the method's :class:`MethodSpec`, the backend chosen (and prepared:
-    ``compile_s`` seconds) and the event specifications."""
+    ``compile_s`` seconds), the event specifications and the options as
+    requested (``method="auto"`` not yet resolved: the task's options are
+    resolved for its ``y0``)."""
 
     task: Task
     spec: MethodSpec
     backend: str
     compile_s: float
     events: list
+    requested: SolveOptions
 
 
 def prepare(
@@ -294,6 +297,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         options, given["step"], atol, rtol, given["first_step"], t_eval_v, t0, t_end
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
+    requested = options
     options = options.with_auto(float(np.min(np.maximum(atol_v, rtol_v * np.abs(y0)))))
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
@@ -323,7 +327,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         )
     watch = _events.terminal_watch(event_list)
     task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch)
-    return Prepared(task, spec, chosen, compile_s, event_list)
+    return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 
 def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
