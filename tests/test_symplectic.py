@@ -528,8 +528,9 @@ def test_splitting_refuses_a_non_separable_hamiltonian(method):
     ("kwargs", "match"),
     [
         ({"method": "rk4"}, "unknown fixed-step method 'rk4'"),
-        ({"h": 0.0}, "step must be positive"),
-        ({"h": float("nan")}, "step must be finite"),
+        ({"h": 0.0}, "step must be a positive number"),
+        ({"h": float("nan")}, "step must be a positive number"),
+        ({"h": float("inf")}, "step must be a positive number"),
         ({"y0": [np.inf, 0.0]}, "y0 must be finite"),
         ({"keep_every": 0}, "keep_every must be an integer >= 1"),
         ({"max_steps": -3}, "max_steps must be a positive integer"),

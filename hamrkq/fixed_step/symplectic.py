@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._validate import positive, span
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.fixed_step.implicit_rk import (
@@ -231,16 +232,6 @@ def _splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, para
     return ys[:stored], reached, out
 
 
-def _real(value: Any, name: str) -> float:
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise InputTypeError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(out):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    return out
-
-
 def _make_mesh(t0: float, t1: float, h: float, keep_every: int, max_steps: int | None) -> Mesh:
     span = abs(t1 - t0)
     ratio = span / h
@@ -326,11 +317,8 @@ def integrate_fixed(
     if method not in FIXED_STEP_METHODS:
         known = ", ".join(repr(m) for m in FIXED_STEP_METHODS)
         raise OptionError(f"unknown fixed-step method {method!r} (known: {known})")
-    t0 = _real(t0, "t0")
-    t1 = _real(t1, "t1")
-    h = _real(h, "step")
-    if h <= 0.0:
-        raise InputError(f"step must be positive, got {h!r}")
+    t0, t1 = span((t0, t1))
+    h = positive("step", h)
     try:
         y0 = np.array(y0, dtype=float)
     except (TypeError, ValueError):
