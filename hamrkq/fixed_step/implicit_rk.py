@@ -251,6 +251,15 @@ class Mesh:
             idx = np.append(idx, reached)
         return idx
 
+    def stored_rows(self, ys: np.ndarray, stored: int, reached: int, last: np.ndarray):
+        """The rows a loop stored, ``ys[:stored]``, plus ``last`` (the state at
+        point ``reached``) when the run stopped at a point ``keep_every``
+        skips: a run that stopped early keeps its last good state."""
+        if not self.kept(reached):
+            ys[stored] = last
+            stored += 1
+        return ys[:stored]
+
     def n_kept(self, upto: int) -> int:
         """How many points a run that reaches point ``upto`` stores."""
         count = upto // self.keep_every + 1
@@ -401,8 +410,4 @@ def gauss_integrate(
     except KeyboardInterrupt:
         out.failure = "interrupted"
         out.reason = f"interrupted at t={mesh.time(reached)!r}"
-    if not mesh.kept(reached):
-        # A run that stopped early keeps its last good state whatever keep_every says.
-        ys[stored] = y
-        stored += 1
-    return ys[:stored], reached, out
+    return mesh.stored_rows(ys, stored, reached, y), reached, out

@@ -1,4 +1,4 @@
-"""Fixed-step symplectic baselines: Gauss collocation and splitting methods.
+"""Fixed-step symplectic baselines: one driver for Gauss collocation and splittings.
 
 Five methods, all symplectic and symmetric, all with a constant step h:
 
@@ -12,28 +12,18 @@ name          order  method
 ``yoshida4``  4      Yoshida's triple jump of Verlet (separable H only)
 ============  =====  ===================================================
 
-The Gauss methods work for any Hamiltonian and solve their stage equations by
-simplified Newton iterations (see :mod:`hamrkq.fixed_step.implicit_rk`).  The splitting
-methods need ``H = T(p) + V(q)``.  They call the full right-hand side
-``f = (dH/dp, -dH/dq)``: for a separable H the upper half depends on p only
-and the lower half on q only, so a *drift* (q advanced with dH/dp) may read
-the upper half of ``f`` at any q and a *kick* (p advanced with -dH/dq) the
-lower half at any p.  Each call yields one useful half; ``nfev`` counts calls.
-
-References
-----------
-L. Verlet, Phys. Rev. 159 (1967) 98-103; E. Hairer, C. Lubich & G. Wanner,
-"Geometric numerical integration illustrated by the Stormer-Verlet method",
-Acta Numerica 12 (2003) 399-450.
-H. Yoshida, "Construction of higher order symplectic integrators",
-Phys. Lett. A 150 (1990) 262-268 (also E. Forest & R. D. Ruth, Physica D 43
-(1990) 105-117).
+The methods' loops live beside this module: the Gauss methods (simplified
+Newton on the stage equations) in :mod:`hamrkq.fixed_step.implicit_rk`, the
+splittings (``H = T(p) + V(q)``) in :mod:`hamrkq.fixed_step.splitting`.  This
+module validates a request, builds the mesh, runs the method's loop and packs
+a :class:`FixedStepResult` (:func:`integrate_fixed`) or a
+:class:`~hamrkq.result.Solution` (:func:`solve_fixed`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -48,10 +38,11 @@ from hamrkq.fixed_step.implicit_rk import (
     MAX_NEWTON_ITER,
     NEWTON_FLOOR,
     NEWTON_TOL,
-    LoopOutcome,
     Mesh,
+    Rhs,
     gauss_integrate,
 )
+from hamrkq.fixed_step.splitting import SPLITTING_SCHEMES, SplittingScheme, splitting_integrate
 from hamrkq.result import Solution, Status
 
 __all__ = [
@@ -63,70 +54,11 @@ __all__ = [
     "solve_fixed",
 ]
 
-Rhs = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-
 #: When (t1 - t0) / h is within this relative distance of an integer N, the mesh
 #: has N steps (the last one equal to h up to rounding) rather than N + 1 steps
 #: with a last step of length ~0.
 MESH_SLACK = 1e-9
 
-
-@dataclass(frozen=True)
-class SplittingScheme:
-    """A symmetric kick-drift composition for separable H, as data.
-
-    One step of length h is ``K(k_0 h) D(d_0 h) K(k_1 h) ... D(d_{m-1} h) K(k_m h)``
-    where K kicks p with -dV/dq and D drifts q with dT/dp.
-
-    Attributes
-    ----------
-    name : str
-        Method name.
-    order : int
-        Classical order.
-    kicks : tuple of float
-        m + 1 kick coefficients (sum 1).
-    drifts : tuple of float
-        m drift coefficients (sum 1).
-    reference : str
-        Where the scheme is published.
-    """
-
-    name: str
-    order: int
-    kicks: tuple[float, ...]
-    drifts: tuple[float, ...]
-    reference: str
-
-
-def _yoshida4() -> SplittingScheme:
-    # Triple jump: Verlet(w1 h) Verlet(w0 h) Verlet(w1 h) with 2 w1 + w0 = 1 and
-    # 2 w1^3 + w0^3 = 0, so the h^3 error terms cancel (Yoshida 1990, eq. 5.19).
-    cbrt2 = 2.0 ** (1.0 / 3.0)
-    w1 = 1.0 / (2.0 - cbrt2)
-    w0 = -cbrt2 / (2.0 - cbrt2)
-    return SplittingScheme(
-        name="yoshida4",
-        order=4,
-        kicks=(w1 / 2, (w1 + w0) / 2, (w0 + w1) / 2, w1 / 2),
-        drifts=(w1, w0, w1),
-        reference="Yoshida, Phys. Lett. A 150 (1990) 262-268; Forest & Ruth, Physica D 43 (1990)",
-    )
-
-
-#: The splitting methods by name.
-SPLITTING_SCHEMES: Mapping[str, SplittingScheme] = MappingProxyType(
-    {
-        "verlet": SplittingScheme(
-            name="verlet",
-            order=2,
-            kicks=(0.5, 0.5),
-            drifts=(1.0,),
-            reference="Verlet, Phys. Rev. 159 (1967); Hairer, Lubich & Wanner, Acta Numer. 2003",
-        ),
-        "yoshida4": _yoshida4(),
-    }
-)
 
 #: Every fixed-step method, name -> classical order.
 FIXED_STEP_METHODS: Mapping[str, int] = MappingProxyType(
@@ -180,56 +112,6 @@ class FixedStepResult:
             "njev": self.njev,
             "newton_iterations": self.newton_iterations,
         }
-
-
-def _splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, params):
-    """The splitting loop; same contract as ``gauss_integrate``."""
-    dim = y0.size
-    n = dim // 2
-    out = LoopOutcome()
-    ys = np.empty((mesh.n_kept(mesh.stop), dim))
-    y = np.array(y0, dtype=float)
-    q, p = y[:n], y[n:]  # views: rhs(t, y) always sees the current (q, p)
-    last = y.copy()  # the state at mesh point `reached`, kept for early stops
-    ys[0] = y
-    stored = 1
-    kicks, drifts = scheme.kicks, scheme.drifts
-    nsub = len(drifts)
-    reached = 0
-    try:
-        force = rhs(mesh.t0, y, params)[n:]
-        out.nfev = 1
-        for i in range(mesh.stop):
-            t = mesh.time(i)
-            h = mesh.step_length(i)
-            tau = t
-            for j in range(nsub):
-                p += (kicks[j] * h) * force
-                dh = drifts[j] * h
-                # Drift velocity at the middle of the drift's time interval (second
-                # order also when T depends on t); the next force at its end.
-                q += dh * rhs(tau + 0.5 * dh, y, params)[:n]
-                tau = tau + dh if j + 1 < nsub else t + h
-                force = rhs(tau, y, params)[n:]
-            p += (kicks[nsub] * h) * force
-            out.nfev += 2 * nsub
-            if not np.isfinite(y).all():
-                out.failure = "non_finite"
-                out.reason = f"the state became non-finite at t={mesh.time(i + 1)!r}"
-                break
-            last[:] = y
-            reached = i + 1
-            if mesh.kept(reached):
-                ys[stored] = y
-                stored += 1
-    except KeyboardInterrupt:
-        out.failure = "interrupted"
-        out.reason = f"interrupted at t={mesh.time(reached)!r}"
-    if not mesh.kept(reached):
-        # A run that stopped early keeps its last good state whatever keep_every says.
-        ys[stored] = last
-        stored += 1
-    return ys[:stored], reached, out
 
 
 def _make_mesh(t0: float, t1: float, h: float, keep_every: int, max_steps: int | None) -> Mesh:
@@ -343,7 +225,7 @@ def integrate_fixed(
     if method in SPLITTING_SCHEMES:
         if y0.size % 2:
             raise InputError(f"{method} needs a state (q, p) of even length, got {y0.size}")
-        ys, reached, out = _splitting_integrate(SPLITTING_SCHEMES[method], rhs, y0, mesh, params)
+        ys, reached, out = splitting_integrate(SPLITTING_SCHEMES[method], rhs, y0, mesh, params)
     else:
         if jac is None:
             raise InputError(f"{method} is implicit and needs jac, got None")
