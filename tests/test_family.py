@@ -157,3 +157,57 @@ def test_scipy_solver_without_jac_warns_that_gamma_is_off():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         solve_ivp(f, (0, 1), [0.0, 1.0], method=hamrkq.RK34Q8, global_error_estimate="off")
+
+
+def test_auto_rerun_rule_grows_the_quenchers_steps_only_for_its_truncation_error():
+    from hamrkq.rkq.family import AUTO_MAX_SUBSTEPS, auto_retry_substeps
+
+    # prentice2011 to t = 40 000 at 1e-6: 3 steps reach the limit at t = 5687;
+    # 3 (2 x 49.5)^(1/12) = 4.4, so 5 steps.
+    assert auto_retry_substeps(3, 12, 0.05, 0.05, 5687.35 / 40000) == 5
+    # nearly at the end: still at least one more step
+    assert auto_retry_substeps(3, 12, 0.05, 0.05, 0.999) == 4
+    # the estimate is far below the limit: rounding stopped the run
+    assert auto_retry_substeps(3, 12, 0.01, 0.05, 0.5) is None
+    assert auto_retry_substeps(AUTO_MAX_SUBSTEPS, 12, 0.05, 0.05, 0.5) is None
+    assert auto_retry_substeps(3, 12, 1e9, 0.05, 1e-6) == AUTO_MAX_SUBSTEPS
+
+
+def test_auto_runs_again_with_more_quencher_steps_when_the_first_run_cannot_reach_the_end():
+    prentice = hamrkq.load_problem("prentice2011")
+    tight = {"atol": 1e-6, "rtol": 0.0, "gamma_limit": 3e-4}
+    sol = hamrkq.solve(prentice, t_span=(0, 1000), method="auto", **tight)
+    assert sol.status is hamrkq.Status.SUCCESS
+    assert sol.options["z_substeps"] == 4  # auto's rule says 3 at 1e-6
+    assert "a first run with fewer quencher steps stopped at t = 473.07" in sol.message
+    again = hamrkq.solve(prentice, t_span=(0, 1000), method="rk78q12", z_substeps=4, **tight)
+    np.testing.assert_array_equal(sol.y, again.y)
+    assert sol.stats["nfev"] == again.stats["nfev"]  # the discarded run is not counted
+    # a z_substeps the caller chose is kept, and the run stops as asked
+    fixed = hamrkq.solve(prentice, t_span=(0, 1000), method="auto", z_substeps=3, **tight)
+    assert fixed.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    # in an ensemble, a member auto reruns is the same as solve alone
+    ens = hamrkq.ensemble(prentice, q0=prentice.y0[None, :1], p0=[[0.0], [0.01]],
+                          t_span=(0, 1000), method="auto", workers=1, **tight)  # fmt: skip
+    for i in range(2):
+        alone = hamrkq.solve(prentice, q0=ens.y0[i, :1], p0=ens.y0[i, 1:], t_span=(0, 1000),
+                             method="auto", **tight)  # fmt: skip
+        assert ens.member_status(i) is alone.status is hamrkq.Status.SUCCESS
+        np.testing.assert_array_equal(ens.y[i, 0], alone.y[-1])
+        assert ens.stats["nfev"][i] == alone.stats["nfev"]
+
+
+@pytest.mark.slow
+def test_prentice2011_to_t_40000_at_1e_6_succeeds_within_the_tolerance_at_every_node():
+    from hamrkq.analysis.reference import periodic_reference
+    from hamrkq.backends.numeric import numeric_of
+
+    prentice = hamrkq.load_problem("prentice2011")
+    sol = hamrkq.solve(prentice, t_span=(0, 40000), method="auto", atol=1e-6, rtol=0.0)
+    assert sol.status is hamrkq.Status.SUCCESS and sol.t[-1] == 40000.0
+    ref = periodic_reference(
+        numeric_of(prentice.hamiltonian).rhs, prentice.y0, sol.t, prentice.parameter_array
+    )
+    assert ref.estimated_error < 1e-3 * 1e-6  # measured 7.3e-10
+    # measured 1.0145e-6 (z_substeps = 5 after a first run to t = 5687)
+    assert np.abs(sol.y - ref.y).max() <= 1.05e-6

@@ -86,11 +86,7 @@ def run_batched(request: Request) -> ChunkResult | None:
     kernel = extras.compiled_helper(run_members, _KINDS, *args)
     with np.errstate(all="ignore"):
         kernel(*args)
-    messages = {
-        i: solve(request.ham, **request.member_kwargs(i)).message
-        for i in np.flatnonzero(batch.status != Status.SUCCESS.code).tolist()
-    }
-    return ChunkResult(
+    result = ChunkResult(
         request.start,
         batch.y,
         batch.t_last,
@@ -99,8 +95,14 @@ def run_batched(request: Request) -> ChunkResult | None:
         batch.energy0,
         batch.energy_drift,
         batch.stats,
-        messages,
+        {},
     )
+    # A member that failed is solved alone: for its message, and because
+    # method="auto" may run it again with more quencher steps, which the batch
+    # loop does not (solve alone is the definition of a member's result).
+    for i in np.flatnonzero(batch.status != Status.SUCCESS.code).tolist():
+        _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
+    return result
 
 
 def _same_options(prepared, request: Request) -> bool:
@@ -121,41 +123,49 @@ def solve_members(request: Request) -> ChunkResult:
     options, so that it equals the same member solved alone, bit for bit.
     """
     m, dim = request.size, request.ham.dim
-    times = request.times
-    y = np.full((m, times.size, dim), np.nan)
-    t_last = np.full(m, np.nan)
-    status = np.zeros(m, dtype=np.int8)
-    max_error = np.full(m, np.nan)
-    energy0 = np.full(m, np.nan)
-    drift = np.full(m, np.nan)
-    stats = np.zeros((m, len(STATS)), dtype=np.int64)
-    messages: dict[int, str] = {}
-    for i in range(m):
-        sol = solve(request.ham, **request.member_kwargs(i))
-        if sol.status is Status.INTERRUPTED:
-            # solve turns Ctrl-C into a status; here it must stop the whole
-            # ensemble, not just the member that was running.
-            raise KeyboardInterrupt
-        status[i] = sol.status.code
-        if not sol.success:
-            messages[i] = sol.message
-        stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
-        if sol.t.size == 0:
-            continue
-        t_last[i] = sol.t[-1]
-        if request.t_eval is not None:
-            y[i, : sol.t.size] = sol.y
-        else:
-            # A member that stopped short of t_end keeps its last state too
-            # (t_last says when), as solve keeps the nodes computed so far.
-            y[i, 0] = sol.y[-1]
-        if sol.global_error is not None:
-            max_error[i] = float(np.max(np.abs(sol.global_error)))
-        energy0[i] = _initial_energy(request, i, sol)
-        drift[i] = float(np.max(np.abs(sol.energy - energy0[i])))
-    return ChunkResult(
-        request.start, y, t_last, status, max_error, energy0, drift, stats, messages
+    result = ChunkResult(
+        request.start,
+        np.full((m, request.times.size, dim), np.nan),
+        np.full(m, np.nan),
+        np.zeros(m, dtype=np.int8),
+        np.full(m, np.nan),
+        np.full(m, np.nan),
+        np.full(m, np.nan),
+        np.zeros((m, len(STATS)), dtype=np.int64),
+        {},
     )
+    for i in range(m):
+        _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
+    return result
+
+
+def _store(result: ChunkResult, request: Request, i: int, sol: Any) -> None:
+    """Member ``i``'s row of ``result`` from its Solution (``solve`` alone)."""
+    if sol.status is Status.INTERRUPTED:
+        # solve turns Ctrl-C into a status; here it must stop the whole
+        # ensemble, not just the member that was running.
+        raise KeyboardInterrupt
+    result.status[i] = sol.status.code
+    result.messages.pop(i, None)
+    if not sol.success:
+        result.messages[i] = sol.message
+    result.stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
+    result.y[i] = np.nan
+    result.t_last[i] = result.max_global_error[i] = np.nan
+    result.energy0[i] = result.energy_drift[i] = np.nan
+    if sol.t.size == 0:
+        return
+    result.t_last[i] = sol.t[-1]
+    if request.t_eval is not None:
+        result.y[i, : sol.t.size] = sol.y
+    else:
+        # A member that stopped short of t_end keeps its last state too
+        # (t_last says when), as solve keeps the nodes computed so far.
+        result.y[i, 0] = sol.y[-1]
+    if sol.global_error is not None:
+        result.max_global_error[i] = float(np.max(np.abs(sol.global_error)))
+    result.energy0[i] = _initial_energy(request, i, sol)
+    result.energy_drift[i] = float(np.max(np.abs(sol.energy - result.energy0[i])))
 
 
 def _initial_energy(request: Request, i: int, sol: Any) -> float:

@@ -9,6 +9,7 @@ the same steps (``z_substeps`` quencher steps per step of the pair).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
@@ -25,7 +26,7 @@ from hamrkq.methods.tableaus import (
 )
 from hamrkq.rkq.layout import Tableaus
 
-__all__ = ["MEMBERS", "Member", "auto_member", "get_member", "merge_pair"]
+__all__ = ["MEMBERS", "Member", "auto_member", "auto_retry_substeps", "get_member", "merge_pair"]
 
 
 def _read_only(values) -> np.ndarray:
@@ -275,3 +276,51 @@ def auto_member(tightest_tolerance: float) -> tuple[str, int]:
         if tightest_tolerance > above:
             return AUTO_MEMBER, substeps
     return AUTO_MEMBER, AUTO_SUBSTEPS[-1][1]
+
+
+#: The most quencher steps per step ``method="auto"`` tries.
+AUTO_MAX_SUBSTEPS = 12
+
+
+def auto_retry_substeps(
+    substeps: int, z_order: int, gamma_ratio: float, gamma_limit: float, reached: float
+) -> int | None:
+    """Quencher steps per step for ``method="auto"``'s second run, or None.
+
+    A run that stopped because the quencher's estimated error (not its
+    rounding) reached ``gamma_limit`` of the tolerance, at the fraction
+    ``reached`` of the interval, is run again with more quencher steps.  The
+    rule by tolerance (:data:`AUTO_SUBSTEPS`) is set for prentice2011 over
+    [0, 4000]; a longer interval needs a more accurate quencher.  The
+    quencher's error falls like ``m^-z``; on a periodic orbit its phase error
+    grows like ``t^2``, so to reach the end with half the limit to spare the
+    error must fall by ``r = 2 (gamma_ratio / gamma_limit) / reached^2`` and
+    ``m`` grows to ``ceil(m r^(1/z))``, at least by one.
+
+    Parameters
+    ----------
+    substeps : int
+        Quencher steps per step of the run that stopped.
+    z_order : int
+        Order of the quencher.
+    gamma_ratio : float
+        ``max |Gamma| / delta`` at the last node kept.
+    gamma_limit : float
+        The run's ``gamma_limit``.
+    reached : float
+        ``(t_last - t0) / (t_end - t0)``, in (0, 1).
+
+    Returns
+    -------
+    int or None
+        None when the stop was not the quencher's truncation error (its
+        estimate is below half the limit: rounding stopped it, and more
+        quencher steps do not help) or when ``AUTO_MAX_SUBSTEPS`` is reached.
+    """
+    if not (0.0 < reached < 1.0) or not gamma_ratio >= 0.5 * gamma_limit:
+        return None
+    if substeps >= AUTO_MAX_SUBSTEPS:
+        return None
+    needed = 2.0 * (gamma_ratio / gamma_limit) / reached**2
+    grown = math.ceil(substeps * needed ** (1.0 / z_order) - 1e-9)
+    return min(AUTO_MAX_SUBSTEPS, max(substeps + 1, grown))

@@ -26,7 +26,7 @@ from __future__ import annotations
 import inspect
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -48,7 +48,8 @@ from hamrkq.options import (
     Z_METHOD_NAMES,
     SolveOptions,
 )
-from hamrkq.result import Solution
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.family import auto_retry_substeps
 from hamrkq.solve import arguments, outcome
 from hamrkq.solve.dispatch import METHODS, MethodSpec, Task, member_of, resolve_backend, run_rk
 
@@ -219,6 +220,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         started = time.perf_counter()
         try:
             out = spec.run(task, chosen)
+            first = out
+            rerun = _auto_rerun(prepared.requested, task, out)
+            if rerun is not None:
+                task = rerun
+                out = spec.run(task, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
                 task.progress.close()  # its own bar (not a caller's): leave it on its own line
@@ -228,9 +234,34 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         out.stats.setdefault("integrate_s", elapsed)
         out.stats["compile_s"] = prepared.compile_s
         sol = outcome.solution(task, spec, out, chosen)
+        if out is not first:
+            sol = sol.replace(message=sol.message + outcome.rerun_note(task, first))
         if dense_output or prepared.events:
             sol = _with_events(task, sol, chosen, prepared.events, dense_output)
         return sol
+
+
+def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
+    """``method="auto"``'s second run, with more quencher steps per step, when
+    the first stopped on the quencher's truncation error before ``t_end``
+    (:func:`hamrkq.rkq.family.auto_retry_substeps`); None otherwise."""
+    if requested.method != "auto" or requested.z_substeps is not None:
+        return None
+    if isinstance(out, Solution) or out.status != Status.TOLERANCE_UNATTAINABLE.code:
+        return None
+    if out.gamma is None or out.y.shape[0] == 0:
+        return None
+    member = member_of(task)
+    y = np.abs(out.y[-1])
+    delta = np.maximum(task.atol, task.rtol * y)
+    ratio = float(np.max(np.abs(out.gamma[-1]) / delta))
+    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
+    substeps = auto_retry_substeps(
+        member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
+    )
+    if substeps is None:
+        return None
+    return replace(task, options=replace(task.options, z_substeps=substeps))
 
 
 @dataclass(frozen=True)

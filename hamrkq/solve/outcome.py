@@ -169,3 +169,15 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
             "measures rounding, not truncation."
         )
     return text
+
+
+def rerun_note(task: Task, first: RunOutput) -> str:
+    """What ``method="auto"``'s discarded first run did, for the message."""
+    m = task.options.z_substeps
+    return (
+        f" method='auto' ran {task.options.method} with z_substeps={m}: a first run with "
+        f"fewer quencher steps stopped at t = {first.t_last!r}, where the quencher's "
+        f"estimated error reached {first.max_ratio:.3g} x the tolerance "
+        f"({first.stats.get('nfev', 0) + first.stats.get('njev', 0)} evaluations, not "
+        "counted in stats)."
+    )
