@@ -182,7 +182,10 @@ def test_auto_runs_again_with_more_quencher_steps_when_the_first_run_cannot_reac
     assert "a first run with fewer quencher steps stopped at t = 473.07" in sol.message
     again = hamrkq.solve(prentice, t_span=(0, 1000), method="rk78q12", z_substeps=4, **tight)
     np.testing.assert_array_equal(sol.y, again.y)
-    assert sol.stats["nfev"] == again.stats["nfev"]  # the discarded run is not counted
+    assert sol.stats["nfev"] == again.stats["nfev"]  # the discarded run is apart:
+    assert sol.stats["discarded_evaluations"] > 0
+    assert str(sol.stats["discarded_evaluations"]) in sol.message
+    assert "discarded_evaluations" not in again.stats
     # a z_substeps the caller chose is kept, and the run stops as asked
     fixed = hamrkq.solve(prentice, t_span=(0, 1000), method="auto", z_substeps=3, **tight)
     assert fixed.status is hamrkq.Status.TOLERANCE_UNATTAINABLE

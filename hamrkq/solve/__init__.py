@@ -233,6 +233,9 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             return out
         out.stats.setdefault("integrate_s", elapsed)
         out.stats["compile_s"] = prepared.compile_s
+        if out is not first:
+            discarded = first.stats.get("nfev", 0) + first.stats.get("njev", 0)
+            out.stats["discarded_evaluations"] = discarded
         sol = outcome.solution(task, spec, out, chosen)
         if out is not first:
             sol = sol.replace(message=sol.message + outcome.rerun_note(task, first))

@@ -178,6 +178,6 @@ def rerun_note(task: Task, first: RunOutput) -> str:
         f" method='auto' ran {task.options.method} with z_substeps={m}: a first run with "
         f"fewer quencher steps stopped at t = {first.t_last!r}, where the quencher's "
         f"estimated error reached {first.max_ratio:.3g} x the tolerance "
-        f"({first.stats.get('nfev', 0) + first.stats.get('njev', 0)} evaluations, not "
-        "counted in stats)."
+        f"({first.stats.get('nfev', 0) + first.stats.get('njev', 0)} evaluations: "
+        "stats['discarded_evaluations'], not in nfev/njev)."
     )

@@ -1,0 +1,58 @@
+"""Reference solutions in extended precision, for the benchmarks.
+
+heyoka (the optional ``bench`` extra) integrates Hamilton's equations,
+converted from hamrkq's own SymPy right-hand side with ``heyoka.from_sympy``,
+by its Taylor method in x86 extended precision (``numpy.longdouble``: a
+64-bit mantissa, eps = 1.1e-19) at a tolerance of 1e-19.  Against double
+precision that reference is exact to well below 1e-12 over the intervals the
+benchmarks use: ``error_bound`` compares it with the same run at 1e-17, and
+double precision's own floor (for prentice2011 over [0, 4000] about 5e-11,
+measured by ``benchmarks/family.py``) is what it exposes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def available() -> bool:
+    """Whether heyoka is installed and numpy's longdouble is wider than double."""
+    try:
+        import heyoka  # noqa: F401
+    except ImportError:
+        return False
+    return np.finfo(np.longdouble).eps < 1e-18
+
+
+def reference(problem, t_nodes, tol: float = 1e-19) -> np.ndarray:
+    """States of ``problem`` (its y0 and parameters, as doubles) at
+    ``t_nodes`` (increasing, starting at or after t0 = 0), rounded to double."""
+    import heyoka as hy
+    import sympy as sp
+
+    ham = problem.hamiltonian
+    values = dict(zip(ham.parameters, problem.parameter_array, strict=True))
+    state = list(ham.state)
+    rhs = [sp.sympify(e).subs(values) for e in ham.rhs]
+    symbols = {s: hy.expression(str(s)) for s in state}
+    # heyoka takes only dyadic rationals; others (1/6) become constants in
+    # extended precision, through placeholders.
+    for rational in set().union(*(e.atoms(sp.Rational) for e in rhs)):
+        if rational.q & (rational.q - 1):
+            placeholder = sp.Dummy()
+            value = np.longdouble(rational.p) / np.longdouble(rational.q)
+            symbols[placeholder] = hy.expression(value)
+            rhs = [e.xreplace({rational: placeholder}) for e in rhs]
+    heyoka_vars = [symbols[s] for s in state]
+    equations = [(v, hy.from_sympy(e, symbols)) for v, e in zip(heyoka_vars, rhs, strict=True)]
+    y0 = np.array(problem.y0, dtype=np.longdouble)
+    ta = hy.taylor_adaptive(equations, y0, fp_type=np.longdouble, tol=np.longdouble(tol))
+    grid = np.asarray(t_nodes, dtype=np.longdouble)
+    out = ta.propagate_grid(grid)
+    return np.asarray(out[-1], dtype=np.float64)
+
+
+def error_bound(problem, t_nodes) -> float:
+    """max |reference at 1e-19 - reference at 1e-17|: a bound on the
+    reference's own error (the tighter run is far more accurate still)."""
+    return float(np.abs(reference(problem, t_nodes) - reference(problem, t_nodes, 1e-17)).max())
