@@ -48,8 +48,9 @@ def reference(problem, t_nodes, tol: float = 1e-19) -> np.ndarray:
     y0 = np.array(problem.y0, dtype=np.longdouble)
     ta = hy.taylor_adaptive(equations, y0, fp_type=np.longdouble, tol=np.longdouble(tol))
     grid = np.asarray(t_nodes, dtype=np.longdouble)
-    out = ta.propagate_grid(grid)
-    return np.asarray(out[-1], dtype=np.float64)
+    start = 0 if grid[0] == 0 else 1  # propagate_grid starts at the current time
+    out = ta.propagate_grid(np.concatenate([np.zeros(start, np.longdouble), grid]))
+    return np.asarray(out[-1][start:], dtype=np.float64)
 
 
 def error_bound(problem, t_nodes) -> float:
