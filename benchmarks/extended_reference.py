@@ -3,14 +3,17 @@
 heyoka (the optional ``bench`` extra) integrates Hamilton's equations,
 converted from hamrkq's own SymPy right-hand side with ``heyoka.from_sympy``,
 by its Taylor method in x86 extended precision (``numpy.longdouble``: a
-64-bit mantissa, eps = 1.1e-19) at a tolerance of 1e-19.  Against double
-precision that reference is exact to well below 1e-12 over the intervals the
-benchmarks use: ``error_bound`` compares it with the same run at 1e-17, and
-double precision's own floor (for prentice2011 over [0, 4000] about 5e-11,
-measured by ``benchmarks/family.py``) is what it exposes.
+64-bit mantissa, eps = 1.1e-19) at a tolerance of 1e-19.  ``error_bound`` compares it with the
+same run at 1e-17; run this file (``python benchmarks/extended_reference.py``,
+about a minute) to write those bounds for the benchmarks' problems and
+intervals to ``extended_reference.txt``.  They are far below the quenchers'
+rounding floor in double that the reference exposes (the "quencher error"
+column of ``family.md``: 5e-12 to 2e-10 on prentice2011 over [0, 4000]).
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -57,3 +60,23 @@ def error_bound(problem, t_nodes) -> float:
     """max |reference at 1e-19 - reference at 1e-17|: a bound on the
     reference's own error (the tighter run is far more accurate still)."""
     return float(np.abs(reference(problem, t_nodes) - reference(problem, t_nodes, 1e-17)).max())
+
+
+def main() -> None:
+    import hamrkq
+
+    cases = [
+        ("kepler e=0.6, 10 orbits", hamrkq.load_problem("kepler", e=0.6), 20 * np.pi),
+        ("prentice2011, t <= 4000", hamrkq.load_problem("prentice2011"), 4000.0),
+        ("outer_solar_system, 500 000 days", hamrkq.load_problem("outer_solar_system"), 5e5),
+    ]
+    lines = ["max |reference at tol 1e-19 - at tol 1e-17| on 201 equally spaced times:"]
+    for label, problem, t_end in cases:
+        lines.append(f"{label}: {error_bound(problem, np.linspace(0.0, t_end, 201)):.1e}")
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    (Path(__file__).resolve().parent / "extended_reference.txt").write_text(text)
+
+
+if __name__ == "__main__":
+    main()

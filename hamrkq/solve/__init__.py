@@ -255,9 +255,7 @@ def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if out.gamma is None or out.y.shape[0] == 0:
         return None
     member = member_of(task)
-    y = np.abs(out.y[-1])
-    delta = np.maximum(task.atol, task.rtol * y)
-    ratio = float(np.max(np.abs(out.gamma[-1]) / delta))
+    ratio = float(np.max(np.abs(out.gamma[-1]) / outcome.tolerance_at(task, out.y[-1])))
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = auto_retry_substeps(
         member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached

@@ -100,6 +100,11 @@ def _component(task: Task, index: int) -> str:
     return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
 
 
+def tolerance_at(task: Task, y: np.ndarray) -> np.ndarray:
+    """The per-component tolerance ``max(atol, rtol |y|)`` at the state ``y``."""
+    return np.maximum(task.atol, task.rtol * np.abs(y))
+
+
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     t = out.t_last
@@ -110,8 +115,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     )
     if out.y.size:
         y = np.abs(out.y[-1])
-        delta = np.maximum(task.atol, task.rtol * y)
-        floor = float(np.max(EPS * y / delta))
+        floor = float(np.max(EPS * y / tolerance_at(task, y)))
         if floor >= 0.5 * o.gamma_limit:
             return text + (
                 f" The tolerance is at double precision's floor for this state (the rounding "
