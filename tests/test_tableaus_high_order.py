@@ -23,6 +23,7 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 import pytest
+import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.methods import registry
@@ -612,3 +613,47 @@ def test_kernel_arrays_feed_one_compiled_step_for_every_tableau():
             np.testing.assert_allclose(err, y1 - low, rtol=0, atol=4 * np.finfo(float).eps)
             assert abs(err[0]) > 1e-12
     assert len(step.signatures) == 1
+
+
+# ------------------------------------------------------- double-double quenchers
+
+QUENCHERS_DD = [DOP853_RK8, COOPER_VERNER_RK8, VERNER_98, FEAGIN_10, FEAGIN_12]
+
+
+@pytest.mark.parametrize("tableau", QUENCHERS_DD, ids=[t.name for t in QUENCHERS_DD])
+def test_low_words_make_the_coefficients_double_doubles(tableau):
+    # A + A_low (and b + b_low), added exactly, is the published coefficient
+    # to about 2^-106 of its size, where A alone is off by up to 2^-53.
+    ctx = mpmath.MPContext()
+    ctx.dps = 80
+    pairs = [
+        ([a for row in tableau.A_exact for a in row], tableau.A.ravel(), tableau.A_low.ravel()),
+        (tableau.b_exact, tableau.b, tableau.b_low),
+    ]
+    for exact, high, low in pairs:
+        for value, hi, lo in zip(exact, high, low, strict=True):
+            v = ctx.mpf(str(sp.N(value, 70))) if isinstance(value, sp.Expr) else _mp(value, ctx)
+            assert abs(lo) <= 2.0**-53 * abs(hi)
+            assert abs(ctx.mpf(hi) + ctx.mpf(lo) - v) <= 2.0**-104 * abs(v)
+    assert not tableau.A_low.flags.writeable and not tableau.b_low.flags.writeable
+
+
+@pytest.mark.parametrize("tableau", QUENCHERS_DD, ids=[t.name for t in QUENCHERS_DD])
+def test_double_double_coefficients_satisfy_the_low_order_conditions(tableau):
+    # The float64 coefficients, taken exactly, miss the conditions of orders
+    # 1 to 4 by up to about 1e-17 (the systematic defect that made the
+    # quencher's error grow like t^2); with the low words by less than 1e-28.
+    ar = oc.mpmath_arithmetic(60)
+    ctx_mpf = ar.one.context.mpf
+
+    def rounded(low: bool):
+        s = tableau.stages
+        A_low = tableau.A_low if low else np.zeros_like(tableau.A)
+        b_low = tableau.b_low if low else np.zeros_like(tableau.b)
+        A = [[ctx_mpf(tableau.A[i, j]) + ctx_mpf(A_low[i, j]) for j in range(s)] for i in range(s)]
+        b = [ctx_mpf(tableau.b[i]) + ctx_mpf(b_low[i]) for i in range(s)]
+        return max(abs(r) for _, r in oc.residuals(A, b, 4, ar.one))
+
+    plain, double_double = rounded(False), rounded(True)
+    assert 1e-19 < plain < 1e-15
+    assert double_double < 1e-28

@@ -60,8 +60,19 @@ def _to_float(value: Coefficient) -> float:
     return float(sp.N(value, 40))
 
 
-def _read_only(values: Sequence) -> np.ndarray:
-    array = np.ascontiguousarray([_to_float(v) for v in values], dtype=np.float64)
+def _low_word(value: Coefficient) -> float:
+    """``value - float(value)`` rounded to float64: what the nearest double
+    leaves out.  With it a coefficient is a double-double, good to about 32
+    digits (as far as the published digits go)."""
+    high = _to_float(value)
+    if isinstance(value, (Fraction, Decimal, int)):
+        return float(Fraction(value) - Fraction(high))
+    exact_high = Fraction(high)
+    return float(sp.N(_sym(value) - sp.Rational(exact_high.numerator, exact_high.denominator), 40))
+
+
+def _read_only(values: Sequence, convert=_to_float) -> np.ndarray:
+    array = np.ascontiguousarray([convert(v) for v in values], dtype=np.float64)
     array.setflags(write=False)
     return array
 
@@ -125,6 +136,15 @@ class ButcherTableau:
         ``c_exact`` rounded to float64.
     b_embedded : ndarray, shape (s,), float64, read-only, or None
         ``b_embedded_exact`` rounded to float64 (``None`` without one).
+    A_low, b_low : ndarray, float64, C-contiguous, read-only
+        What rounding to float64 left out of ``A`` and ``b``
+        (``A_exact - A``, rounded): ``A + A_low`` is the coefficient as a
+        double-double.  The quencher's stage sums and weights use both words,
+        because the rounded coefficients satisfy the order conditions only
+        to about 1e-17, and that defect is systematic: on a periodic orbit
+        it makes the energy drift and the phase error grow like t^2
+        (Feagin 12 on prentice2011 over [0, 2000]: 1.1e-11 with float64
+        coefficients, 7e-13 with both words, ``docs/algorithm.md``).
     b_error : ndarray, shape (s,), float64, read-only, or None
         ``b - b_embedded`` computed exactly, then rounded once: the weights of
         the local error estimate (more accurate than subtracting the floats).
@@ -158,6 +178,8 @@ class ButcherTableau:
     fsal: bool = False
     A: np.ndarray = field(init=False, repr=False, compare=False)
     b: np.ndarray = field(init=False, repr=False, compare=False)
+    A_low: np.ndarray = field(init=False, repr=False, compare=False)
+    b_low: np.ndarray = field(init=False, repr=False, compare=False)
     c: np.ndarray = field(init=False, repr=False, compare=False)
     b_embedded: np.ndarray | None = field(init=False, repr=False, compare=False)
     b_error: np.ndarray | None = field(init=False, repr=False, compare=False)
@@ -190,6 +212,12 @@ class ButcherTableau:
         # Frozen dataclass: derived fields are set once, here, and never again.
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "b", _read_only(self.b_exact))
+        A_low = np.ascontiguousarray(
+            [[_low_word(a) for a in row] for row in self.A_exact], dtype=np.float64
+        )
+        A_low.setflags(write=False)
+        object.__setattr__(self, "A_low", A_low)
+        object.__setattr__(self, "b_low", _read_only(self.b_exact, _low_word))
         object.__setattr__(self, "c", _read_only(self.c_exact))
         embedded = self.b_embedded_exact
         object.__setattr__(self, "b_embedded", None if embedded is None else _read_only(embedded))

@@ -77,11 +77,20 @@ def stage_value(base, h, A, j, K, out):
 
 
 @jitable
-def stage_value_compensated(base, lo, h, A, j, K, out):
-    """``out = base + (lo + h sum_{l<j} A[j, l] K[l])``: a stage from the
-    compensated state ``(base, lo)``."""
+def stage_value_compensated(base, lo, h, A, A_low, j, K, out):
+    """``out = base + (lo + h sum_{l<j} (A + A_low)[j, l] K[l])``: a stage
+    from the compensated state ``(base, lo)`` with double-double
+    coefficients (the low words summed apart, then added once)."""
     for i in range(out.shape[0]):
-        out[i] = base[i] + (lo[i] + stage_sum(A, j, K, i) * h) if j else base[i] + lo[i]
+        if j:
+            acc = 0.0
+            low = 0.0
+            for m in range(j):
+                acc += A[j, m] * K[m, i]
+                low += A_low[j, m] * K[m, i]
+            out[i] = base[i] + (lo[i] + (acc + low) * h)
+        else:
+            out[i] = base[i] + lo[i]
 
 
 @jitable
@@ -92,6 +101,18 @@ def increment(h, b, K, out):
         for m in range(b.shape[0]):
             acc += b[m] * K[m, i]
         out[i] = acc * h
+
+
+@jitable
+def increment_compensated(h, b, b_low, K, out):
+    """``out = h sum_j (b + b_low)[j] K[j]``, the weights double-doubles."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        low = 0.0
+        for m in range(b.shape[0]):
+            acc += b[m] * K[m, i]
+            low += b_low[m] * K[m, i]
+        out[i] = (acc + low) * h
 
 
 @jitable

@@ -61,7 +61,10 @@ def dense_tableaus(member: Member) -> Tableaus:
     tab = member.tableaus
     if member.use_z:
         return tab
-    return tab._replace(Az=tab.A, bz=tab.b, cz=tab.c)
+    # The pair's coefficients are plain doubles (its low words are not kept).
+    return tab._replace(
+        Az=tab.A, bz=tab.b, cz=tab.c, Az_low=np.zeros_like(tab.A), bz_low=np.zeros_like(tab.b)
+    )
 
 
 def prepare_work(d: int, tab: Tableaus):

@@ -18,10 +18,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hamrkq.rkq import arith, loop
-from hamrkq.rkq.family import Member
+from hamrkq.rkq.family import WITNESS_SAFETY, Member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
+    GAMMA_SHADOW,
     GAMMA_TANGENT,
     RET_BUFFER_FULL,
     RET_DONE,
@@ -88,6 +89,7 @@ class Settings:
     keep_every: int = 1
     t_eval: np.ndarray | None = None
     first_step: float | None = None
+    witness: bool = False  # the rounding witness beside the shadow (GAMMA_SHADOW only)
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,7 @@ class RunOutput:
     h_fail: float  # the step size that failed (underflow, non-finite)
     first_step: float
     max_ratio: float  # largest attainability ratio seen
+    floor_ratio: float  # the rounding witness's part of the ratio that ended the run
     bad_component: int  # first non-finite component found, or -1
     stats: dict
 
@@ -171,6 +174,8 @@ class Integration:
             shadow_scale=member.shadow_scale,
             error_exponent=1.0 / (member.error_order + 1),
             beta=member.beta,
+            witness=int(settings.witness and gamma == GAMMA_SHADOW),
+            witness_scale=WITNESS_SAFETY,
         )
         self.state = new_state(self.t0)
         y0 = _floats(y0)
@@ -281,6 +286,7 @@ class Integration:
             h_fail=float(s["failed_h"]),
             first_step=float(self.first_step),
             max_ratio=float(s["max_ratio"]),
+            floor_ratio=float(s["floor_ratio"]),
             bad_component=int(s["bad_component"]),
             stats=self.stats(),
         )

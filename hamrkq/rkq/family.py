@@ -121,10 +121,12 @@ class Member:
     def __post_init__(self):
         A, b, b_err, c = self.pair
         if self.quencher is not None:
-            Az, bz, cz = self.quencher.A, self.quencher.b, self.quencher.c
+            q = self.quencher
+            Az, bz, cz, Az_low, bz_low = q.A, q.b, q.c, q.A_low, q.b_low
         else:
             Az, bz, cz = np.zeros((1, 1)), np.zeros(1), np.zeros(1)
-        arrays = (A, b, b_err, c, Az, bz, cz)
+            Az_low, bz_low = Az, bz
+        arrays = (A, b, b_err, c, Az, bz, cz, Az_low, bz_low)
         tableaus = Tableaus(*(np.require(x, np.float64, ("C",)) for x in arrays))
         object.__setattr__(self, "tableaus", tableaus)
 
@@ -157,9 +159,10 @@ class Member:
             return 1.0
         return float(self.z_substeps**self.z_order - 1)
 
-    def evaluations_per_step(self, gamma: str) -> tuple[int, int]:
+    def evaluations_per_step(self, gamma: str, witness: bool = False) -> tuple[int, int]:
         """Right-hand-side and Jacobian evaluations of one accepted step
-        (without the ones a first-same-as-last stage saves)."""
+        (without the ones a first-same-as-last stage saves); ``witness``: the
+        rounding witness runs beside the shadow."""
         s = self.pair[1].shape[0]
         nfev = s
         if not self.use_z:
@@ -169,7 +172,7 @@ class Member:
         if gamma == "off":
             return nfev, 0
         if gamma == "shadow":
-            return nfev + sz, 0
+            return nfev + sz + (m * sz if witness else 0), 0
         nfev += m * (2 * sz - 1)
         return nfev, m * sz if gamma == "tangent" else m
 
@@ -276,6 +279,32 @@ def auto_member(tightest_tolerance: float) -> tuple[str, int]:
         if tightest_tolerance > above:
             return AUTO_MEMBER, substeps
     return AUTO_MEMBER, AUTO_SUBSTEPS[-1][1]
+
+
+#: The rounding witness's divergence from the shadow, times this, is taken as
+#: the quencher's rounding error.  Its divergence is one sample of a random
+#: walk; the factor covers a sample well below the quencher's own rounding
+#: (measured: down to a seventh on prentice2011 at 1e-12, ``docs/algorithm.md``).
+WITNESS_SAFETY = 2.0
+
+#: With the shadow estimate, the witness runs where the tolerance is tighter
+#: than this relative to the state's size (``needs_witness``).
+WITNESS_BELOW = 3e-10
+
+
+def needs_witness(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> bool:
+    """Whether a run with the shadow estimate also runs the rounding witness.
+
+    The quencher's rounding error, amplified along the orbit, reaches about
+    1e-12 of the state's size over a few thousand periods
+    (prentice2011 over [0, 4000]: 3e-12) and grows with the interval; the
+    witness measures it, for one more quencher step a step, where the
+    tightest tolerance ``max(atol, rtol |y0|)`` is below :data:`WITNESS_BELOW`
+    times the largest ``|y0|`` (or times 1 when ``y0`` is zero).
+    """
+    scale = float(np.max(np.abs(y0), initial=0.0)) or 1.0
+    tightest = float(np.min(np.maximum(atol, rtol * np.abs(y0)), initial=np.inf))
+    return tightest < WITNESS_BELOW * scale
 
 
 #: The most quencher steps per step ``method="auto"`` tries.

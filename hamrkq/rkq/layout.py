@@ -22,6 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hamrkq._floats import EPS
+
 __all__ = [
     "CONFIG",
     "STATE",
@@ -78,6 +80,8 @@ CONFIG = np.dtype(
         ("shadow_scale", _F),  # z_substeps^z - 1
         ("error_exponent", _F),  # 1 / (r + 1), r the embedded (error) order
         ("beta", _F),  # PI controller: weight of the previous error
+        ("witness", _I),  # 1: run the rounding witness beside the quencher
+        ("witness_scale", _F),  # the witness's divergence times this bounds z's rounding
     ]
 )
 
@@ -110,6 +114,7 @@ STATE = np.dtype(
         ("cached_roundoff", _I),
         ("prev_rejected", _I),
         ("bad_component", _I),  # first non-finite component found, or -1
+        ("floor_ratio", _F),  # the witness's share of the ratio that ended the run
     ]
 )
 
@@ -119,7 +124,9 @@ class Tableaus(NamedTuple):
 
     The pair's stages ``K[j] = f(t + c[j] h, u + h sum_l A[j, l] K[l])``
     give the propagated solution ``u + h sum b K`` and the embedded one
-    ``u + h sum b_err K``; their difference sizes the steps.
+    ``u + h sum b_err K``; their difference sizes the steps.  The
+    quencher's coefficients are double-doubles, ``Az + Az_low`` and
+    ``bz + bz_low`` (see ``ButcherTableau.A_low``).
     """
 
     A: np.ndarray
@@ -129,6 +136,8 @@ class Tableaus(NamedTuple):
     Az: np.ndarray
     bz: np.ndarray
     cz: np.ndarray
+    Az_low: np.ndarray
+    bz_low: np.ndarray
 
 
 class Inputs(NamedTuple):
@@ -169,6 +178,12 @@ VECTORS = (
     ("NLO", ""),
     ("NSHI", "the shadow's candidate, compensated"),
     ("NSLO", ""),
+    ("WHI", "the rounding witness: the quencher from y0 moved by one ulp"),
+    ("WLO", ""),
+    ("NWHI", "the witness's candidate, compensated"),
+    ("NWLO", ""),
+    ("FLOOR", "rounding floor of z measured by the witness (running max)"),
+    ("NFLOOR", "its candidate"),
     ("GNEW", "Gamma's candidate"),
     ("NOISE", "rounding of this step"),
     ("TMP", "scratch"),
@@ -176,7 +191,8 @@ VECTORS = (
 )
 (
     U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
-    INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, GNEW, NOISE, TMP, TMP2,
+    INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, WHI, WLO, NWHI, NWLO, FLOOR, NFLOOR,
+    GNEW, NOISE, TMP, TMP2,
 ) = range(len(VECTORS))  # fmt: skip
 
 
@@ -218,6 +234,9 @@ def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
     )
     for row in (U, ZHI, SHI):
         work.V[row] = y0
+    # One ulp apart from the quencher, the witness rounds differently from its
+    # first step on; the two share their truncation error.
+    work.V[WHI] = y0 + EPS * y0
     return work
 
 

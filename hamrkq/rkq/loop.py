@@ -34,15 +34,19 @@ from hamrkq.rkq.layout import (
     CAND,
     DELTA,
     ERR,
+    FLOOR,
     GAM,
     GNEW,
     K1,
     MIN_SUBNORMAL,
+    NFLOOR,
     NHI,
     NLO,
     NOISE,
     NSHI,
     NSLO,
+    NWHI,
+    NWLO,
     QUENCH_REDO,
     RET_BUDGET,
     RET_BUFFER_FULL,
@@ -57,6 +61,8 @@ from hamrkq.rkq.layout import (
     ST_UNATTAINABLE,
     ST_UNDERFLOW,
     TMP2,
+    WHI,
+    WLO,
     ZHI,
     ZLO,
     U,
@@ -128,16 +134,17 @@ def growth_factor(cfg, state, err):
 
 @jitable
 def attainability(work, problem, cfg, unew):
-    """max_k (|Gamma_k| + rho_k + eps |z_k|) / delta_k at the candidate node:
-    the quencher's estimated error, its accumulated rounding and the rounding
-    of the stored value, against the tolerance at the new solution ``unew``."""
+    """max_k (|Gamma_k| + rho_k + eps |z_k| + floor_k) / delta_k at the
+    candidate node: the quencher's estimated error, its accumulated rounding
+    (modelled, and measured by the witness when it runs) and the rounding of
+    the stored value, against the tolerance at the new solution ``unew``."""
     V = work.V
     delta = V[DELTA]
     arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
     top = -math.inf
     for i in range(unew.shape[0]):
         rho = math.sqrt(V[RHO2, i] + V[NOISE, i])
-        value = ((rho + abs(V[NHI, i]) * EPS) + abs(V[GNEW, i])) / delta[i]
+        value = (((rho + abs(V[NHI, i]) * EPS) + abs(V[GNEW, i])) + V[NFLOOR, i]) / delta[i]
         if value != value:
             return value
         if value > top:
@@ -146,11 +153,14 @@ def attainability(work, problem, cfg, unew):
 
 
 @jitable
-def commit_quencher(work, state):
+def commit_quencher(work, cfg, state):
     """The quencher's candidate becomes the current track."""
     V = work.V
     for new, current in ((NHI, ZHI), (NLO, ZLO), (NSHI, SHI), (NSLO, SLO), (GNEW, GAM)):
         arith.copy(V[new], V[current])
+    if cfg["witness"]:
+        for new, current in ((NWHI, WHI), (NWLO, WLO), (NFLOOR, FLOOR)):
+            arith.copy(V[new], V[current])
     for i in range(V.shape[1]):
         V[RHO2, i] += V[NOISE, i]
     state["roundoff_steps"] += state["cached_roundoff"]
@@ -232,7 +242,9 @@ def plan_step(c, s, t_eval):
     t = s["t"]
     target = step_target(c, s, t_eval)
     direction = 1.0 if c["t_end"] > t else -1.0
-    remaining = target - t
+    # t is t + t_lo (compensated): a step that lands on the target must cover
+    # the low word too, or the tracks arrive t_lo (up to an ulp of t) late.
+    remaining = (target - t) - s["t_lo"]
     h_free = s["h"]
     if abs(h_free) > c["max_step"]:
         h_free = direction * c["max_step"]
@@ -298,6 +310,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     if ratio > s["max_ratio"] or ratio != ratio:
         s["max_ratio"] = ratio
     if not ratio <= c["gamma_limit"]:
+        s["floor_ratio"] = arith.weighted_norm(V[NFLOOR], V[DELTA])
         stop(ST_UNATTAINABLE, work, out, s, c)
         return -1 - RET_DONE
     if quench:
@@ -305,7 +318,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
         s["quenches"] += 1
     else:
         arith.copy(cand, V[U])
-    commit_quencher(work, s)
+    commit_quencher(work, c, s)
     return 1 if (quench or s["redo"]) else 0
 
 

@@ -22,7 +22,7 @@ from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution
 from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
-from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.family import MEMBERS, needs_witness
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
@@ -34,6 +34,7 @@ __all__ = [
     "member_of",
     "resolve_backend",
     "run_rk",
+    "uses_witness",
 ]
 
 #: Step attempts between checks for a terminal event.
@@ -77,6 +78,12 @@ def member_of(task: Task):
     return task.options.member()
 
 
+def uses_witness(task: Task) -> bool:
+    """Whether an RKQ-family task runs the rounding witness (the shadow
+    estimate at a tolerance near double precision's floor, :func:`needs_witness`)."""
+    return task.options.gamma_name == "shadow" and needs_witness(task.atol, task.rtol, task.y0)
+
+
 def integration(task: Task, backend: str) -> Integration:
     """The :class:`~hamrkq.rkq.driver.Integration` of an RKQ-family task on
     ``backend`` ("numba" or "python"), ready to run."""
@@ -91,6 +98,7 @@ def integration(task: Task, backend: str) -> Integration:
         keep_every=o.keep_every,
         t_eval=task.t_eval,
         first_step=o.first_step,
+        witness=uses_witness(task),
     )
     if backend == "numba":
         from hamrkq.backends import compiled

@@ -17,7 +17,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
-from hamrkq.solve.dispatch import MethodSpec, Task, member_of
+from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
 
@@ -28,7 +28,8 @@ def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solu
     o = task.options
     member = member_of(task)
     gamma_mode = o.gamma_name if spec.rk8 else "off"
-    nfev_step, njev_step = member.evaluations_per_step(gamma_mode)
+    witness = spec.rk8 and uses_witness(task)
+    nfev_step, njev_step = member.evaluations_per_step(gamma_mode, witness)
     stats = dict(out.stats)
     status = _STATUS_BY_CODE[out.status]
     if not out.t.size:
@@ -67,6 +68,7 @@ def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solu
             z_method=o.z_method,
             z_substeps=member.z_substeps,
             gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,
+            rounding_witness=witness,
         )
     has_gamma = spec.rk8 and gamma_mode != "off"
     return Solution(
@@ -121,6 +123,14 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 f" The tolerance is at double precision's floor for this state (the rounding "
                 f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
             )
+    if out.floor_ratio >= 0.5 * out.max_ratio:
+        return text + (
+            f" The quencher's own rounding error, measured by the rounding witness (the "
+            f"quencher run a second time from one ulp away), is {out.floor_ratio:.3g} x the "
+            "tolerance: this is double precision's floor for this orbit and interval, and "
+            "no member or step size goes below it. A looser tolerance or a shorter interval "
+            "is what works."
+        )
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:

@@ -1,0 +1,130 @@
+"""Double precision's floor for the quencher: what lowers it, and what detects it.
+
+Three things stood between the quencher and its rounding floor, each checked
+here against an exact solution:
+
+- the quencher's coefficients are double-doubles (``ButcherTableau.A_low``):
+  rounded to float64 they break the order conditions by about 1e-17, a
+  systematic defect (tested in ``test_tableaus_high_order.py``);
+- a step that lands on an output time covers the low word of the
+  compensated time, or the tracks arrive up to an ulp of t late (on the
+  harmonic oscillator at 1e-12 over 1000 periods the quencher was 1.7e-12
+  off, now 7e-15);
+- the rounding witness, the quencher started one ulp away, measures the
+  quencher's rounding error where the tolerance is near the floor and stops
+  the run, naming the floor, when it reaches ``gamma_limit``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hamrkq
+from hamrkq.rkq.family import WITNESS_SAFETY, needs_witness
+from hamrkq.rkq.layout import FLOOR
+from hamrkq.solve import _prepare
+from hamrkq.solve.dispatch import integration
+
+HARMONIC = hamrkq.load_problem("harmonic")
+KEPLER = hamrkq.load_problem("kepler", e=0.6)
+THOUSAND_PERIODS = (0.0, 1000 * 2 * np.pi)
+
+
+def _solve_args(problem, **options):
+    """Every argument of :func:`hamrkq.solve`, for :func:`_prepare`."""
+    args = dict.fromkeys(
+        (
+            "q0", "p0", "parameters", "quench", "quench_threshold", "safety",
+            "tolerance_rule", "global_error_estimate", "z_method", "z_substeps",
+            "first_step", "max_step", "step", "max_steps", "progress", "events",
+        )
+    )  # fmt: skip
+    args.update(
+        system_or_problem=problem, keep_every=1, backend="auto", dense_output=False, t_eval=None
+    )
+    args.update(options)
+    return args
+
+
+def test_the_quencher_reaches_the_output_times_exactly():
+    # Output times are reached by a clipped step; with the compensated time's
+    # low word left out, the quencher arrived up to an ulp of t late: a phase
+    # error of 1.7e-12 after 1000 periods, 240 times its rounding.
+    grid = np.linspace(*THOUSAND_PERIODS, 201)
+    sol = hamrkq.solve(
+        HARMONIC,
+        t_span=THOUSAND_PERIODS,
+        method="rk78q12",
+        atol=1e-12,
+        rtol=0.0,
+        t_eval=grid,
+        gamma_limit=np.inf,
+    )
+    assert sol.status is hamrkq.Status.SUCCESS
+    z_error = np.abs(sol.z - HARMONIC.exact(sol.t)).max()
+    assert z_error < 5e-14  # measured 7.3e-15
+    assert np.abs(sol.y - HARMONIC.exact(sol.t)).max() <= 1.05e-12
+
+
+def test_the_witness_measures_the_quenchers_rounding_error():
+    # The harmonic oscillator at 1e-12 over 1000 periods: the quencher's
+    # truncation error is negligible (Gamma 3e-18), so its true error is its
+    # rounding, which the witness's divergence measures (7.2e-15 against 7.3e-15).
+    grid = np.linspace(*THOUSAND_PERIODS, 201)
+    prepared = _prepare(
+        **_solve_args(
+            HARMONIC,
+            t_span=THOUSAND_PERIODS,
+            method="auto",
+            atol=1e-12,
+            rtol=0.0,
+            gamma_limit=np.inf,
+            t_eval=grid,
+        )
+    )
+    run = integration(prepared.task, prepared.backend)
+    assert run.config[0]["witness"] == 1
+    out = run.run()
+    z_error = np.abs(out.z - HARMONIC.exact(out.t)).max()
+    witness = run.work.V[FLOOR].max() / WITNESS_SAFETY
+    assert 1e-15 < z_error < 5e-14
+    assert z_error / 3 < witness < 10 * z_error
+
+
+def test_the_witness_runs_only_near_double_precisions_floor():
+    y0 = np.array([0.4, 0.0, 0.0, 2.0])
+    assert not needs_witness(np.full(4, 1e-9), np.zeros(4), y0)
+    assert needs_witness(np.full(4, 1e-10), np.zeros(4), y0)
+    assert needs_witness(np.zeros(4), np.full(4, 1e-11), y0)
+    loose = hamrkq.solve(KEPLER, t_span=(0, 10), method="auto", atol=1e-8, rtol=0.0)
+    tight = hamrkq.solve(KEPLER, t_span=(0, 10), method="auto", atol=1e-10, rtol=0.0)
+    assert loose.options["rounding_witness"] is False
+    assert tight.options["rounding_witness"] is True
+    # the witness is one more quencher track: z_substeps more quencher steps a step
+    member = hamrkq.rkq.family.MEMBERS["rk78q12"]
+    assert tight.options["nfev_per_step"] - loose.options["nfev_per_step"] == (
+        tight.options["z_substeps"] * member.z_stages
+        + (tight.options["z_substeps"] - loose.options["z_substeps"]) * member.z_stages
+    )
+
+
+@pytest.mark.parametrize(("problem", "span", "tol"), [(KEPLER, (0, 20 * np.pi), 1e-12)])
+def test_at_the_floor_the_run_stops_naming_it_and_keeps_the_promise(problem, span, tol):
+    # Kepler e = 0.6 over ten orbits: the quencher's rounding grows to about
+    # 2e-13 near the pericentres, so 1e-12 cannot be certified with
+    # gamma_limit = 0.05.  The run stops at the floor and says so; every node
+    # it kept is within 1.05 delta of the exact orbit.
+    sol = hamrkq.solve(problem, t_span=span, method="auto", atol=tol, rtol=0.0)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.t[-1] < span[1]
+    assert "rounding witness" in sol.message and "floor" in sol.message
+    assert np.abs(sol.y - problem.exact(sol.t)).max() <= 1.05 * tol
+
+
+def test_prentice2011_at_1e_12_stops_at_the_floor():
+    prentice = hamrkq.load_problem("prentice2011")
+    sol = hamrkq.solve(prentice, method="auto", atol=1e-12, rtol=0.0)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.t[-1] < 1000
+    assert "double precision's floor" in sol.message
