@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 import warnings
 from pathlib import Path
 
@@ -312,3 +313,39 @@ def test_solve_gives_the_same_solution_on_both_backends(name):
     for name in ("y", "z", "gamma", "global_error"):
         np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
     np.testing.assert_allclose(b.energy, a.energy, rtol=1e-12, atol=1e-14)
+
+
+def test_a_slow_first_use_says_that_it_compiles(monkeypatch):
+    import io
+
+    monkeypatch.setattr(compiled, "ANNOUNCE_AFTER", 0.0)
+    prepare = compiled._warm_up
+
+    def slow_prepare(ham):  # longer than ANNOUNCE_AFTER even with a warm disk cache
+        time.sleep(0.05)
+        prepare(ham)
+
+    monkeypatch.setattr(compiled, "_warm_up", slow_prepare)
+    q, p, w = sp.symbols("q p omega_notice")
+    ham = hamrkq.Hamiltonian(p**2 / 2 + w**2 * q**2 / 2, [q], [p], parameters=[w])
+    stream = io.StringIO()
+    compiled.warm_up(ham, stream=stream, announce=True)
+    text = stream.getvalue()
+    assert "hamrkq: compiling the code for H = " in text
+    assert str(codegen.cache_dir()) in text
+    assert "hamrkq: compiled in" in text
+    # once per system and process: no second notice
+    again = io.StringIO()
+    compiled.warm_up(ham, stream=again, announce=True)
+    assert again.getvalue() == ""
+
+
+def test_the_compile_notice_is_quiet_off_a_terminal_and_when_fast(monkeypatch):
+    import io
+
+    notice = compiled._CompileNotice(lambda: "x", io.StringIO())
+    assert not notice.show  # a StringIO is not a terminal
+    stream = io.StringIO()
+    with compiled._CompileNotice(lambda: "x", stream, force=True):
+        pass  # done long before ANNOUNCE_AFTER
+    assert stream.getvalue() == ""

@@ -214,3 +214,15 @@ def test_prentice2011_to_t_40000_at_1e_6_succeeds_within_the_tolerance_at_every_
     assert ref.estimated_error < 1e-3 * 1e-6  # measured 7.3e-10
     # measured 1.0145e-6 (z_substeps = 5 after a first run to t = 5687)
     assert np.abs(sol.y - ref.y).max() <= 1.05e-6
+
+
+def test_auto_reruns_when_the_stop_falls_between_output_times():
+    # With t_eval the last node kept can be an output time before the stop,
+    # where Gamma is still small (0.018 of the tolerance against 0.0502 at
+    # the stop): the rerun is decided on the ratio that stopped the run.
+    prentice = hamrkq.load_problem("prentice2011")
+    grid = np.linspace(0.0, 4000.0, 401)
+    sol = hamrkq.solve(prentice, method="auto", atol=1e-5, rtol=0.0, t_eval=grid)
+    assert sol.status is hamrkq.Status.SUCCESS
+    assert sol.stats["discarded_evaluations"] > 0
+    assert sol.options["z_substeps"] == 4

@@ -25,6 +25,11 @@ compiled, or a failure compiling the kernel) makes :func:`resolve_backend`
 choose the interpreted backend for ``backend="auto"``, with one
 :class:`~hamrkq.errors.HamrkqWarning` saying what failed.
 
+A first use that compiles says so: when preparing a system (and the kernel)
+takes longer than :data:`ANNOUNCE_AFTER` seconds, a line on stderr (when it
+is a terminal, as the progress bar) and on the ``hamrkq`` logger says that
+code is being compiled once and cached, and another how long it took.
+
 Compilation is counted: :data:`COMPILE_COUNT` grows by one for every function
 signature numba had to compile in this process (rather than load from its
 cache), so a test can tell that a fresh process with a warm cache compiled
@@ -35,15 +40,17 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import math
 import os
+import sys
 import threading
 import time
 import types
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
@@ -401,13 +408,71 @@ def kernel_functions(ham: Hamiltonian):
     return KernelFunctions(system.rhs, system.rhs_jvp, system.jac, kernel())
 
 
-def warm_up(ham: Hamiltonian) -> None:
+#: Seconds of preparing a system before the first use is announced: loading
+#: from the cache takes well under this, compiling several seconds.
+ANNOUNCE_AFTER = 1.0
+_LOG = logging.getLogger("hamrkq")
+
+
+class _CompileNotice:
+    """Say so when preparing the compiled code takes long: one line when it
+    has taken ``ANNOUNCE_AFTER`` seconds, one when it is done.  To ``stream``
+    when it is a terminal (or ``force``), and always to the ``hamrkq`` logger."""
+
+    def __init__(
+        self, what: Callable[[], str], stream: TextIO | None = None, force: bool | None = None
+    ):
+        self.what = what  # called only if the notice is shown
+        self.stream = sys.stderr if stream is None else stream
+        isatty = getattr(self.stream, "isatty", lambda: False)
+        self.show = isatty() if force is None else force
+        self.said = False
+        self.started = time.perf_counter()
+        self.timer = threading.Timer(ANNOUNCE_AFTER, self._start)
+        self.timer.daemon = True
+
+    def _say(self, text: str) -> None:
+        _LOG.info(text)
+        if self.show:
+            print(f"hamrkq: {text}", file=self.stream, flush=True)
+
+    def _start(self) -> None:
+        self.said = True
+        self._say(
+            f"compiling the code for {self.what()} (first use of this system or of this "
+            f"hamrkq version; cached in {codegen.cache_dir()} for later runs) ..."
+        )
+
+    def __enter__(self) -> _CompileNotice:
+        self.timer.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.timer.cancel()
+        self.timer.join()
+        if self.said:
+            self._say(f"compiled in {time.perf_counter() - self.started:.1f} s")
+
+
+def _short(text: str, width: int = 60) -> str:
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | None = None) -> None:
     """Compile (or load) the system and the kernel for the signatures a run
     uses, by integrating one step of ``ham``, once per system and process;
-    raises BackendUnavailable with what failed."""
+    raises BackendUnavailable with what failed.  A first use that takes
+    long is announced on ``stream`` (stderr; when it is a terminal, or
+    ``announce``)."""
     key = codegen.cache_key(ham)
     if key in _WARM:
         return
+    with _CompileNotice(lambda: _short(f"H = {ham.H}"), stream, announce):
+        _warm_up(ham)
+    _WARM.add(key)
+
+
+def _warm_up(ham: Hamiltonian) -> None:
     from hamrkq.rkq.driver import Integration, Settings
     from hamrkq.rkq.family import get_member
     from hamrkq.rkq.layout import GAMMA_TANGENT, QUENCH_NODE, RULE_COMPONENTWISE
@@ -433,7 +498,6 @@ def warm_up(ham: Hamiltonian) -> None:
             f"numba failed to compile the RKQ kernel ({type(exc).__name__}: "
             f"{str(exc).splitlines()[0] if str(exc) else ''})"
         ) from exc
-    _WARM.add(key)
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:

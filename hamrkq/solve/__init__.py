@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq import events as _events
+from hamrkq._floats import EPS
 from hamrkq._progress import ProgressBar
 from hamrkq._validate import span as _span
 from hamrkq.backends.numeric import numeric_of
@@ -255,7 +256,13 @@ def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if out.gamma is None or out.y.shape[0] == 0:
         return None
     member = member_of(task)
-    ratio = float(np.max(np.abs(out.gamma[-1]) / outcome.tolerance_at(task, out.y[-1])))
+    # The ratio that stopped the run, less the rounding the witness measured
+    # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
+    ratio = out.max_ratio - out.floor_ratio
+    if float(np.max(EPS * np.abs(out.y[-1]) / outcome.tolerance_at(task, out.y[-1]))) >= (
+        0.5 * task.options.gamma_limit
+    ):
+        return None  # the stored values' own rounding: more substeps cannot help
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = auto_retry_substeps(
         member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
