@@ -272,3 +272,45 @@ def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_membe
     assert used == [2]
     for i in range(2):
         _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)
+
+
+def test_members_with_the_rounding_witness_run_in_the_batch_loop(monkeypatch):
+    # At 1e-11 auto runs the rounding witness, with the parameters moved by an
+    # ulp: the batch loop must move each member's, or the witness of a member
+    # runs another oscillator, stops it, and it is solved again alone.
+    from hamrkq.ensemble import chunk
+
+    real, alone = chunk.solve, []
+
+    def solve(*args, **kwargs):
+        alone.append(kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(chunk, "solve", solve)
+    freqs = np.tile([0.5, 1.0, 2.0], 8)  # enough members for chunks of several
+    kwargs = {"t_span": (0, 20), "method": "auto", "atol": 1e-11, "rtol": 0.0}
+    ens = hamrkq.ensemble(
+        OSCILLATOR, q0=[1.0], p0=[0.0], parameters={"w": freqs}, workers=1, **kwargs
+    )
+    assert ens.all_success and alone == []
+    for i, value in enumerate(freqs[:3]):
+        sol = _assert_member_equals_solve(ens, i, OSCILLATOR, parameters={w: value}, **kwargs)
+        assert sol.options["rounding_witness"] is True
+
+
+def test_members_that_differ_on_the_witness_run_one_by_one(monkeypatch):
+    from hamrkq.ensemble import chunk
+
+    used = []
+    real = chunk.solve_members
+    monkeypatch.setattr(chunk, "solve_members", lambda r: used.append(r.size) or real(r))
+    # atol 1e-9: the witness runs for |y0| above 3.3 only
+    q0 = np.tile([[1.0], [10.0]], (16, 1))
+    ens = hamrkq.ensemble(
+        OSCILLATOR, q0=q0, p0=[0.0], t_span=(0, 5), method="rk78q12",
+        atol=1e-9, rtol=0.0, workers=1,
+    )  # fmt: skip
+    assert sum(used) == 32
+    for i in range(2):
+        _assert_member_equals_solve(ens, i, OSCILLATOR, t_span=(0, 5), method="rk78q12",
+                                    atol=1e-9, rtol=0.0)  # fmt: skip

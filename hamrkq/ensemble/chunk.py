@@ -30,9 +30,10 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
 from hamrkq.rkq.batch import allocate_batch, run_members
+from hamrkq.rkq.family import needs_witness
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.dispatch import integration, run_rk
+from hamrkq.solve.dispatch import integration, run_rk, uses_witness
 
 __all__ = ["BUFFER_ROWS", "run_batched", "run_chunk", "solve_members"]
 
@@ -108,10 +109,16 @@ def run_batched(request: Request) -> ChunkResult | None:
 def _same_options(prepared, request: Request) -> bool:
     """Whether every member resolves to the task's options: ``method="auto"``
     chooses its member from the tightest tolerance at ``y0``, which differs
-    between members when ``rtol > 0``."""
+    between members when ``rtol > 0``, and so does whether the rounding
+    witness runs."""
+    task = prepared.task
+    if prepared.task.options.gamma_name == "shadow":
+        # The rounding witness runs by each member's tolerance and y0 too.
+        witness = uses_witness(task)
+        if any(needs_witness(task.atol, task.rtol, y0) != witness for y0 in request.y0):
+            return False
     if prepared.requested.method != "auto":
         return True
-    task = prepared.task
     tightest = np.min(np.maximum(task.atol, task.rtol * np.abs(request.y0)), axis=1)
     return all(prepared.requested.with_auto(float(t)) == task.options for t in tightest)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from hamrkq._floats import EPS
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import RULE_PRENTICE
 
@@ -77,15 +78,18 @@ def stage_value(base, h, A, j, K, out):
 
 
 @jitable
-def stage_value_compensated(base, lo, h, A, A_low, j, K, out):
+def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False):
     """``out = base + (lo + h sum_{l<j} (A + A_low)[j, l] K[l])``: a stage
     from the compensated state ``(base, lo)`` with double-double
-    coefficients (the low words summed apart, then added once)."""
+    coefficients (the low words summed apart, then added once); the sum runs
+    over l = 0, 1, ... or, with ``reverse``, the other way (another rounding
+    of the same value: the rounding witness's)."""
     for i in range(out.shape[0]):
         if j:
             acc = 0.0
             low = 0.0
-            for m in range(j):
+            for k in range(j):
+                m = j - 1 - k if reverse else k
                 acc += A[j, m] * K[m, i]
                 low += A_low[j, m] * K[m, i]
             out[i] = base[i] + (lo[i] + (acc + low) * h)
@@ -104,15 +108,26 @@ def increment(h, b, K, out):
 
 
 @jitable
-def increment_compensated(h, b, b_low, K, out):
-    """``out = h sum_j (b + b_low)[j] K[j]``, the weights double-doubles."""
+def increment_compensated(h, b, b_low, K, out, reverse=False):
+    """``out = h sum_j (b + b_low)[j] K[j]``, the weights double-doubles,
+    summed forward or, with ``reverse``, backward."""
+    s = b.shape[0]
     for i in range(out.shape[0]):
         acc = 0.0
         low = 0.0
-        for m in range(b.shape[0]):
+        for k in range(s):
+            m = s - 1 - k if reverse else k
             acc += b[m] * K[m, i]
             low += b_low[m] * K[m, i]
         out[i] = (acc + low) * h
+
+
+@jitable
+def nudge(values, out):
+    """``out = values (1 + eps)``: each nonzero value moved by one or two
+    ulps, away from zero."""
+    for i in range(out.shape[0]):
+        out[i] = values[i] + values[i] * EPS
 
 
 @jitable

@@ -26,6 +26,7 @@ from hamrkq.rkq.layout import (
     SHI,
     ST_RUNNING,
     STATE,
+    WHI,
     ZHI,
     Output,
     U,
@@ -109,9 +110,10 @@ def load_member(problem, state, work, batch, m):
     work.Kz[:, :] = 0.0
     work.dKz[:, :] = 0.0
     work.JM[:, :] = 0.0
-    for row in (U, ZHI, SHI):
+    for row in (U, ZHI, SHI, WHI):
         arith.copy(batch.y0[m], work.V[row])
     arith.copy(batch.params[m], problem.params)
+    arith.nudge(problem.params, problem.witness_params)
 
 
 @jitable

@@ -145,11 +145,15 @@ class Integration:
         self.t0, self.t_end = float(t0), float(t_end)
         self.settings = settings
         use_teval = settings.t_eval is not None
+        params = np.require(params, np.float64, ("C", "W"))
+        witness_params = np.empty_like(params)
+        arith.nudge(params, witness_params)
         self.inputs = Inputs(
-            params=np.require(params, np.float64, ("C", "W")),
+            params=params,
             atol=_floats(atol),
             rtol=_floats(rtol),
             t_eval=_floats(settings.t_eval if use_teval else []),
+            witness_params=witness_params,
         )
         self.tableaus = member.tableaus
         gamma = settings.gamma if member.use_z else GAMMA_OFF

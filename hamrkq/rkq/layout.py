@@ -22,8 +22,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hamrkq._floats import EPS
-
 __all__ = [
     "CONFIG",
     "STATE",
@@ -141,12 +139,15 @@ class Tableaus(NamedTuple):
 
 
 class Inputs(NamedTuple):
-    """The run's numeric inputs: parameter values, tolerances, output times."""
+    """The run's numeric inputs: parameter values, tolerances, output times,
+    and the parameter values the rounding witness runs with (each moved by
+    about an ulp, :func:`hamrkq.rkq.arith.nudge`)."""
 
     params: np.ndarray
     atol: np.ndarray
     rtol: np.ndarray
     t_eval: np.ndarray
+    witness_params: np.ndarray
 
 
 #: The rows of :attr:`Work.V`, each a vector of ``d`` components.  Rows of
@@ -178,7 +179,7 @@ VECTORS = (
     ("NLO", ""),
     ("NSHI", "the shadow's candidate, compensated"),
     ("NSLO", ""),
-    ("WHI", "the rounding witness: the quencher from y0 moved by one ulp"),
+    ("WHI", "the rounding witness: the quencher with its sums reversed"),
     ("WLO", ""),
     ("NWHI", "the witness's candidate, compensated"),
     ("NWLO", ""),
@@ -232,11 +233,8 @@ def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
         dKz=np.zeros((max(z_stages, 1), d)),
         JM=np.zeros((d, d)),
     )
-    for row in (U, ZHI, SHI):
+    for row in (U, ZHI, SHI, WHI):
         work.V[row] = y0
-    # One ulp apart from the quencher, the witness rounds differently from its
-    # first step on; the two share their truncation error.
-    work.V[WHI] = y0 + EPS * y0
     return work
 
 

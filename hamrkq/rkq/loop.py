@@ -284,7 +284,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     V = work.V
     nhi, cand = V[NHI], V[CAND]
     if not (s["z_cached"] and s["cached_h"] == h):
-        steps.quencher_step(rhs, tangent, jac, s["t"], h, tab, c, problem.params, work, s)
+        steps.quencher_step(rhs, tangent, jac, s["t"], h, tab, c, problem, work, s)
         if not arith.all_finite(nhi):
             s["bad_component"] = arith.first_nonfinite(nhi)
             reject(s, h, MIN_FACTOR, 1)

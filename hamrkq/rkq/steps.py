@@ -76,19 +76,22 @@ def pair_step(rhs, t, h, tab, params, work):
 
 
 @jitable
-def explicit_increment(rhs, t, hi, lo, h, tab, params, work, out, first_done):
+def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
+    rhs, t, hi, lo, h, tab, params, work, out, first_done, reverse=False
+):
     """Stages of one quencher step of size ``h`` from the compensated state
     ``(hi, lo)`` into ``work.Kz`` and the increment into ``out``;
-    ``work.Kz[0]`` is reused when ``first_done``.  Returns the evaluations."""
+    ``work.Kz[0]`` is reused when ``first_done``; ``reverse`` sums the stages
+    the other way round (the rounding witness).  Returns the evaluations."""
     Kz, y = work.Kz, work.V[YT]
     nfev = 0
     for j in range(tab.bz.shape[0]):
         if j == 0 and first_done:
             continue
-        arith.stage_value_compensated(hi, lo, h, tab.Az, tab.Az_low, j, Kz, y)
+        arith.stage_value_compensated(hi, lo, h, tab.Az, tab.Az_low, j, Kz, y, reverse)
         rhs(t + tab.cz[j] * h, y, params, Kz[j])
         nfev += 1
-    arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out)
+    arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
     return nfev
 
 
@@ -138,12 +141,13 @@ def richardson(rhs, t, hi, lo, h, tab, params, work, richardson_factor):
 
 
 @jitable
-def quencher_step(rhs, tangent, jac, t, h, tab, cfg, params, work, state):
+def quencher_step(rhs, tangent, jac, t, h, tab, cfg, problem, work, state):
     """The quencher over one step of the pair: ``cfg.z_substeps`` steps of
     ``h / m`` from ``(V[ZHI], V[ZLO])`` into ``(V[NHI], V[NLO])``, Gamma's
     candidate into ``V[GNEW]`` and the rounding variance of the step into
     ``V[NOISE]``.  Counts evaluations in ``state``; sets
     ``state.cached_roundoff``."""
+    params = problem.params
     V = work.V
     nhi, nlo, gnew, noise, inc = V[NHI], V[NLO], V[GNEW], V[NOISE], V[INC]
     mode = cfg["gamma_mode"]
@@ -184,7 +188,7 @@ def quencher_step(rhs, tangent, jac, t, h, tab, cfg, params, work, state):
         arith.two_sum(shi, slo, inc, nshi, nslo)
         arith.scaled_difference(nshi, nslo, nhi, nlo, cfg["shadow_scale"], gnew)
         if cfg["witness"]:
-            state["nfev"] += witness_step(rhs, t, h, tab, cfg, params, work)
+            state["nfev"] += witness_step(rhs, t, h, tab, cfg, problem.witness_params, work)
     elif mode == GAMMA_OFF:
         for i in range(gnew.shape[0]):
             gnew[i] = 0.0
@@ -197,10 +201,16 @@ def witness_step(rhs, t, h, tab, cfg, params, work):
     ``z_substeps`` steps from ``(V[WHI], V[WLO])`` into ``(V[NWHI], V[NWLO])``,
     and the floor's candidate ``V[NFLOOR] = max(V[FLOOR], scale |w - z|)``.
 
-    The witness is the quencher track started one ulp away: the same
-    method on the same mesh, so the two share their truncation error and
-    differ only by how their rounding errors have grown along the orbit (the
-    idea of Vignes' stochastic arithmetic).  That divergence is the size of
+    The witness is the quencher track again, from the same initial value on
+    the same mesh, with every stage sum and the increment added in the
+    opposite order (the same value, rounded differently) and the parameters
+    moved by about an ulp (``witness_params``: constants such as ``1 - mu``
+    are rounded once for the whole run, a systematic error that differs
+    between the two only this way).  The two share their truncation error
+    and differ only by how their rounding errors have grown along the orbit
+    (the idea of Vignes' stochastic arithmetic).  (Starting it
+    one ulp away instead measures how the flow amplifies that ulp: near the
+    Moon on the Arenstorf orbit, a hundredfold in the first step.)  That divergence is the size of
     the quencher's rounding error, which nothing else in the run sees.  (A
     witness of the shadow, on the coarser mesh, costs less but measured 1.5
     to 20 times the quencher's rounding on prentice2011.)  Returns the
@@ -213,7 +223,9 @@ def witness_step(rhs, t, h, tab, cfg, params, work):
     arith.copy(wlo, nwlo)
     nfev = 0
     for k in range(n):
-        nfev += explicit_increment(rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False)
+        nfev += explicit_increment(
+            rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False, True
+        )
         arith.two_sum(nwhi, nwlo, inc, nwhi, nwlo)
     scale = cfg["witness_scale"]
     for i in range(whi.shape[0]):

@@ -126,7 +126,8 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     if out.floor_ratio >= 0.5 * out.max_ratio:
         return text + (
             f" The quencher's own rounding error, measured by the rounding witness (the "
-            f"quencher run a second time from one ulp away), is {out.floor_ratio:.3g} x the "
+            f"quencher run again with its sums in the opposite order), is "
+            f"{out.floor_ratio:.3g} x the "
             "tolerance: this is double precision's floor for this orbit and interval, and "
             "no member or step size goes below it. A looser tolerance or a shorter interval "
             "is what works."
