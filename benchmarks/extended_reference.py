@@ -53,6 +53,8 @@ def reference(problem, t_nodes, tol: float = 1e-19) -> np.ndarray:
     grid = np.asarray(t_nodes, dtype=np.longdouble)
     start = 0 if grid[0] == 0 else 1  # propagate_grid starts at the current time
     out = ta.propagate_grid(np.concatenate([np.zeros(start, np.longdouble), grid]))
+    if out[-1].shape[0] != grid.size + start:
+        raise RuntimeError(f"heyoka stopped early ({out[0]}) on {problem.name}")
     return np.asarray(out[-1][start:], dtype=np.float64)
 
 
