@@ -349,3 +349,22 @@ def test_the_compile_notice_is_quiet_off_a_terminal_and_when_fast(monkeypatch):
     with compiled._CompileNotice(lambda: "x", stream, force=True):
         pass  # done long before ANNOUNCE_AFTER
     assert stream.getvalue() == ""
+
+
+def test_the_kernel_remembers_first_class_function_addresses_numba_would_give():
+    from numba.experimental import function_type
+
+    compiled.kernel()
+    system = compiled.compile_system(hamrkq.load_problem("harmonic").hamiltonian)
+    sig = compiled._types()["rhs"]
+    result = system.rhs.get_compile_result(sig)
+    library = result.library
+    wrapper = library.get_pointer_to_function(result.fndesc.llvm_cfunc_wrapper_name)
+    jit = library.get_pointer_to_function(result.fndesc.llvm_func_name)
+    for _ in range(2):  # computed, then remembered
+        assert function_type._get_wrapper_address(system.rhs, sig) == wrapper
+        assert function_type._get_jit_address(system.rhs, sig) == jit
+    assert function_type._get_wrapper_address._hamrkq_remembers
+    # anything that is not a compiled dispatcher goes to numba unchanged
+    with pytest.raises(NotImplementedError):
+        function_type._get_wrapper_address(object(), sig)
