@@ -1,22 +1,26 @@
-"""A run's progress on a terminal: ``progress(fraction, t)`` drawn by tqdm.
+"""Progress on a terminal: a run's bar, and a notice for a long wait.
 
 :func:`hamrkq.solve` (``progress=True``) and the ``run`` and ``reproduce``
 commands report how much of the time span is done, and the current ``t``,
 through a :class:`ProgressBar`: a `tqdm <https://tqdm.github.io>`_ bar on
 stderr, drawn only when stderr is a terminal (pipes, files and CI logs stay
-quiet).
+quiet).  :class:`WaitNotice` says so when something before the run (the
+first compilation of a system) takes long.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
+import threading
 import time
+from collections.abc import Callable
 from typing import TextIO
 
 from tqdm import tqdm
 
-__all__ = ["BAR_FORMAT", "ProgressBar"]
+__all__ = ["BAR_FORMAT", "ProgressBar", "WaitNotice"]
 
 #: The bar's line: label, bar, share of the time span done, the current t
 #: (tqdm's postfix), time spent and time left.
@@ -24,6 +28,11 @@ BAR_FORMAT = "{desc}: [{bar}] {percentage:5.1f}%{postfix} [{elapsed}<{remaining}
 #: Columns and lines assumed when the terminal reports a size of 0 x 0 (a bare
 #: pseudo-terminal): tqdm would draw nothing there.
 FALLBACK_SIZE = (100, 24)
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty and isatty())
 
 
 def _size(stream: TextIO) -> dict[str, int]:
@@ -68,10 +77,7 @@ class ProgressBar:
     ):
         self.label = label
         self.stream = sys.stderr if stream is None else stream
-        if enabled is None:
-            isatty = getattr(self.stream, "isatty", None)
-            enabled = bool(isatty and isatty())
-        self.enabled = enabled
+        self.enabled = _is_terminal(self.stream) if enabled is None else enabled
         self.delay = delay
         self.start = time.monotonic()
         self._bar: tqdm | None = None
@@ -109,3 +115,57 @@ class ProgressBar:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class WaitNotice:
+    """Say so when a wait is long: ``begin()`` once it has lasted ``after``
+    seconds, then how long it took.  Lines go to ``stream`` (stderr) when it
+    is a terminal (or ``enabled``), and always to the ``hamrkq`` logger.
+
+    Parameters
+    ----------
+    begin : callable
+        The first line (called only if the notice is shown).
+    done : str
+        The second line's start, followed by `` in <seconds> s``.
+    after : float
+        Seconds of silence first: a short wait says nothing.
+    stream, enabled
+        As for :class:`ProgressBar`.
+    """
+
+    def __init__(
+        self,
+        begin: Callable[[], str],
+        done: str,
+        after: float,
+        *,
+        stream: TextIO | None = None,
+        enabled: bool | None = None,
+    ):
+        self.begin, self.done = begin, done
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = _is_terminal(self.stream) if enabled is None else enabled
+        self.said = False
+        self.started = time.perf_counter()
+        self.timer = threading.Timer(after, self._start)
+        self.timer.daemon = True
+
+    def _say(self, text: str) -> None:
+        logging.getLogger("hamrkq").info(text)
+        if self.enabled:
+            print(f"hamrkq: {text}", file=self.stream, flush=True)
+
+    def _start(self) -> None:
+        self.said = True
+        self._say(self.begin())
+
+    def __enter__(self) -> WaitNotice:
+        self.timer.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.timer.cancel()
+        self.timer.join()
+        if self.said:
+            self._say(f"{self.done} in {time.perf_counter() - self.started:.1f} s")

@@ -343,11 +343,13 @@ def test_a_slow_first_use_says_that_it_compiles(monkeypatch):
 def test_the_compile_notice_is_quiet_off_a_terminal_and_when_fast(monkeypatch):
     import io
 
-    notice = compiled._CompileNotice(lambda: "x", io.StringIO())
-    assert not notice.show  # a StringIO is not a terminal
+    from hamrkq._progress import WaitNotice
+
+    notice = WaitNotice(lambda: "x", "done", 1.0, stream=io.StringIO())
+    assert not notice.enabled  # a StringIO is not a terminal
     stream = io.StringIO()
-    with compiled._CompileNotice(lambda: "x", stream, force=True):
-        pass  # done long before ANNOUNCE_AFTER
+    with WaitNotice(lambda: "x", "done", 1.0, stream=stream, enabled=True):
+        pass  # done long before a second has passed
     assert stream.getvalue() == ""
 
 

@@ -24,28 +24,12 @@ import pytest
 import hamrkq
 from hamrkq.rkq.family import WITNESS_SAFETY, needs_witness
 from hamrkq.rkq.layout import FLOOR
-from hamrkq.solve import _prepare
+from hamrkq.solve import prepare
 from hamrkq.solve.dispatch import integration
 
 HARMONIC = hamrkq.load_problem("harmonic")
 KEPLER = hamrkq.load_problem("kepler", e=0.6)
 THOUSAND_PERIODS = (0.0, 1000 * 2 * np.pi)
-
-
-def _solve_args(problem, **options):
-    """Every argument of :func:`hamrkq.solve`, for :func:`_prepare`."""
-    args = dict.fromkeys(
-        (
-            "q0", "p0", "parameters", "quench", "quench_threshold", "safety",
-            "tolerance_rule", "global_error_estimate", "z_method", "z_substeps",
-            "first_step", "max_step", "step", "max_steps", "progress", "events",
-        )
-    )  # fmt: skip
-    args.update(
-        system_or_problem=problem, keep_every=1, backend="auto", dense_output=False, t_eval=None
-    )
-    args.update(options)
-    return args
 
 
 def test_the_quencher_reaches_the_output_times_exactly():
@@ -73,16 +57,14 @@ def test_the_witness_measures_the_quenchers_rounding_error():
     # truncation error is negligible (Gamma 3e-18), so its true error is its
     # rounding, which the witness's divergence measures (6.8e-15 against 7.3e-15).
     grid = np.linspace(*THOUSAND_PERIODS, 201)
-    prepared = _prepare(
-        **_solve_args(
-            HARMONIC,
-            t_span=THOUSAND_PERIODS,
-            method="auto",
-            atol=1e-12,
-            rtol=0.0,
-            gamma_limit=np.inf,
-            t_eval=grid,
-        )
+    prepared = prepare(
+        HARMONIC,
+        t_span=THOUSAND_PERIODS,
+        method="auto",
+        atol=1e-12,
+        rtol=0.0,
+        gamma_limit=np.inf,
+        t_eval=grid,
     )
     run = integration(prepared.task, prepared.backend)
     assert run.config[0]["witness"] == 1

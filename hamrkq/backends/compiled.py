@@ -28,7 +28,8 @@ choose the interpreted backend for ``backend="auto"``, with one
 A first use that compiles says so: when preparing a system (and the kernel)
 takes longer than :data:`ANNOUNCE_AFTER` seconds, a line on stderr (when it
 is a terminal, as the progress bar) and on the ``hamrkq`` logger says that
-code is being compiled once and cached, and another how long it took.
+code is being compiled once and cached, and another how long it took
+(:class:`hamrkq._progress.WaitNotice`).
 
 Compilation is counted: :data:`COMPILE_COUNT` grows by one for every function
 signature numba had to compile in this process (rather than load from its
@@ -40,10 +41,8 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import logging
 import math
 import os
-import sys
 import threading
 import time
 import types
@@ -54,6 +53,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from hamrkq._progress import WaitNotice
 from hamrkq.backends import codegen
 from hamrkq.errors import HamrkqError, OptionError, warn
 
@@ -454,47 +454,6 @@ def kernel_functions(ham: Hamiltonian):
 #: Seconds of preparing a system before the first use is announced: loading
 #: from the cache takes well under this, compiling several seconds.
 ANNOUNCE_AFTER = 1.0
-_LOG = logging.getLogger("hamrkq")
-
-
-class _CompileNotice:
-    """Say so when preparing the compiled code takes long: one line when it
-    has taken ``ANNOUNCE_AFTER`` seconds, one when it is done.  To ``stream``
-    when it is a terminal (or ``force``), and always to the ``hamrkq`` logger."""
-
-    def __init__(
-        self, what: Callable[[], str], stream: TextIO | None = None, force: bool | None = None
-    ):
-        self.what = what  # called only if the notice is shown
-        self.stream = sys.stderr if stream is None else stream
-        isatty = getattr(self.stream, "isatty", lambda: False)
-        self.show = isatty() if force is None else force
-        self.said = False
-        self.started = time.perf_counter()
-        self.timer = threading.Timer(ANNOUNCE_AFTER, self._start)
-        self.timer.daemon = True
-
-    def _say(self, text: str) -> None:
-        _LOG.info(text)
-        if self.show:
-            print(f"hamrkq: {text}", file=self.stream, flush=True)
-
-    def _start(self) -> None:
-        self.said = True
-        self._say(
-            f"compiling the code for {self.what()} (first use of this system or of this "
-            f"hamrkq version; cached in {codegen.cache_dir()} for later runs) ..."
-        )
-
-    def __enter__(self) -> _CompileNotice:
-        self.timer.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.timer.cancel()
-        self.timer.join()
-        if self.said:
-            self._say(f"compiled in {time.perf_counter() - self.started:.1f} s")
 
 
 def _short(text: str, width: int = 60) -> str:
@@ -510,7 +469,14 @@ def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | Non
     key = codegen.cache_key(ham)
     if key in _WARM:
         return
-    with _CompileNotice(lambda: _short(f"H = {ham.H}"), stream, announce):
+
+    def begin() -> str:
+        return (
+            f"compiling the code for {_short(f'H = {ham.H}')} (first use of this system or "
+            f"of this hamrkq version; cached in {codegen.cache_dir()} for later runs) ..."
+        )
+
+    with WaitNotice(begin, "compiled", ANNOUNCE_AFTER, stream=stream, enabled=announce):
         _warm_up(ham)
     _WARM.add(key)
 

@@ -281,10 +281,10 @@ def auto_member(tightest_tolerance: float) -> tuple[str, int]:
     return AUTO_MEMBER, AUTO_SUBSTEPS[-1][1]
 
 
-#: The rounding witness's divergence from the shadow, times this, is taken as
-#: the quencher's rounding error.  Its divergence is one sample of a random
-#: walk; the factor covers a sample well below the quencher's own rounding
-#: (measured: down to a seventh on prentice2011 at 1e-12, ``docs/algorithm.md``).
+#: The rounding witness's divergence from the quencher, times this, is taken
+#: as the quencher's rounding error.  The divergence is one sample of a random
+#: walk; the factor covers a sample below the quencher's own rounding
+#: (measured: 0.57 of it on prentice2011 at 1e-12, ``docs/algorithm.md``).
 WITNESS_SAFETY = 2.0
 
 #: With the shadow estimate, the witness runs where the tolerance is tighter
@@ -295,10 +295,10 @@ WITNESS_BELOW = 3e-10
 def needs_witness(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> bool:
     """Whether a run with the shadow estimate also runs the rounding witness.
 
-    The quencher's rounding error, amplified along the orbit, reaches about
-    1e-12 of the state's size over a few thousand periods
-    (prentice2011 over [0, 4000]: 3e-12) and grows with the interval; the
-    witness measures it, for one more quencher step a step, where the
+    The quencher's rounding error, amplified along the orbit, reaches 1e-12
+    to 1e-11 of the state's size over a few hundred periods (prentice2011
+    over [0, 4000]: 5e-12 to 2.6e-11) and grows with the interval; the
+    witness measures it, for one more quencher track, where the
     tightest tolerance ``max(atol, rtol |y0|)`` is below :data:`WITNESS_BELOW`
     times the largest ``|y0|`` (or times 1 when ``y0`` is zero).
     """

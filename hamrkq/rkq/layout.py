@@ -79,7 +79,7 @@ CONFIG = np.dtype(
         ("error_exponent", _F),  # 1 / (r + 1), r the embedded (error) order
         ("beta", _F),  # PI controller: weight of the previous error
         ("witness", _I),  # 1: run the rounding witness beside the quencher
-        ("witness_scale", _F),  # the witness's divergence times this bounds z's rounding
+        ("witness_scale", _F),  # the witness's divergence times this estimates z's rounding
     ]
 )
 
