@@ -154,7 +154,7 @@ def test_parity_backward_and_from_nonzero_t0():
 def test_the_compiled_kernel_is_the_interpreted_function_itself():
     problem = hamrkq.load_problem("harmonic")
     functions = compiled.kernel_functions(problem.hamiltonian)
-    dispatchers = list(functions.advance._by_types.values())
+    dispatchers = list(functions.advance.dispatchers.values())
     assert dispatchers and all(d.py_func is loop.advance for d in dispatchers)
     # Its machine code is cached under a folder named by the kernel's hash.
     assert compiled.kernel_cache_dir().name.startswith("kernel-")
