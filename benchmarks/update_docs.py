@@ -174,10 +174,26 @@ def nbody_block() -> str:
     return "\n".join(lines)
 
 
+def memory_block() -> str:
+    results = _load("memory.json")
+    if results is None:
+        return "(run `python benchmarks/memory.py`)"
+    import memory
+
+    machine = results["machine"]
+    return "\n".join([
+        memory.table(results),
+        "",
+        f"Peak resident set size above an interpreter that loaded the same code and ran one "
+        f"short solve ({results['interpreter_mb']:.1f} MB); {results['started']}, "
+        f"{machine['cpu']}, {machine['cores']} cores, load average {machine['load_average']}.",
+    ])  # fmt: skip
+
+
 def main() -> int:
     text = DOC.read_text()
     for name, block in (("peers", peers_block), ("startup", startup_block),
-                        ("nbody", nbody_block)):  # fmt: skip
+                        ("memory", memory_block), ("nbody", nbody_block)):  # fmt: skip
         pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)
