@@ -353,6 +353,38 @@ def test_the_compile_notice_is_quiet_off_a_terminal_and_when_fast(monkeypatch):
     assert stream.getvalue() == ""
 
 
+def test_the_kernel_key_tells_apart_every_argument_numba_types_apart():
+    # The kernel is called through the entry point of the signature its key
+    # names, which does not check types: equal keys must mean equal types.
+    import numba
+
+    Inputs = layout.Inputs
+    base = np.zeros((4, 3))
+    readonly = np.zeros(3)
+    readonly.setflags(write=False)
+    unaligned = np.frombuffer(bytearray(8 * 4 + 1), dtype=np.float64, offset=1, count=4)
+    record = np.zeros(1, dtype=[("t", "f8"), ("n", "i8")])
+    samples = [
+        np.zeros(3), np.zeros(3, dtype=np.int64), np.zeros(3, dtype=np.float32), readonly,
+        unaligned, np.zeros(6)[::2], base, np.asfortranarray(base), base[:, ::2], base.T,
+        np.zeros((2, 2, 2)), record, np.zeros(1, dtype=[("t", "f8"), ("m", "i8")]),
+        1, 1.0, True,
+        Inputs(*(np.zeros(2) for _ in Inputs._fields)),
+        Inputs(*(np.zeros(2) for _ in Inputs._fields[:-1]), np.zeros(2, dtype=np.int64)),
+        (np.zeros(2), np.zeros(2)),
+    ]  # fmt: skip
+    keys = [compiled._describe(value) for value in samples]
+    types = [numba.typeof(value) for value in samples]
+    for i in range(len(samples)):
+        for j in range(len(samples)):
+            if keys[i] == keys[j]:
+                assert types[i] == types[j], (samples[i], samples[j])
+    # Neither is C-contiguous, yet numba types them apart ("F" and "A"): a key
+    # of C-contiguity alone would call the F-layout code with a strided array.
+    assert types[7].layout == "F" and types[8].layout == "A"
+    assert keys[7] != keys[8]
+
+
 def test_the_kernel_remembers_first_class_function_addresses_numba_would_give():
     from numba.experimental import function_type
 

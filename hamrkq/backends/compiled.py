@@ -389,9 +389,12 @@ def _describe(value: Any) -> Any:
     return type(value)
 
 
-#: NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_WRITEABLE: the flags that change the
-#: numba type of an array argument of the kernel (layout and readonly).
-_LAYOUT_FLAGS = 0x0001 | 0x0400
+#: NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_F_CONTIGUOUS | NPY_ARRAY_ALIGNED |
+#: NPY_ARRAY_WRITEABLE: the flags that change the numba type of an array
+#: (its layout "C", "F" or "A", alignment and readonly).  The kernel is called
+#: through the entry point of the signature its key names, which trusts the
+#: types: the key must tell apart every argument numba would type apart.
+_LAYOUT_FLAGS = 0x0001 | 0x0002 | 0x0100 | 0x0400
 
 
 def kernel() -> CompiledKernel:
