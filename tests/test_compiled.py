@@ -353,6 +353,20 @@ def test_the_compile_notice_is_quiet_off_a_terminal_and_when_fast(monkeypatch):
     assert stream.getvalue() == ""
 
 
+def test_the_kernel_functions_pickle_to_the_receiving_process_kernel():
+    import pickle
+
+    problem = hamrkq.load_problem("harmonic")
+    functions = compiled.kernel_functions(problem.hamiltonian)
+    copy = pickle.loads(pickle.dumps(functions))
+    assert copy.advance is compiled.kernel()
+    options = {"atol": np.full(2, 1e-8), "rtol": np.zeros(2)}
+    _assert_parity(
+        _run(copy, problem, 0.0, 1.0, "rk34q8", **options),
+        _run(functions, problem, 0.0, 1.0, "rk34q8", **options),
+    )
+
+
 def test_the_kernel_key_tells_apart_every_argument_numba_types_apart():
     # The kernel is called through the entry point of the signature its key
     # names, which does not check types: equal keys must mean equal types.

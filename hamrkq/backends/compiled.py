@@ -359,6 +359,11 @@ class CompiledKernel:
         #: The numba dispatcher of each signature compiled so far.
         self.dispatchers: dict[tuple, Any] = {}
 
+    def __reduce__(self):
+        # Compiled entry points cannot be pickled; another process uses its own
+        # kernel (loaded from the disk cache, or compiled).
+        return (kernel, ())
+
     def __call__(self, rhs, tangent, jac, *args):
         key = tuple(_describe(a) for a in args)
         entry = self._by_types.get(key)
