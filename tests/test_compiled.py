@@ -211,14 +211,14 @@ SCRIPT = textwrap.dedent(
 )
 
 
-def _fresh_process(cache: Path) -> dict:
+def _fresh_process(cache: Path, script: str = SCRIPT) -> dict:
     env = {**os.environ, codegen.CACHE_ENV: str(cache), "PYTHONPATH": str(ROOT)}
     env.pop(compiled.DISABLE_ENV, None)
     # numba's own cache directory would take the machine code elsewhere; this
     # test is about hamrkq's cache directory holding it.
     env.pop("NUMBA_CACHE_DIR", None)
     done = subprocess.run(
-        [sys.executable, "-c", SCRIPT],
+        [sys.executable, "-c", script],
         env=env,
         capture_output=True,
         text=True,
@@ -242,6 +242,46 @@ def test_a_second_process_loads_everything_from_the_cache(tmp_path):
     names = {f.name for f in tmp_path.iterdir()}
     assert any(n.startswith("kernel-") for n in names)
     assert (tmp_path / "__pycache__").is_dir()
+
+
+CHAIN_SCRIPT = textwrap.dedent(
+    """
+    import json
+    import sympy as sp
+    import hamrkq
+    from hamrkq.backends import compiled
+
+    q, p = sp.symbols("q0:6", real=True), sp.symbols("p0:6", real=True)
+    H = sum(x**2 / 2 for x in p) + sum(x**4 / 4 for x in q)
+    H += sum((q[i] - q[i + 1]) ** 2 / 2 for i in range(5))
+    ham = hamrkq.Hamiltonian(H, q=list(q), p=list(p))
+    out = hamrkq.solve(ham, [0.1] * 6, [0.0] * 6, (0.0, 2.0), atol=1e-8, backend="numba")
+    print(json.dumps({"compiled": compiled.COMPILE_COUNT, "stats": compiled.stats(),
+                      "status": out.status.name}))
+    """
+)
+
+
+@pytest.mark.slow
+def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
+    # 12 state variables (HELPER_MIN_DIM): on an empty cache a helper process
+    # compiles the kernel while this one prepares the system, which then
+    # loads the kernel from the cache instead of compiling it.
+    assert compiled.HELPER_MIN_DIM <= 12
+    result = _fresh_process(tmp_path, CHAIN_SCRIPT)
+    assert result["status"] == "SUCCESS"
+    # rhs, jac, rhs_jvp, energy and energy_rows compiled here; the kernel loaded
+    assert result["compiled"] == 5
+    assert result["stats"]["loaded"] == 1
+    assert any(tmp_path.glob("kernel-*/**/*.nbi"))
+
+
+def test_the_helper_is_not_started_for_a_small_system_or_a_cached_kernel():
+    assert compiled._kernel_in_background(compiled.HELPER_MIN_DIM - 1) is None
+    options = {"atol": np.full(2, 1e-8), "rtol": np.zeros(2)}
+    _compiled(hamrkq.load_problem("harmonic"), 0.0, 0.1, "rk34q8", **options)
+    assert compiled._kernel_cached()
+    assert compiled._kernel_in_background(compiled.HELPER_MIN_DIM) is None
 
 
 # -- availability and fallback -----------------------------------------------------

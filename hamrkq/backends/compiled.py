@@ -31,6 +31,12 @@ is a terminal, as the progress bar) and on the ``hamrkq`` logger says that
 code is being compiled once and cached, and another how long it took
 (:class:`hamrkq._progress.WaitNotice`).
 
+On a first use of a large system (:data:`HELPER_MIN_DIM` state variables or
+more) with no kernel in the cache, a helper process compiles the kernel into
+the cache (:func:`build_kernel`) while this one derives, generates and
+compiles the system, on a second core; the kernel is then loaded from the
+cache.  Should the helper fail, the kernel is compiled here as before.
+
 Compilation is counted: :data:`COMPILE_COUNT` grows by one for every function
 signature numba had to compile in this process (rather than load from its
 cache), so a test can tell that a fresh process with a warm cache compiled
@@ -43,6 +49,8 @@ import functools
 import hashlib
 import math
 import os
+import subprocess
+import sys
 import threading
 import time
 import types
@@ -499,24 +507,32 @@ def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | Non
     _WARM.add(key)
 
 
-def _warm_up(ham: Hamiltonian) -> None:
+def _probe(functions, dim: int, n_params: int):
+    """A one-step integration whose kernel call has the signature of every run."""
     from hamrkq.rkq.driver import Integration, Settings
     from hamrkq.rkq.family import get_member
     from hamrkq.rkq.layout import GAMMA_TANGENT, QUENCH_NODE, RULE_COMPONENTWISE
 
-    functions = kernel_functions(ham)
-    d = ham.dim
-    run = Integration(
+    return Integration(
         functions,
         get_member("rk34q8"),
-        np.zeros(len(ham.parameters)),
+        np.zeros(n_params),
         0.0,
-        np.full(d, 0.5),
+        np.full(dim, 0.5),
         1e-3,
-        np.full(d, 1e-6),
-        np.zeros(d),
+        np.full(dim, 1e-6),
+        np.zeros(dim),
         Settings(QUENCH_NODE, RULE_COMPONENTWISE, GAMMA_TANGENT, max_steps=1),
     )
+
+
+def _warm_up(ham: Hamiltonian) -> None:
+    helper = _kernel_in_background(ham.dim)
+    try:
+        functions = kernel_functions(ham)  # the system, meanwhile
+    finally:
+        _join(helper)
+    run = _probe(functions, ham.dim, len(ham.parameters))
     try:
         with np.errstate(all="ignore"):
             run.run()
@@ -525,6 +541,99 @@ def _warm_up(ham: Hamiltonian) -> None:
             f"numba failed to compile the RKQ kernel ({type(exc).__name__}: "
             f"{str(exc).splitlines()[0] if str(exc) else ''})"
         ) from exc
+
+
+_HELPER_CODE = "from hamrkq.backends import compiled; compiled.build_kernel()"
+
+#: The longest wait for the helper process that compiles the kernel; after
+#: it the helper is stopped and this process compiles the kernel itself.
+HELPER_TIMEOUT = 600.0
+
+
+def _kernel_cached() -> bool:
+    """Whether the kernel is loaded in this process or compiled in the cache."""
+    kernel_ = _KERNEL.get("kernel")
+    if kernel_ is not None and kernel_.dispatchers:
+        return True
+    return any(kernel_cache_dir().rglob("*.nbi"))
+
+
+#: Systems of at least this many state variables have the kernel compiled by
+#: a helper process while they are prepared, on a first use (measured, empty
+#: cache: outer_solar_system, 36, 19.9-20.9 s -> 14.7 s; prentice2011, 2,
+#: 11.7-13.3 s -> 15.6 s, since the helper's own start-up, about 1.5 s, is
+#: more than a small system's preparation).
+HELPER_MIN_DIM = 12
+
+
+def _kernel_in_background(dim: int) -> subprocess.Popen | None:
+    """Start compiling the kernel into the cache in a helper process, when it
+    is not there, the system is large (:data:`HELPER_MIN_DIM`) and a second
+    core can do it while this process derives, generates and compiles the
+    system (outer_solar_system's takes about 6 s beside the kernel's 12 s);
+    None otherwise, or if the helper cannot be started."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if dim < HELPER_MIN_DIM or (cores or 1) < 2 or _kernel_cached():
+        return None
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])  # the folder holding hamrkq/
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    try:
+        return subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from hamrkq.backends import compiled; compiled.build_kernel()",
+            ],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:
+        return None
+
+
+def _join(helper: subprocess.Popen | None) -> None:
+    """Wait for the helper; whatever it did, the kernel's own call then loads
+    the kernel from the cache or, if the helper failed, compiles it here."""
+    if helper is None:
+        return
+    try:
+        helper.wait(timeout=HELPER_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        helper.kill()
+        helper.wait()
+
+
+class _KernelCompiled(Exception):
+    """Raised by :func:`build_kernel`'s stand-in kernel once it has compiled."""
+
+
+def build_kernel() -> None:
+    """Compile the kernel into the cache without compiling any system (the
+    helper process of a first use; see :func:`_kernel_in_background`).
+
+    The kernel's arguments are typed from a one-step integration of a
+    stand-in system; the functions' types are the fixed signatures of every
+    compiled system.
+    """
+    from hamrkq.rkq.driver import KernelFunctions
+
+    _numba()
+
+    def zero_rhs(t, y, params, out):
+        out[:] = 0.0
+
+    def compile_and_stop(rhs, tangent, jac, *args):
+        _compile_kernel(_signature((rhs, tangent, jac, *args)))
+        raise _KernelCompiled
+
+    run = _probe(KernelFunctions(zero_rhs, None, None, compile_and_stop), 2, 0)
+    try:
+        run.run()
+    except _KernelCompiled:
+        pass
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
