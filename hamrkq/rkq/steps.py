@@ -204,14 +204,16 @@ def witness_step(rhs, t, h, tab, cfg, params, work):
     The witness is the quencher track again, from the same initial value on
     the same mesh, with every stage sum and the increment added in the
     opposite order (the same value, rounded differently) and the parameters
-    moved by about an ulp (``witness_params``: constants such as ``1 - mu``
-    are rounded once for the whole run, a systematic error that differs
-    between the two only this way).  The two share their truncation error
-    and differ only by how their rounding errors have grown along the orbit
-    (the idea of Vignes' stochastic arithmetic).  (Starting it
-    one ulp away instead measures how the flow amplifies that ulp: near the
-    Moon on the Arenstorf orbit, a hundredfold in the first step.)  That divergence is the size of
-    the quencher's rounding error, which nothing else in the run sees.  (A
+    moved by about an ulp (``witness_params``: constants formed from them,
+    such as products, are rounded the same way at every evaluation, a
+    systematic error that differs between the two only this way; a sum such
+    as ``1 - mu`` with a small ``mu`` does not move, docs/algorithm.md).
+    The two share their truncation error and differ only by how their
+    rounding errors have grown along the orbit (the idea of Vignes'
+    stochastic arithmetic).  (Starting it one ulp away instead measures how
+    the flow amplifies that ulp: near the Moon on the Arenstorf orbit, a
+    hundredfold in the first step.)  That divergence is the size of the
+    quencher's rounding error, which nothing else in the run sees.  (A
     witness of the shadow, on the coarser mesh, costs less but measured 1.5
     to 20 times the quencher's rounding on prentice2011.)  Returns the
     evaluations."""
