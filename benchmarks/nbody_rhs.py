@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     import numba
 
     import hamrkq
-    from hamrkq.backends import codegen, compiled
+    from hamrkq.backends import codegen, numba_compile
 
     problem = hamrkq.load_problem("outer_solar_system")
     ham = problem.hamiltonian
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:  # never the user's cache
         module = codegen.load_module(ham, Path(tmp))
     namespace = {"math": math, "__name__": module.__name__}
-    sig = compiled._types()
+    sig = numba_compile.signatures()
     jitted, compile_s = {}, {}
     for name in ("rhs", "jac", "rhs_jvp"):
         function = types.FunctionType(getattr(module, name).__code__, namespace, name)

@@ -65,7 +65,7 @@ BREAKDOWN = """
 import json, math, time, types
 import numba
 import hamrkq
-from hamrkq.backends import codegen, compiled
+from hamrkq.backends import codegen, numba_compile
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 clock = time.process_time
@@ -77,7 +77,7 @@ t = clock(); source = codegen.generate_source(ham); out["generate_source"] = clo
 out["source_lines"] = len(source.splitlines())
 module = codegen.load_module(ham)
 namespace = {{"math": math, "__name__": module.__name__}}
-sig = compiled._types()
+sig = numba_compile.signatures()
 for name in ("rhs", "jac", "rhs_jvp", "energy", "energy_rows"):
     plain = types.FunctionType(getattr(module, name).__code__, namespace, name)
     t = clock()

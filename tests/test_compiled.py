@@ -21,7 +21,7 @@ import sympy as sp
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import codegen, compiled
+from hamrkq.backends import codegen, compiled, kernel, numba_compile
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, OptionError
 from hamrkq.rkq import layout, loop
@@ -267,7 +267,7 @@ def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
     # 12 state variables (HELPER_MIN_DIM): on an empty cache a helper process
     # compiles the kernel while this one prepares the system, which then
     # loads the kernel from the cache instead of compiling it.
-    assert compiled.HELPER_MIN_DIM <= 12
+    assert kernel.HELPER_MIN_DIM <= 12
     result = _fresh_process(tmp_path, CHAIN_SCRIPT)
     assert result["status"] == "SUCCESS"
     # rhs, jac, rhs_jvp, energy and energy_rows compiled here; the kernel loaded
@@ -277,11 +277,11 @@ def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
 
 
 def test_the_helper_is_not_started_for_a_small_system_or_a_cached_kernel():
-    assert compiled._kernel_in_background(compiled.HELPER_MIN_DIM - 1) is None
+    assert kernel.start_helper(kernel.HELPER_MIN_DIM - 1) is None
     options = {"atol": np.full(2, 1e-8), "rtol": np.zeros(2)}
     _compiled(hamrkq.load_problem("harmonic"), 0.0, 0.1, "rk34q8", **options)
-    assert compiled._kernel_cached()
-    assert compiled._kernel_in_background(compiled.HELPER_MIN_DIM) is None
+    assert kernel.kernel_cached()
+    assert kernel.start_helper(kernel.HELPER_MIN_DIM) is None
 
 
 # -- availability and fallback -----------------------------------------------------
@@ -427,7 +427,7 @@ def test_the_kernel_key_tells_apart_every_argument_numba_types_apart():
         Inputs(*(np.zeros(2) for _ in Inputs._fields[:-1]), np.zeros(2, dtype=np.int64)),
         (np.zeros(2), np.zeros(2)),
     ]  # fmt: skip
-    keys = [compiled._describe(value) for value in samples]
+    keys = [kernel.describe(value) for value in samples]
     types = [numba.typeof(value) for value in samples]
     for i in range(len(samples)):
         for j in range(len(samples)):
@@ -444,7 +444,7 @@ def test_the_kernel_remembers_first_class_function_addresses_numba_would_give():
 
     compiled.kernel()
     system = compiled.compile_system(hamrkq.load_problem("harmonic").hamiltonian)
-    sig = compiled._types()["rhs"]
+    sig = numba_compile.signatures()["rhs"]
     result = system.rhs.get_compile_result(sig)
     library = result.library
     wrapper = library.get_pointer_to_function(result.fndesc.llvm_cfunc_wrapper_name)

@@ -15,7 +15,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.backends import compiled
+from hamrkq.backends import compiled, kernel
 from hamrkq.errors import HamrkqWarning, InputError
 from hamrkq.rkq.family import AUTO_MEMBER, MEMBERS, auto_member
 
@@ -117,8 +117,8 @@ def test_a_kernel_that_fails_to_compile_falls_back_and_says_what_failed(monkeypa
     def broken(signature):
         raise RuntimeError("LoweringError: something numba could not do")
 
-    monkeypatch.setattr(compiled, "_compile_kernel", broken)
-    monkeypatch.setattr(compiled, "_KERNEL", {})
+    monkeypatch.setattr(kernel, "_compile_kernel", broken)
+    monkeypatch.setattr(kernel, "_KERNEL", {})
     q, p = sp.symbols("q p")
     ham = hamrkq.Hamiltonian(p**2 / 2 + q**4 / 4, q=[q], p=[p])
     with pytest.warns(HamrkqWarning, match="RKQ kernel.*LoweringError") as caught:

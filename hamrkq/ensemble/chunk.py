@@ -30,7 +30,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
 from hamrkq.rkq.batch import allocate_batch, run_members
-from hamrkq.rkq.family import needs_witness
+from hamrkq.rkq.family import needs_witness, tightest_tolerance
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.dispatch import integration, run_rk, uses_witness
@@ -119,8 +119,10 @@ def _same_options(prepared, request: Request) -> bool:
             return False
     if prepared.requested.method != "auto":
         return True
-    tightest = np.min(np.maximum(task.atol, task.rtol * np.abs(request.y0)), axis=1)
-    return all(prepared.requested.with_auto(float(t)) == task.options for t in tightest)
+    return all(
+        prepared.requested.with_auto(tightest_tolerance(task.atol, task.rtol, y0)) == task.options
+        for y0 in request.y0
+    )
 
 
 def solve_members(request: Request) -> ChunkResult:

@@ -26,7 +26,16 @@ from hamrkq.methods.tableaus import (
 )
 from hamrkq.rkq.layout import Tableaus
 
-__all__ = ["MEMBERS", "Member", "auto_member", "auto_retry_substeps", "get_member", "merge_pair"]
+__all__ = [
+    "MEMBERS",
+    "Member",
+    "auto_member",
+    "auto_retry_substeps",
+    "get_member",
+    "merge_pair",
+    "needs_witness",
+    "tightest_tolerance",
+]
 
 
 def _read_only(values) -> np.ndarray:
@@ -272,11 +281,18 @@ AUTO_MEMBER = "rk78q12"
 AUTO_SUBSTEPS = ((1e-5, 4), (3e-9, 3), (0.0, 2))
 
 
-def auto_member(tightest_tolerance: float) -> tuple[str, int]:
+def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> float:
+    """The smallest per-component tolerance ``max(atol, rtol |y|)`` at the
+    state ``y`` (infinite for no components): what ``method="auto"`` and the
+    rounding witness are chosen by, at ``y0``."""
+    return float(np.min(np.maximum(atol, rtol * np.abs(y)), initial=np.inf))
+
+
+def auto_member(tightest: float) -> tuple[str, int]:
     """The member and quencher steps per step ``method="auto"`` runs for a
-    tolerance (the smallest per-component ``max(atol, rtol |y0|)``)."""
+    tolerance (:func:`tightest_tolerance` at ``y0``)."""
     for above, substeps in AUTO_SUBSTEPS:
-        if tightest_tolerance > above:
+        if tightest > above:
             return AUTO_MEMBER, substeps
     return AUTO_MEMBER, AUTO_SUBSTEPS[-1][1]
 
@@ -303,8 +319,7 @@ def needs_witness(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> bool:
     times the largest ``|y0|`` (or times 1 when ``y0`` is zero).
     """
     scale = float(np.max(np.abs(y0), initial=0.0)) or 1.0
-    tightest = float(np.min(np.maximum(atol, rtol * np.abs(y0)), initial=np.inf))
-    return tightest < WITNESS_BELOW * scale
+    return tightest_tolerance(atol, rtol, y0) < WITNESS_BELOW * scale
 
 
 #: The most quencher steps per step ``method="auto"`` tries.

@@ -50,7 +50,7 @@ from hamrkq.options import (
     SolveOptions,
 )
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.family import auto_retry_substeps
+from hamrkq.rkq.family import auto_retry_substeps, tightest_tolerance
 from hamrkq.solve import arguments, outcome
 from hamrkq.solve.dispatch import METHODS, MethodSpec, Task, member_of, resolve_backend, run_rk
 
@@ -337,7 +337,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
     requested = options
-    options = options.with_auto(float(np.min(np.maximum(atol_v, rtol_v * np.abs(y0)))))
+    options = options.with_auto(tightest_tolerance(atol_v, rtol_v, y0))
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(

@@ -1,0 +1,330 @@
+"""The compiled step kernel: compiled once per version, cached, called cheaply.
+
+:func:`hamrkq.rkq.loop.advance` and everything it calls are ordinary Python
+functions marked with numba's public ``register_jitable``
+(:mod:`hamrkq.rkq.jit`): the interpreted backend calls them as they are, and
+here ``numba.njit`` compiles ``advance`` with an explicit signature in which
+``rhs``, ``rhs_jvp`` and ``jac`` are first-class function types, so one
+compiled kernel serves every Hamiltonian.  Its machine code is cached once
+per kernel version, in ``<cache dir>/kernel-<hash of the kernel's sources and
+versions>`` (:func:`kernel_cache_dir`; :mod:`hamrkq.backends.extras` compiles
+the kernel's other entry points there too, :func:`compile_in_cache`).
+
+:class:`CompiledKernel` calls the compiled entry point of the signature its
+arguments' key names, and numba's lookup of the first-class functions'
+addresses is remembered (:func:`remember_function_addresses`): the per-call
+overhead of a tiny problem went from 0.367 ms to 0.291 ms, then (with the
+identity-keyed memo and the entry point) from 0.299 ms to 0.240 ms, each
+measured side by side (``docs/performance.md``).
+
+On a first use of a large system (:data:`HELPER_MIN_DIM` state variables or
+more) with no kernel in the cache, a helper process compiles the kernel into
+the cache (:func:`build_kernel`) while the calling process prepares the
+system on another core (:func:`start_helper`, :func:`join_helper`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hamrkq.backends import codegen
+from hamrkq.backends.numba_compile import LOCK, jit, numba_module, signatures
+
+__all__ = [
+    "HELPER_MIN_DIM",
+    "HELPER_TIMEOUT",
+    "KERNEL_MODULES",
+    "CompiledKernel",
+    "build_kernel",
+    "compile_in_cache",
+    "describe",
+    "join_helper",
+    "kernel",
+    "kernel_cache_dir",
+    "kernel_cached",
+    "probe",
+    "remember_function_addresses",
+    "start_helper",
+]
+
+#: The modules whose functions make up the compiled kernel (their text keys its cache).
+KERNEL_MODULES = ("jit", "layout", "arith", "steps", "loop", "start", "batch")
+
+_KERNEL: dict[str, Any] = {}
+
+
+# -- where it is cached ---------------------------------------------------------
+
+
+def _kernel_key() -> str:
+    """Hash of the kernel's sources and the versions."""
+    from hamrkq import rkq
+
+    digest = hashlib.sha256()
+    for name in KERNEL_MODULES:
+        path = Path(rkq.__file__).parent / f"{name}.py"
+        digest.update(path.read_bytes())
+        digest.update(b"\0")
+    digest.update(codegen._versions().encode())
+    return digest.hexdigest()[:16]
+
+
+def kernel_cache_dir() -> Path:
+    """Where numba keeps the kernel's machine code."""
+    return codegen.cache_dir() / f"kernel-{_kernel_key()}"
+
+
+def compile_in_cache(function: Callable, arg_types: tuple):
+    """``function -> int64`` compiled for ``arg_types`` (or loaded) with its
+    machine code in :func:`kernel_cache_dir`: a folder named by the kernel's
+    hash, so that a changed callee (numba only checks the time stamp of the
+    compiled function's own file) never loads stale code."""
+    numba = numba_module()
+    folder = kernel_cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    return jit(function, numba.types.int64(*arg_types), cache_dir=str(folder))
+
+
+# -- calling it -------------------------------------------------------------------
+
+
+def _signature(args: tuple) -> tuple:
+    """The kernel's argument types for ``(rhs, tangent, jac, *rest)``: the
+    functions as first-class function types, the rest as typed."""
+    import numba
+
+    sig = signatures()
+    rest = tuple(numba.typeof(a) for a in args[3:])
+    return (sig["rhs_type"], sig["rhs_jvp_type"], sig["jac_type"], *rest)
+
+
+def _compile_kernel(arg_types: tuple):
+    """``loop.advance`` compiled for one signature (or loaded from the cache)."""
+    from hamrkq.rkq import loop
+
+    return compile_in_cache(loop.advance, arg_types)
+
+
+class CompiledKernel:
+    """``advance(rhs, tangent, jac, *args)`` with the compiled kernel: the
+    signature of the arguments is compiled (or loaded from the disk cache)
+    on first use."""
+
+    def __init__(self):
+        self._by_types: dict[tuple, Any] = {}
+        #: The numba dispatcher of each signature compiled so far.
+        self.dispatchers: dict[tuple, Any] = {}
+
+    def __reduce__(self):
+        # Compiled entry points cannot be pickled; another process uses its own
+        # kernel (loaded from the disk cache, or compiled).
+        return (kernel, ())
+
+    def __call__(self, rhs, tangent, jac, *args):
+        key = tuple(describe(a) for a in args)
+        entry = self._by_types.get(key)
+        if entry is None:
+            with LOCK:
+                entry = self._by_types.get(key)
+                if entry is None:
+                    dispatcher = _compile_kernel(_signature((rhs, tangent, jac, *args)))
+                    # The compiled code's own entry point: the dispatcher would
+                    # type every argument again to choose among its one
+                    # signature (18 us of a 0.29 ms call of a tiny problem).
+                    # ``key`` already says the arguments have those types.
+                    (entry,) = (cres.entry_point for cres in dispatcher.overloads.values())
+                    self.dispatchers[key] = dispatcher
+                    self._by_types[key] = entry
+        return entry(rhs, tangent, jac, *args)
+
+
+def describe(value: Any) -> Any:
+    """A cheap description of an argument's numba type (numba.typeof on every
+    call would cost more than a short chunk of steps): equal descriptions
+    mean equal numba types."""
+    if isinstance(value, np.ndarray):
+        # dtype objects compare (and hash) by their fields; flags.num holds
+        # the layout, alignment and writeability as bits, read once.
+        return (value.dtype, value.ndim, value.flags.num & _LAYOUT_FLAGS)
+    if isinstance(value, tuple):
+        return (type(value), *map(describe, value))
+    return type(value)
+
+
+#: NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_F_CONTIGUOUS | NPY_ARRAY_ALIGNED |
+#: NPY_ARRAY_WRITEABLE: the flags that change the numba type of an array
+#: (its layout "C", "F" or "A", alignment and readonly).  The kernel is called
+#: through the entry point of the signature its key names, which trusts the
+#: types: the key must tell apart every argument numba would type apart.
+_LAYOUT_FLAGS = 0x0001 | 0x0002 | 0x0100 | 0x0400
+
+
+def kernel() -> CompiledKernel:
+    """The compiled kernel (one per process)."""
+    with LOCK:
+        if "kernel" not in _KERNEL:
+            numba_module()
+            remember_function_addresses()
+            _KERNEL["kernel"] = CompiledKernel()
+        return _KERNEL["kernel"]
+
+
+def remember_function_addresses() -> None:
+    """Make numba look up the machine address of a first-class function once.
+
+    The kernel takes ``rhs``, ``rhs_jvp`` and ``jac`` as first-class
+    functions; on every call numba asks, for each, the compiled result of the
+    dispatcher and its address from LLVM (about 9 us each, two per function:
+    55 us of a 0.38 ms call of a tiny problem).  For a dispatcher compiled
+    with an explicit signature the answer never changes, so it is kept,
+    with the dispatcher itself (an address is never reused for another
+    object).  numba calls these two functions by name from its compiled
+    code; if a later numba renames them, nothing is changed.
+    """
+    try:
+        from numba.core.dispatcher import Dispatcher
+        from numba.experimental import function_type
+    except ImportError:  # pragma: no cover - another numba layout
+        return
+    for name in ("_get_wrapper_address", "_get_jit_address"):
+        lookup = getattr(function_type, name, None)
+        if lookup is None or getattr(lookup, "_hamrkq_remembers", False):
+            continue
+        function_type.__dict__[name] = _remembering(lookup, Dispatcher)
+
+
+def _remembering(lookup: Callable, dispatcher_type: type) -> Callable:
+    # Keyed by identity: numba passes the same signature object on every call
+    # (its unpickling is memoised), and hashing a numba type costs microseconds.
+    # An entry holds both objects, so neither id is reused while it is kept.
+    known: dict[tuple[int, int], tuple] = {}
+
+    def remembered(func, sig):
+        entry = known.get((id(func), id(sig)))
+        if entry is not None and entry[0] is func and entry[1] is sig:
+            return entry[2]
+        address = lookup(func, sig)
+        if isinstance(func, dispatcher_type) and func.signatures:
+            known[(id(func), id(sig))] = (func, sig, address)
+        return address
+
+    remembered._hamrkq_remembers = True  # type: ignore[attr-defined]
+    return remembered
+
+
+def probe(functions, dim: int, n_params: int):
+    """A one-step integration whose kernel call has the signature of every run
+    (:class:`~hamrkq.rkq.driver.Integration` of ``functions``, a stand-in
+    state of ``dim`` components and ``n_params`` parameters)."""
+    from hamrkq.rkq.driver import Integration, Settings
+    from hamrkq.rkq.family import get_member
+    from hamrkq.rkq.layout import GAMMA_TANGENT, QUENCH_NODE, RULE_COMPONENTWISE
+
+    return Integration(
+        functions,
+        get_member("rk34q8"),
+        np.zeros(n_params),
+        0.0,
+        np.full(dim, 0.5),
+        1e-3,
+        np.full(dim, 1e-6),
+        np.zeros(dim),
+        Settings(QUENCH_NODE, RULE_COMPONENTWISE, GAMMA_TANGENT, max_steps=1),
+    )
+
+
+# -- compiling it in a helper process -----------------------------------------------
+
+#: Systems of at least this many state variables have the kernel compiled by
+#: a helper process while they are prepared, on a first use (measured, empty
+#: cache: outer_solar_system, 36, 19.9-20.9 s -> 13.8-14.7 s; prentice2011, 2,
+#: 11.7-13.3 s -> 15.6 s, since the helper's own start-up, about 1.5 s, is
+#: more than a small system's preparation).
+HELPER_MIN_DIM = 12
+
+#: The longest wait for the helper process; after it the helper is stopped
+#: and the calling process compiles the kernel itself.
+HELPER_TIMEOUT = 600.0
+
+
+def kernel_cached() -> bool:
+    """Whether the kernel is loaded in this process or compiled in the cache."""
+    current = _KERNEL.get("kernel")
+    if current is not None and current.dispatchers:
+        return True
+    return any(kernel_cache_dir().rglob("*.nbi"))
+
+
+def start_helper(dim: int) -> subprocess.Popen | None:
+    """Start compiling the kernel into the cache in a helper process, when it
+    is not there, the system is large (:data:`HELPER_MIN_DIM`) and a second
+    core can do it while this process derives, generates and compiles the
+    system (outer_solar_system's takes about 6 s beside the kernel's 12 s);
+    None otherwise, or if the helper cannot be started."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if dim < HELPER_MIN_DIM or (cores or 1) < 2 or kernel_cached():
+        return None
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])  # the folder holding hamrkq/
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    code = "from hamrkq.backends import kernel; kernel.build_kernel()"
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", code],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:
+        return None
+
+
+def join_helper(helper: subprocess.Popen | None) -> None:
+    """Wait for the helper; whatever it did, the kernel's own call then loads
+    the kernel from the cache or, if the helper failed, compiles it here."""
+    if helper is None:
+        return
+    try:
+        helper.wait(timeout=HELPER_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        helper.kill()
+        helper.wait()
+
+
+class _KernelCompiled(Exception):
+    """Raised by :func:`build_kernel`'s stand-in kernel once it has compiled."""
+
+
+def build_kernel() -> None:
+    """Compile the kernel into the cache without compiling any system (the
+    helper process of a first use; see :func:`start_helper`).
+
+    The kernel's arguments are typed from a one-step integration of a
+    stand-in system; the functions' types are the fixed signatures of every
+    compiled system.
+    """
+    from hamrkq.rkq.driver import KernelFunctions
+
+    numba_module()
+
+    def zero_rhs(t, y, params, out):
+        out[:] = 0.0
+
+    def compile_and_stop(rhs, tangent, jac, *args):
+        _compile_kernel(_signature((rhs, tangent, jac, *args)))
+        raise _KernelCompiled
+
+    run = probe(KernelFunctions(zero_rhs, None, None, compile_and_stop), 2, 0)
+    try:
+        run.run()
+    except _KernelCompiled:
+        pass

@@ -1,0 +1,148 @@
+"""numba, when it can be used, and every compile counted.
+
+:func:`available` says whether the compiled backend can run here (numba
+importable, :data:`DISABLE_ENV` not set); :func:`numba_module` returns numba
+or raises :class:`BackendUnavailable`.  :func:`jit` compiles a function with
+an explicit signature and ``cache=True`` and adds the dispatcher's cache
+misses and hits to this process's counters
+(:func:`stats`), so that a test can tell that a fresh process with a warm
+cache compiled nothing.  :func:`signatures` holds the fixed numba signatures
+of a compiled system's functions, which the kernel takes as first-class
+function types.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import threading
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+from hamrkq.errors import HamrkqError
+
+__all__ = [
+    "DISABLE_ENV",
+    "LOCK",
+    "BackendUnavailable",
+    "available",
+    "jit",
+    "numba_module",
+    "signatures",
+    "stats",
+]
+
+#: Environment variable: set to 1 (or true/yes/on) to turn the compiled backend off.
+DISABLE_ENV = "HAMRKQ_DISABLE_NUMBA"
+#: Held while compiling or registering compiled code (numba's own lock is not
+#: re-entrant across our checks of what is already compiled).
+LOCK = threading.RLock()
+_STATS: dict[str, Any] = {
+    "compiled": 0,
+    "loaded": 0,
+    "compile_seconds": 0.0,
+    "load_seconds": 0.0,
+}
+
+
+class BackendUnavailable(HamrkqError, RuntimeError):
+    """The compiled backend cannot be used (disabled, numba missing, or the
+    system cannot be compiled); the message says which."""
+
+
+def _disabled_by_env() -> bool:
+    return os.environ.get(DISABLE_ENV, "").strip().lower() in {"1", "true", "yes", "on"}
+
+
+def available() -> tuple[bool, str]:
+    """Whether the compiled backend can be used here, and if not, why.
+
+    Returns
+    -------
+    (ok, reason) : (bool, str)
+        ``reason`` is empty when ``ok``.
+    """
+    if _disabled_by_env():
+        return False, f"the environment variable {DISABLE_ENV} is set"
+    try:
+        import numba  # noqa: F401
+    except Exception as exc:  # ImportError, or a broken install (llvmlite)
+        return False, f"numba cannot be imported ({type(exc).__name__}: {exc})"
+    return True, ""
+
+
+def numba_module():
+    """numba itself; raises :class:`BackendUnavailable` when it cannot be used."""
+    ok, reason = available()
+    if not ok:
+        raise BackendUnavailable(reason)
+    import numba
+
+    return numba
+
+
+@functools.cache
+def signatures() -> dict[str, Any]:
+    """numba signatures of a compiled system's ``rhs``, ``jac``, ``rhs_jvp``,
+    ``energy`` and ``energy_rows``, and (``*_type``) the first-class function
+    types the kernel takes them as."""
+    from numba import types as nt
+
+    vec, mat = nt.float64[::1], nt.float64[:, ::1]
+    rhs = nt.void(nt.float64, vec, vec, vec)
+    jac = nt.void(nt.float64, vec, vec, mat)
+    rhs_jvp = nt.void(nt.float64, vec, vec, vec, vec, vec, mat)
+    return {
+        "rhs": rhs,
+        "jac": jac,
+        "rhs_jvp": rhs_jvp,
+        "energy": nt.float64(nt.float64, vec, vec),
+        "energy_rows": nt.void(vec, mat, vec, vec),
+        "rhs_type": nt.FunctionType(rhs),
+        "jac_type": nt.FunctionType(jac),
+        "rhs_jvp_type": nt.FunctionType(rhs_jvp),
+        "energy_type": nt.FunctionType(nt.float64(nt.float64, vec, vec)),
+    }
+
+
+def _account(dispatcher, started: float) -> None:
+    """Add a dispatcher's cache misses and hits, and the seconds since
+    ``started``, to the counters."""
+    elapsed = time.perf_counter() - started
+    misses = sum(dispatcher.stats.cache_misses.values())
+    hits = sum(dispatcher.stats.cache_hits.values())
+    _STATS["compiled"] += misses
+    _STATS["loaded"] += hits
+    _STATS["compile_seconds" if misses else "load_seconds"] += elapsed
+
+
+def jit(function: Callable, signature, cache_dir: str | None = None):
+    """``function`` compiled by numba for ``signature`` (or loaded from its
+    disk cache: in ``cache_dir`` when given, else beside the function's
+    source file), counted."""
+    numba = numba_module()
+    flags = {"cache": True, "nogil": True, "error_model": "numpy"}
+    previous = numba.config.CACHE_DIR
+    if cache_dir is not None:
+        # numba reads its cache directory when a dispatcher is created.
+        numba.config.CACHE_DIR = cache_dir
+    try:
+        with warnings.catch_warnings():
+            # numba explains an uncacheable function with a warning; the
+            # counters and BackendUnavailable carry that information instead.
+            warnings.simplefilter("ignore", numba.NumbaWarning)
+            started = time.perf_counter()
+            dispatcher = numba.njit(signature, **flags)(function)
+            _account(dispatcher, started)
+    finally:
+        numba.config.CACHE_DIR = previous
+    return dispatcher
+
+
+def stats() -> dict[str, float]:
+    """Counters of this process: signatures ``compiled`` (also as
+    ``compile_count``) and ``loaded`` from the disk cache, and the seconds
+    spent on each."""
+    return {**_STATS, "compile_count": _STATS["compiled"]}
