@@ -1,7 +1,5 @@
 """``python -m hamrkq``: the command line."""
 
-import sys
+from hamrkq.cli import entry_point
 
-from hamrkq.cli import main
-
-sys.exit(main())
+entry_point()

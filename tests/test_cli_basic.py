@@ -1,4 +1,9 @@
-"""`hamrkq list` and `hamrkq show` from the test process."""
+"""`hamrkq list` and `hamrkq show` from the test process, and the program's exit."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -36,3 +41,31 @@ def test_bad_input_exits_2_without_traceback(capsys, argv, fragment):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert fragment in err and "Traceback" not in err
+
+
+def _program(argv: list[str]) -> subprocess.CompletedProcess:
+    """``entry_point`` in a fresh process whose stdout is a pipe (block-buffered,
+    so an exit that skipped the flush would lose output), with an ``atexit``
+    handler registered before it runs."""
+    script = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('atexit ran'))\n"
+        f"sys.argv = ['hamrkq', *{argv!r}]\n"
+        "from hamrkq.cli import entry_point\n"
+        "entry_point()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(hamrkq.__file__).parents[1])}
+    return subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env
+    )
+
+
+def test_the_program_flushes_runs_atexit_and_keeps_the_exit_status():
+    done = _program(["list"])
+    assert done.returncode == 0, done.stderr
+    assert all(name in done.stdout for name in hamrkq.list_problems())
+    assert done.stdout.endswith("atexit ran\n")
+    done = _program(["show", "no_such_problem"])
+    assert done.returncode == 2
+    assert done.stderr.startswith("hamrkq: error: ") and "no problem named" in done.stderr
+    assert done.stdout == "atexit ran\n"

@@ -13,12 +13,15 @@ in modules of their own (``hamrkq/commands/``) that register themselves through
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
 from collections.abc import Iterator, Sequence
+from typing import NoReturn
 
 from hamrkq._version import __version__
 from hamrkq.errors import HamrkqError
@@ -29,6 +32,7 @@ __all__ = [
     "EXIT_OK",
     "EXIT_WRITE_FAILED",
     "Terminated",
+    "entry_point",
     "main",
     "signals_received",
 ]
@@ -157,6 +161,31 @@ def main(argv: Sequence[str] | None = None) -> int:
             return EXIT_WRITE_FAILED
         finally:
             _release_outputs()
+
+
+def entry_point() -> NoReturn:
+    """The ``hamrkq`` program (console script and ``python -m hamrkq``):
+    :func:`main`, then a quick exit.
+
+    A normal interpreter shutdown tears down every module and frees numba's
+    compiled code object by object: about 0.6 s after a ``hamrkq run
+    prentice2011 --no-plots`` whose work took 1.6 s.  Nothing needs that
+    teardown once :func:`main` has returned (it has closed every output),
+    so the streams are flushed, the ``atexit`` handlers run (logging,
+    ``weakref.finalize``, multiprocessing) and the process ends.  If another
+    thread is still running, the shutdown is the normal one, which waits for
+    it.  Tests and other callers in a process of their own use :func:`main`.
+    """
+    status = main()
+    if threading.active_count() > 1:
+        sys.exit(status)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass  # a closed pipe or stream: nothing left to tell anyone
+    os._exit(status)
 
 
 def _release_outputs() -> None:
