@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
-from scipy.optimize import brentq
 
 from hamrkq._floats import EPS
 from hamrkq.backends.numeric import numeric_of
@@ -204,6 +203,8 @@ def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]
     g = spec.rows(t, y)
     if t.size < 2:
         return np.empty(0), np.empty((0, y.shape[1]))
+    from scipy.optimize import brentq  # 0.1 s to import: only when locating roots
+
     g1 = g[1:]
     hits = _crossings(spec, g)
     roots = []

@@ -16,8 +16,8 @@ from typing import Any
 
 from hamrkq._floats import MIN_RTOL
 from hamrkq._validate import choice, count, positive, show
-from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
-from hamrkq.baselines.scipy_ivp import SCIPY_METHODS
+from hamrkq.baselines import PREFIX as SCIPY_PREFIX
+from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.rkq.family import MEMBERS, Z_METHODS, auto_member, get_member
@@ -76,7 +76,7 @@ METHOD_NAMES = (
     "auto",
     *MEMBERS,
     *FIXED_STEP_METHODS,
-    *(SCIPY_PREFIX + name for name in SCIPY_METHODS),
+    *(SCIPY_PREFIX + name for name in SCIPY_SOLVER_HOMES),
 )
 
 

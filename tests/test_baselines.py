@@ -10,6 +10,7 @@ from scipy.integrate import DOP853, solve_ivp
 import hamrkq
 from hamrkq import Status
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, USES_JACOBIAN, solve_scipy
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
@@ -34,6 +35,13 @@ def test_every_scipy_and_fixed_step_method_is_in_the_dispatch_table():
     for name in FIXED_STEP_METHODS:
         assert name in METHODS
     assert METHODS["scipy:RK34Q8"].rk8 and not METHODS["scipy:DOP853"].rk8
+
+
+def test_the_light_list_of_scipy_solvers_names_each_solver_and_its_module():
+    assert tuple(SCIPY_METHODS) == tuple(SCIPY_SOLVER_HOMES)
+    for name, solver in SCIPY_METHODS.items():
+        assert solver.__name__ == name and solver.__module__.startswith(SCIPY_SOLVER_HOMES[name])
+        assert SCIPY_SOLVER_HOMES[name] in METHODS[f"scipy:{name}"].summary
 
 
 @pytest.mark.parametrize("name", ["DOP853", "RK45"])

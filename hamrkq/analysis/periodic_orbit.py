@@ -16,8 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.integrate import DOP853, solve_ivp
-from scipy.optimize import brentq
 
 from hamrkq._floats import EPS
 from hamrkq.errors import InputError, IntegrationError
@@ -65,6 +63,11 @@ def find_return(fun, t0, y0, shift, max_period, atol) -> tuple[float, np.ndarray
     Returns the approximate period, the per-component scales seen on the way,
     and the number of function evaluations.
     """
+    # scipy.integrate takes 0.3 s to import: only when an orbit is computed
+    # (a report whose reference is cached never needs it).
+    from scipy.integrate import DOP853
+    from scipy.optimize import brentq
+
     normal = fun(t0, y0)
     target = y0 + shift
     solver = DOP853(fun, t0, y0, t0 + max_period, rtol=PILOT_RTOL, atol=atol)
@@ -95,6 +98,8 @@ def find_return(fun, t0, y0, shift, max_period, atol) -> tuple[float, np.ndarray
 
 def periodic_orbit(fun, t0, y0, shift, guess, rtol, atol, steps_per_period) -> Orbit:
     """Refine the period by Newton's method on the section and keep one period."""
+    from scipy.integrate import solve_ivp  # see find_return
+
     normal = fun(t0, y0)
     period, nfev, closure = guess, 0, np.inf
     for _ in range(MAX_NEWTON):

@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
-from scipy.optimize import brentq
 
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
@@ -211,6 +210,8 @@ def energy_orbits(
     hi = centre
     while hi < grid.size - 1 and allowed[hi + 1]:
         hi += 1
+    from scipy.optimize import brentq  # 0.1 s to import: only when seeding orbits
+
     xs = np.linspace(grid[lo], grid[hi], orbits + 2)[1:-1]
     q0 = np.zeros((orbits, 2))
     p0 = np.zeros((orbits, 2))

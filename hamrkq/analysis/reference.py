@@ -28,9 +28,10 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
+from hamrkq._files import plain
 from hamrkq._floats import EPS, MIN_RTOL
+from hamrkq.analysis import reference_cache
 from hamrkq.analysis.periodic_orbit import PILOT_RTOL, find_return, periodic_orbit
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, IntegrationError
@@ -298,6 +299,8 @@ def periodic_reference(
 
 # -- general integration -----------------------------------------------------
 def _run(fun, t0, t_end, y0, t, rtol, atol, max_step):
+    from scipy.integrate import solve_ivp  # 0.3 s to import: only when computing
+
     if t_end == t0:
         return np.tile(y0, (t.size, 1)), 0, 0
     sol = solve_ivp(
@@ -381,6 +384,8 @@ def integrate_reference(
     fun = _vector_field(rhs, params, y0.size)
     nfev = 0
     if atol is None:
+        from scipy.integrate import solve_ivp  # 0.3 s to import: only when computing
+
         pilot = solve_ivp(
             fun, (t0, t_end), y0, method="DOP853", rtol=PILOT_RTOL,
             atol=PILOT_RTOL * _scales(y0[None, :]),
@@ -420,6 +425,7 @@ def hamiltonian_reference(
     params: Any = None,
     t0: float | None = None,
     periodic: bool | None = None,
+    cache: bool = True,
 ) -> Reference:
     """Reference for a :class:`hamrkq.Hamiltonian` or a catalogue ``Problem``.
 
@@ -441,6 +447,11 @@ def hamiltonian_reference(
         system with one degree of freedom (its bounded orbits are periodic),
         falling back to :func:`integrate_reference` if the orbit does not
         return (an unbounded rotation, a separatrix); no otherwise.
+    cache : bool
+        Keep the reference on disk and read it back when the same one is
+        asked for again (same Hamiltonian, parameters, ``y0``, times, ``t0``,
+        ``periodic``, and versions of hamrkq, SciPy, NumPy, SymPy):
+        :mod:`hamrkq.analysis.reference_cache`.  Default yes.
     """
     ham = getattr(system, "hamiltonian", system)
     if params is None:
@@ -451,7 +462,28 @@ def hamiltonian_reference(
     elif isinstance(params, Mapping):
         params = ham.parameter_values(params)
     t = _times(t_nodes)
+    y0 = _state(y0, "y0")
     t0 = float(t[0]) if t0 is None else float(t0)
+    if not cache:
+        return _reference_of(ham, params, y0, t, t0, periodic)
+    fields = reference_cache.cached(
+        reference_cache.reference_path(ham, params, y0, t, t0, periodic),
+        lambda: _fields(_reference_of(ham, params, y0, t, t0, periodic)),
+    )
+    return Reference(**fields)
+
+
+def _fields(ref: Reference) -> dict[str, Any]:
+    return {
+        "t": ref.t,
+        "y": ref.y,
+        "estimated_error": ref.estimated_error,
+        "method": ref.method,
+        "details": plain(dict(ref.details)),
+    }
+
+
+def _reference_of(ham, params, y0, t, t0, periodic) -> Reference:
     auto = periodic is None
     if auto:
         periodic = ham.n == 1 and not ham.time_dependent

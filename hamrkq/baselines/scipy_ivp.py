@@ -31,25 +31,17 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
 from hamrkq._floats import MIN_RTOL
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.baselines import PREFIX, SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.scipy_solver import RK34Q8
 
 __all__ = ["PREFIX", "SCIPY_METHODS", "USES_JACOBIAN", "solve_scipy"]
 
-#: Method names in :func:`hamrkq.solve` are ``PREFIX + name``.
-PREFIX = "scipy:"
-#: The SciPy solvers by name (``solve_ivp``'s names, plus hamrkq's RK34Q8).
+_BY_NAME = {solver.__name__: solver for solver in (RK23, RK45, DOP853, Radau, BDF, LSODA, RK34Q8)}
+#: The SciPy solvers by name, in the order of :data:`SCIPY_SOLVER_HOMES`.
 SCIPY_METHODS: Mapping[str, type[OdeSolver]] = MappingProxyType(
-    {
-        "RK23": RK23,
-        "RK45": RK45,
-        "DOP853": DOP853,
-        "Radau": Radau,
-        "BDF": BDF,
-        "LSODA": LSODA,
-        "RK34Q8": RK34Q8,
-    }
+    {name: _BY_NAME[name] for name in SCIPY_SOLVER_HOMES}
 )
 #: Solvers that take ``jac``; they get the symbolic Jacobian.
 USES_JACOBIAN = frozenset({"Radau", "BDF", "LSODA", "RK34Q8"})

@@ -33,7 +33,6 @@ from functools import cached_property
 
 import numpy as np
 import sympy as sp
-from scipy.linalg import lapack
 
 from hamrkq._floats import EPS
 
@@ -275,6 +274,8 @@ def _newton(rhs, params, t, y, h, tab, lu, piv, z, max_iter, out):
     but one (their difference from F at the final iterate is at roundoff level),
     or ``(None, why)``.
     """
+    from scipy.linalg import lapack  # see gauss_integrate
+
     s = tab.stages
     # Per-step constants hoisted out of the iteration: the loop runs millions of
     # times on long runs and NumPy's per-call overhead dominates small systems.
@@ -352,6 +353,10 @@ def gauss_integrate(
     outcome : LoopOutcome
         Counters, and why the loop stopped early if it did.
     """
+    # scipy.linalg takes 0.2 s to import: only when a Gauss method runs, not
+    # whenever the method names are read.
+    from scipy.linalg import lapack
+
     dim = y0.size
     s = tab.stages
     out = LoopOutcome()

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamrkq.backends.numeric import numeric_of
-from hamrkq.baselines.scipy_ivp import PREFIX as SCIPY_PREFIX
-from hamrkq.baselines.scipy_ivp import SCIPY_METHODS, solve_scipy
+from hamrkq.baselines import PREFIX as SCIPY_PREFIX
+from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution
@@ -182,6 +182,8 @@ _RKQ_OPTIONS = (
 
 
 def _run_scipy(task: Task, backend: str) -> Solution:
+    from hamrkq.baselines.scipy_ivp import solve_scipy  # imports scipy.integrate: 0.3 s
+
     o = task.options
     name = o.method[len(SCIPY_PREFIX) :]
     return solve_scipy(
@@ -223,11 +225,11 @@ METHODS: dict[str, MethodSpec] = {
     **{
         SCIPY_PREFIX + name: MethodSpec(
             SCIPY_PREFIX + name,
-            f"SciPy solver {SCIPY_METHODS[name].__module__.split('._')[0]}.{name}",
+            f"SciPy solver {home}.{name}",
             _run_scipy,
             ("python",),
             rk8=name == "RK34Q8",
         )
-        for name in SCIPY_METHODS
+        for name, home in SCIPY_SOLVER_HOMES.items()
     },
 }
