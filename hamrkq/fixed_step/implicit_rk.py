@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -131,30 +131,49 @@ class CollocationTableau:
     name: str
     stages: int
     order: int
-    c_exact: tuple
-    a_exact: tuple
-    b_exact: tuple
     reference: str
-    c: np.ndarray = field(init=False, repr=False)
-    a: np.ndarray = field(init=False, repr=False)
-    b: np.ndarray = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "c", _to_float(self.c_exact))
-        object.__setattr__(self, "a", _to_float([list(row) for row in self.a_exact]))
-        object.__setattr__(self, "b", _to_float(self.b_exact))
+    # Everything numeric on first use, not at import: building the surds in
+    # SymPy (which imports sympy.tensor on the way) and evaluating them to 30
+    # digits took 170 ms of every `import hamrkq.options`, which only needs
+    # the method names.
+    @cached_property
+    def _exact(self) -> tuple[list, list, list]:
+        return _exact_tableau(self.stages)
+
+    @cached_property
+    def c_exact(self) -> tuple:
+        return tuple(self._exact[0])
+
+    @cached_property
+    def a_exact(self) -> tuple:
+        return tuple(tuple(row) for row in self._exact[1])
+
+    @cached_property
+    def b_exact(self) -> tuple:
+        return tuple(self._exact[2])
+
+    @cached_property
+    def c(self) -> np.ndarray:
+        return _to_float(self.c_exact)
+
+    @cached_property
+    def a(self) -> np.ndarray:
+        return _to_float([list(row) for row in self.a_exact])
+
+    @cached_property
+    def b(self) -> np.ndarray:
+        return _to_float(self.b_exact)
 
     @classmethod
     def gauss(cls, name: str, s: int) -> CollocationTableau:
         """The s-stage Gauss-Legendre method (s = 1, 2, 3)."""
-        c, a, b = _exact_tableau(s)
+        if s not in (1, 2, 3):
+            raise ValueError(f"no Gauss tableau with s={s} stages")
         return cls(
             name=name,
             stages=s,
             order=2 * s,
-            c_exact=tuple(c),
-            a_exact=tuple(tuple(row) for row in a),
-            b_exact=tuple(b),
             reference=(
                 "Butcher, Math. Comp. 18 (1964) 50-64; Hairer, Norsett & Wanner, "
                 "Solving ODEs I, Table II.7.4"
