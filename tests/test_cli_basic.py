@@ -69,3 +69,11 @@ def test_the_program_flushes_runs_atexit_and_keeps_the_exit_status():
     assert done.returncode == 2
     assert done.stderr.startswith("hamrkq: error: ") and "no problem named" in done.stderr
     assert done.stdout == "atexit ran\n"
+
+
+def test_the_version_has_one_home_that_the_installed_metadata_agrees_with(capsys):
+    from importlib.metadata import version
+
+    assert version("hamrkq") == hamrkq.__version__
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"hamrkq {hamrkq.__version__}"
