@@ -17,7 +17,9 @@ markers in ``docs/performance.md`` with tables built from
   quencher's floor work and the remembered function addresses became
   "now"): ``startup``;
 - ``benchmarks/nbody_rhs.json`` and ``benchmarks/nbody_rhs_before.json``
-  (``benchmarks/nbody_rhs.py``): ``nbody``.
+  (``benchmarks/nbody_rhs.py``): ``nbody``;
+- ``benchmarks/cli_warm.json`` (``benchmarks/cli_warm.py``, checkouts side by
+  side): ``cli``.
 
 No number in those blocks is typed by hand.
 """
@@ -190,10 +192,21 @@ def memory_block() -> str:
     ])  # fmt: skip
 
 
+def cli_block() -> str:
+    results = _load("cli_warm.json")
+    if results is None:
+        return "(run `python benchmarks/cli_warm.py --root BEFORE --root .`)"
+    import cli_warm
+
+    m = results["machine"]
+    return f"{cli_warm.table(results)} {m['cpu']}, {m['cores']} cores."
+
+
 def main() -> int:
     text = DOC.read_text()
     for name, block in (("peers", peers_block), ("startup", startup_block),
-                        ("memory", memory_block), ("nbody", nbody_block)):  # fmt: skip
+                        ("memory", memory_block), ("nbody", nbody_block),
+                        ("cli", cli_block)):  # fmt: skip
         pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)
