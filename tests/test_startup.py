@@ -58,6 +58,13 @@ def test_an_unknown_name_is_an_attribute_error():
         hamrkq.no_such_name  # noqa: B018
 
 
+def _ctrl_c_as_at_a_terminal() -> None:
+    """SIGINT unblocked and default in the child, as a shell starts a command
+    (the test worker's mask and disposition are inherited otherwise)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 @pytest.mark.parametrize("delay", [0.3, 0.8])
 def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, delay):
@@ -68,6 +75,7 @@ def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, dela
         [sys.executable, "-m", "hamrkq", "run", "harmonic", "--no-plots"],
         cwd=tmp_path,
         env=ENV,
+        preexec_fn=_ctrl_c_as_at_a_terminal,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
