@@ -31,6 +31,7 @@ import numpy as np
 import sympy as sp
 
 from hamrkq._floats import EPS
+from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.result import Solution, Status
@@ -265,7 +266,7 @@ def terminal_watch(specs: list[EventSpec]) -> Callable[[np.ndarray, np.ndarray],
 
 def _bound(sol: Solution, states: np.ndarray) -> np.ndarray:
     """RKQ's promise at the event states: delta_k = max(atol_k, rtol_k |y_k|)."""
-    return np.maximum(sol.atol, sol.rtol * np.abs(states))
+    return component_tolerance(sol.atol, sol.rtol, states)
 
 
 def apply(

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._tolerance import component_tolerance
+
 __all__ = ["bound_ratio", "energy_bound", "tolerance", "trajectory_bound", "trajectory_error"]
 
 
@@ -30,7 +32,7 @@ def tolerance(y: np.ndarray, atol: Any, rtol: Any, rule: str = "componentwise") 
     the same for every component of a node.
     """
     y = np.atleast_2d(np.asarray(y, dtype=float))
-    delta = np.maximum(np.asarray(atol, dtype=float), np.asarray(rtol, dtype=float) * np.abs(y))
+    delta = component_tolerance(np.asarray(atol, dtype=float), np.asarray(rtol, dtype=float), y)
     if rule == "prentice":
         delta = np.broadcast_to(delta.min(axis=1, keepdims=True), y.shape).copy()
     return delta

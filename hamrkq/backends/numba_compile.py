@@ -91,20 +91,17 @@ def signatures() -> dict[str, Any]:
     from numba import types as nt
 
     vec, mat = nt.float64[::1], nt.float64[:, ::1]
-    rhs = nt.void(nt.float64, vec, vec, vec)
-    jac = nt.void(nt.float64, vec, vec, mat)
-    rhs_jvp = nt.void(nt.float64, vec, vec, vec, vec, vec, mat)
-    return {
-        "rhs": rhs,
-        "jac": jac,
-        "rhs_jvp": rhs_jvp,
+    functions = {
+        "rhs": nt.void(nt.float64, vec, vec, vec),
+        "jac": nt.void(nt.float64, vec, vec, mat),
+        "rhs_jvp": nt.void(nt.float64, vec, vec, vec, vec, vec, mat),
         "energy": nt.float64(nt.float64, vec, vec),
         "energy_rows": nt.void(vec, mat, vec, vec),
-        "rhs_type": nt.FunctionType(rhs),
-        "jac_type": nt.FunctionType(jac),
-        "rhs_jvp_type": nt.FunctionType(rhs_jvp),
-        "energy_type": nt.FunctionType(nt.float64(nt.float64, vec, vec)),
     }
+    # The kernel (rhs, rhs_jvp, jac) and its extras (energy,
+    # hamrkq.backends.extras) take these as first-class functions.
+    passed = ("rhs", "jac", "rhs_jvp", "energy")
+    return {**functions, **{f"{name}_type": nt.FunctionType(functions[name]) for name in passed}}
 
 
 def _account(dispatcher, started: float) -> None:

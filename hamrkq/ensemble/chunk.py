@@ -112,11 +112,12 @@ def _same_options(prepared, request: Request) -> bool:
     between members when ``rtol > 0``, and so does whether the rounding
     witness runs."""
     task = prepared.task
-    if prepared.task.options.gamma_name == "shadow":
-        # The rounding witness runs by each member's tolerance and y0 too.
-        witness = uses_witness(task)
-        if any(needs_witness(task.atol, task.rtol, y0) != witness for y0 in request.y0):
-            return False
+    # The rounding witness runs by each member's tolerance and y0 too.
+    witness = uses_witness(task)
+    if task.options.gamma_name == "shadow" and any(
+        needs_witness(task.atol, task.rtol, y0) != witness for y0 in request.y0
+    ):
+        return False
     if prepared.requested.method != "auto":
         return True
     return all(

@@ -15,6 +15,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from hamrkq._tolerance import component_tolerance
 from hamrkq.errors import OptionError
 from hamrkq.methods import registry
 from hamrkq.methods.tableaus import (
@@ -282,10 +283,10 @@ AUTO_SUBSTEPS = ((1e-5, 4), (3e-9, 3), (0.0, 2))
 
 
 def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> float:
-    """The smallest per-component tolerance ``max(atol, rtol |y|)`` at the
-    state ``y`` (infinite for no components): what ``method="auto"`` and the
-    rounding witness are chosen by, at ``y0``."""
-    return float(np.min(np.maximum(atol, rtol * np.abs(y)), initial=np.inf))
+    """The smallest :func:`hamrkq._tolerance.component_tolerance` at the state ``y`` (infinite
+    for no components): what ``method="auto"`` and the rounding witness are
+    chosen by, at ``y0``."""
+    return float(np.min(component_tolerance(atol, rtol, y), initial=np.inf))
 
 
 def auto_member(tightest: float) -> tuple[str, int]:

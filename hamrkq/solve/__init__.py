@@ -34,6 +34,7 @@ import numpy as np
 from hamrkq import events as _events
 from hamrkq._floats import EPS
 from hamrkq._progress import ProgressBar
+from hamrkq._tolerance import component_tolerance
 from hamrkq._validate import span as _span
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
@@ -235,8 +236,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         out.stats.setdefault("integrate_s", elapsed)
         out.stats["compile_s"] = prepared.compile_s
         if out is not first:
-            discarded = first.stats.get("nfev", 0) + first.stats.get("njev", 0)
-            out.stats["discarded_evaluations"] = discarded
+            out.stats["discarded_evaluations"] = first.stats["nfev"] + first.stats["njev"]
         sol = outcome.solution(task, spec, out, chosen)
         if out is not first:
             sol = sol.replace(message=sol.message + outcome.rerun_note(task, first))
@@ -259,7 +259,8 @@ def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # The ratio that stopped the run, less the rounding the witness measured
     # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
     ratio = out.max_ratio - out.floor_ratio
-    if float(np.max(EPS * np.abs(out.y[-1]) / outcome.tolerance_at(task, out.y[-1]))) >= (
+    last = out.y[-1]
+    if float(np.max(EPS * np.abs(last) / component_tolerance(task.atol, task.rtol, last))) >= (
         0.5 * task.options.gamma_limit
     ):
         return None  # the stored values' own rounding: more substeps cannot help

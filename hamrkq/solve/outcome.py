@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq._floats import EPS
+from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import RunOutput
@@ -102,11 +103,6 @@ def _component(task: Task, index: int) -> str:
     return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
 
 
-def tolerance_at(task: Task, y: np.ndarray) -> np.ndarray:
-    """The per-component tolerance ``max(atol, rtol |y|)`` at the state ``y``."""
-    return np.maximum(task.atol, task.rtol * np.abs(y))
-
-
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     t = out.t_last
@@ -117,7 +113,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     )
     if out.y.size:
         y = np.abs(out.y[-1])
-        floor = float(np.max(EPS * y / tolerance_at(task, y)))
+        floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))
         if floor >= 0.5 * o.gamma_limit:
             return text + (
                 f" The tolerance is at double precision's floor for this state (the rounding "
@@ -193,6 +189,6 @@ def rerun_note(task: Task, first: RunOutput) -> str:
         f" method='auto' ran {task.options.method} with z_substeps={m}: a first run with "
         f"fewer quencher steps stopped at t = {first.t_last!r}, where the quencher's "
         f"estimated error reached {first.max_ratio:.3g} x the tolerance "
-        f"({first.stats.get('nfev', 0) + first.stats.get('njev', 0)} evaluations: "
+        f"({first.stats['nfev'] + first.stats['njev']} evaluations: "
         "stats['discarded_evaluations'], not in nfev/njev)."
     )
