@@ -20,7 +20,7 @@ from typing import TextIO
 
 from tqdm import tqdm
 
-__all__ = ["BAR_FORMAT", "ProgressBar", "WaitNotice"]
+__all__ = ["BAR_FORMAT", "ProgressBar", "WaitNotice", "say"]
 
 #: The bar's line: label, bar, share of the time span done, the current t
 #: (tqdm's postfix), time spent and time left.
@@ -117,6 +117,15 @@ class ProgressBar:
         self.close()
 
 
+def say(text: str, stream: TextIO | None = None, enabled: bool | None = None) -> None:
+    """One line for the user: on the ``hamrkq`` logger, and on ``stream``
+    (stderr) when it is a terminal (or ``enabled``)."""
+    logging.getLogger("hamrkq").info(text)
+    stream = sys.stderr if stream is None else stream
+    if _is_terminal(stream) if enabled is None else enabled:
+        print(f"hamrkq: {text}", file=stream, flush=True)
+
+
 class WaitNotice:
     """Say so when a wait is long: ``begin()`` once it has lasted ``after``
     seconds, then how long it took.  Lines go to ``stream`` (stderr) when it
@@ -152,9 +161,7 @@ class WaitNotice:
         self.timer.daemon = True
 
     def _say(self, text: str) -> None:
-        logging.getLogger("hamrkq").info(text)
-        if self.enabled:
-            print(f"hamrkq: {text}", file=self.stream, flush=True)
+        say(text, self.stream, self.enabled)
 
     def _start(self) -> None:
         self.said = True

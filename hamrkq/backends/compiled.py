@@ -39,6 +39,7 @@ with a warm cache compiled nothing
 from __future__ import annotations
 
 import math
+import os
 import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
@@ -65,6 +66,7 @@ if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
+    "COMPILED_SUFFIX",
     "COMPILE_COUNT",  # noqa: F822 - module __getattr__, a live count
     "DISABLE_ENV",
     "BackendUnavailable",
@@ -73,12 +75,17 @@ __all__ = [
     "available",
     "compile_system",
     "energy",
+    "first_use_text",
+    "is_compiled",
     "kernel",
     "kernel_cache_dir",
     "kernel_functions",
+    "mark_compiled",
     "resolve_backend",
     "stats",
+    "system_functions",
     "warm_up",
+    "warn_interpreted",
 ]
 
 _SYSTEMS: dict[str, CompiledSystem] = {}
@@ -128,12 +135,17 @@ def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
         return "numba"
     if backend == "numba":
         raise OptionError(f"backend='numba' cannot be used: {reason}")
+    warn_interpreted(reason)
+    return "python"
+
+
+def warn_interpreted(reason: str) -> None:
+    """The warning of ``backend="auto"`` falling back to the interpreted loop."""
     warn(
         f"hamrkq: the compiled (numba) backend is not used because {reason}; "
         "running the pure-Python loop, which is about 100 times slower. "
         "Pass backend='python' to choose it explicitly and silence this warning."
     )
-    return "python"
 
 
 # -- the system ------------------------------------------------------------------
@@ -202,7 +214,41 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
                 f"{str(exc).splitlines()[0] if str(exc) else ''})"
             ) from exc
         _SYSTEMS[key] = system
+        mark_compiled(system.path)
         return system
+
+
+#: Written beside a generated module once its functions are compiled (or
+#: loaded): numba keeps their machine code in its own cache, which cannot be
+#: asked cheaply whether it holds them.  Holds numba's cache setting, so a
+#: changed ``NUMBA_CACHE_DIR`` does not count as compiled.
+COMPILED_SUFFIX = ".compiled"
+
+
+def _numba_cache_setting() -> str:
+    return "NUMBA_CACHE_DIR=" + os.environ.get("NUMBA_CACHE_DIR", "")
+
+
+def mark_compiled(path: Path) -> None:
+    marker = path.with_suffix(COMPILED_SUFFIX)
+    try:
+        if not marker.exists() or marker.read_text() != _numba_cache_setting():
+            marker.write_text(_numba_cache_setting())
+    except OSError:  # a read-only cache: the marker only saves a later helper
+        pass
+
+
+def is_compiled(ham: Hamiltonian) -> bool:
+    """Whether the functions of ``ham`` were compiled in this process or (as
+    far as hamrkq can tell without loading them) are in numba's disk cache."""
+    key = codegen.cache_key(ham)
+    if key in _SYSTEMS:
+        return True
+    marker = codegen.module_path(key).with_suffix(COMPILED_SUFFIX)
+    try:
+        return marker.read_text() == _numba_cache_setting()
+    except OSError:
+        return False
 
 
 # -- the kernel's functions and the first use ------------------------------------
@@ -216,9 +262,14 @@ def kernel_functions(ham: Hamiltonian):
     BackendUnavailable
         See :func:`compile_system`.
     """
+    return system_functions(compile_system(ham))
+
+
+def system_functions(system: CompiledSystem):
+    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of a compiled system
+    with the compiled kernel."""
     from hamrkq.rkq.driver import KernelFunctions
 
-    system = compile_system(ham)
     return KernelFunctions(system.rhs, system.rhs_jvp, system.jac, kernel_module.kernel())
 
 
@@ -229,6 +280,14 @@ ANNOUNCE_AFTER = 1.0
 
 def _short(text: str, width: int = 60) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def first_use_text(ham: Hamiltonian) -> str:
+    """What a first use of ``ham`` says: its code is compiled once and cached."""
+    return (
+        f"compiling the code for {_short(f'H = {ham.H}')} (first use of this system or "
+        f"of this hamrkq version; cached in {codegen.cache_dir()} for later runs)"
+    )
 
 
 def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | None = None) -> None:
@@ -242,10 +301,7 @@ def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | Non
         return
 
     def begin() -> str:
-        return (
-            f"compiling the code for {_short(f'H = {ham.H}')} (first use of this system or "
-            f"of this hamrkq version; cached in {codegen.cache_dir()} for later runs) ..."
-        )
+        return first_use_text(ham) + " ..."
 
     with WaitNotice(begin, "compiled", ANNOUNCE_AFTER, stream=stream, enabled=announce):
         _warm_up(ham)

@@ -45,6 +45,7 @@ __all__ = [
     "CompiledKernel",
     "build_kernel",
     "compile_in_cache",
+    "cores",
     "describe",
     "join_helper",
     "kernel",
@@ -52,6 +53,7 @@ __all__ = [
     "kernel_cached",
     "probe",
     "remember_function_addresses",
+    "spawn_helper",
     "start_helper",
 ]
 
@@ -269,13 +271,24 @@ def start_helper(dim: int) -> subprocess.Popen | None:
     core can do it while this process derives, generates and compiles the
     system (outer_solar_system's takes about 6 s beside the kernel's 12 s);
     None otherwise, or if the helper cannot be started."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if dim < HELPER_MIN_DIM or (cores or 1) < 2 or kernel_cached():
+    if dim < HELPER_MIN_DIM or cores() < 2 or kernel_cached():
         return None
+    return spawn_helper("from hamrkq.backends import kernel; kernel.build_kernel()")
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def spawn_helper(code: str) -> subprocess.Popen | None:
+    """A Python process running ``code`` with this hamrkq importable, its
+    output discarded; None if it cannot be started."""
     env = dict(os.environ)
     root = str(Path(__file__).resolve().parents[2])  # the folder holding hamrkq/
     env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
-    code = "from hamrkq.backends import kernel; kernel.build_kernel()"
     try:
         return subprocess.Popen(
             [sys.executable, "-c", code],

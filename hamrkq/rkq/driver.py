@@ -42,6 +42,11 @@ __all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings"]
 
 #: Step attempts per call of the kernel: progress and Ctrl-C are seen between calls.
 BUDGET = 2000
+#: While a run waits for compiled code (``upgrade``), the interpreted kernel's
+#: chunks are sized to last about this long, so the switch comes soon after
+#: the code is ready (an interpreted step of a 36-dimensional system takes
+#: about 9 ms: 2000 of them would be 18 s).
+UPGRADE_CHECK_SECONDS = 0.05
 #: The status of a run that ``stop`` ended (Status.TERMINAL_EVENT's code).
 ST_STOPPED = 8
 #: Output rows of the first buffer; later buffers double up to MAX_BUFFER_ROWS.
@@ -126,6 +131,14 @@ class Integration:
     params, t0, y0, t_end, atol, rtol
         The problem, validated (``atol``/``rtol`` arrays of ``y0.size``).
     settings : Settings
+    upgrade : callable, optional
+        ``upgrade() -> KernelFunctions | None``, asked between chunks while
+        it returns None: functions to continue with (the compiled kernel
+        once a background compile has finished,
+        :mod:`hamrkq.backends.background`).  They must compute the same bits
+        as ``functions``; the run's arrays are shared, so the switch is
+        invisible in the result.  Until then chunks are short
+        (:data:`UPGRADE_CHECK_SECONDS`).
     """
 
     def __init__(
@@ -139,8 +152,15 @@ class Integration:
         atol: np.ndarray,
         rtol: np.ndarray,
         settings: Settings,
+        upgrade: Callable[[], KernelFunctions | None] | None = None,
     ):
         self.functions = functions
+        self.upgrade = upgrade
+        #: Steps accepted before the switch to ``upgrade``'s functions (all
+        #: of them if it never came); 0 without ``upgrade``.
+        self.steps_before_upgrade = 0
+        #: Seconds spent in ``upgrade`` (loading the compiled code).
+        self.upgrade_s = 0.0
         self.member = member
         self.t0, self.t_end = float(t0), float(t_end)
         self.settings = settings
@@ -243,10 +263,13 @@ class Integration:
         out = allocate_output(rows, d, use_z)
         status = ST_RUNNING
         checked = 0  # rows of the current buffer already shown to ``stop``
+        chunk = budget if self.upgrade is None else 1
         try:
             status = self.start(out)
             while status == ST_RUNNING:
-                ret = self.advance(out, budget)
+                if self.upgrade is not None:
+                    chunk = self._try_upgrade(chunk, budget)
+                ret = self.advance(out, chunk)
                 if ret == RET_DONE:
                     status = int(s["status"])
                 if stop is not None and s["nout"] > checked:
@@ -263,8 +286,29 @@ class Integration:
                     progress(float((s["t"] - self.t0) / (self.t_end - self.t0)), float(s["t"]))
         except KeyboardInterrupt:
             status = ST_INTERRUPTED
+        if self.upgrade is not None:
+            self.steps_before_upgrade = int(s["steps"])
         chunks.append(_filled(out, s["nout"]))
         return self._output(chunks, status)
+
+    def _try_upgrade(self, chunk: int, budget: int) -> int:
+        """Switch to ``upgrade``'s functions if they are ready; the size of
+        the next chunk (``budget`` once switched, else one that lasts about
+        :data:`UPGRADE_CHECK_SECONDS` at the pace of the chunks so far)."""
+        assert self.upgrade is not None
+        started = time.perf_counter()
+        functions = self.upgrade()
+        self.upgrade_s += time.perf_counter() - started
+        if functions is not None:
+            self.functions = functions
+            self.upgrade = None
+            self.steps_before_upgrade = int(self.record["steps"])
+            return budget
+        attempts = int(self.record["steps"] + self.record["rejected"])
+        if attempts == 0 or self.integrate_s <= 0.0:
+            return chunk
+        per_attempt = self.integrate_s / attempts
+        return max(1, min(budget, int(UPGRADE_CHECK_SECONDS / per_attempt)))
 
     def stats(self) -> dict[str, int]:
         """The counters: steps, rejected, quenches, nfev, njev (and

@@ -53,7 +53,15 @@ from hamrkq.options import (
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.family import auto_retry_substeps, tightest_tolerance
 from hamrkq.solve import arguments, outcome
-from hamrkq.solve.dispatch import METHODS, MethodSpec, Task, member_of, resolve_backend, run_rk
+from hamrkq.solve.dispatch import (
+    METHODS,
+    MethodSpec,
+    Task,
+    member_of,
+    resolve_backend,
+    run_rk,
+    start_background,
+)
 
 __all__ = [
     "BACKENDS",
@@ -213,7 +221,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     J.S.C. Prentice, "Global Error Control in the Runge-Kutta Solution of a
     Hamiltonian System using the RKQ Algorithm", arXiv:1111.6996 (2011).
     """
-    prepared = _prepare(**locals())  # every argument, by name
+    prepared = _prepare(**locals(), background=True)  # every argument, by name
     task, spec, chosen = prepared.task, prepared.spec, prepared.backend
     # A failure is reported by the status; NumPy's RuntimeWarnings from the
     # rejected trial steps that found it (sqrt(-1), overflow), or from H at a
@@ -234,7 +242,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         if isinstance(out, Solution):  # the baselines build their own
             return out
         out.stats.setdefault("integrate_s", elapsed)
-        out.stats["compile_s"] = prepared.compile_s
+        # With a background compile, loading the compiled code mid-run counts
+        # as compiling; a run that ended before it was ready ran in Python.
+        out.stats["compile_s"] = prepared.compile_s + out.stats.pop("compile_wait_s", 0.0)
+        if task.compiling is not None and not task.compiling.loaded:
+            chosen = "python"
         if out is not first:
             out.stats["discarded_evaluations"] = first.stats["nfev"] + first.stats["njev"]
         sol = outcome.solution(task, spec, out, chosen)
@@ -320,10 +332,14 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     progress: Any,
     dense_output: bool,
     events: Any,
+    background: bool = False,
     **given: Any,
 ) -> Prepared:
     """:func:`prepare` with every argument of :func:`solve` given by name
-    (``given`` holds the options of :class:`~hamrkq.options.SolveOptions`)."""
+    (``given`` holds the options of :class:`~hamrkq.options.SolveOptions`).
+    ``background``: on a first use with ``backend="auto"``, compile in a
+    helper process and start the run interpreted
+    (:mod:`hamrkq.backends.background`)."""
     ham, defaults, q0, p0, t_span, parameters = arguments.system(
         system_or_problem, q0, p0, t_span, parameters
     )
@@ -358,7 +374,8 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         )
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
-    chosen = resolve_backend(options.backend, ham, spec)
+    compiling = start_background(options.backend, ham, spec) if background else None
+    chosen = "numba" if compiling is not None else resolve_backend(options.backend, ham, spec)
     compile_s = time.perf_counter() - started
     if chosen not in spec.backends:
         raise OptionError(
@@ -366,7 +383,9 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             f"valid: {', '.join(map(repr, spec.backends))}"
         )
     watch = _events.terminal_watch(event_list)
-    task = Task(ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch)
+    task = Task(
+        ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
+    )
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,15 +26,20 @@ from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_f
 from hamrkq.rkq.family import MEMBERS, needs_witness
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
+if TYPE_CHECKING:
+    from hamrkq.backends.background import BackgroundCompile
+
 __all__ = [
     "METHODS",
     "TERMINAL_BUDGET",
     "MethodSpec",
     "Task",
+    "compiling_meanwhile",
     "integration",
     "member_of",
     "resolve_backend",
     "run_rk",
+    "start_background",
     "uses_witness",
 ]
 
@@ -56,6 +62,9 @@ class Task:
     t_eval: np.ndarray | None
     progress: Callable[[float, float], None] | None
     stop: Callable[[np.ndarray, np.ndarray], bool] | None = None
+    #: On the "numba" backend, the helper compiling the code meanwhile
+    #: (:mod:`hamrkq.backends.background`): the run starts interpreted.
+    compiling: BackgroundCompile | None = None
 
 
 @dataclass(frozen=True)
@@ -100,13 +109,16 @@ def integration(task: Task, backend: str) -> Integration:
         first_step=o.first_step,
         witness=uses_witness(task),
     )
-    if backend == "numba":
+    upgrade = None
+    if backend == "numba" and not compiling_meanwhile(task):
         from hamrkq.backends import compiled
 
         functions = compiled.kernel_functions(task.ham)
     else:
         numeric = numeric_of(task.ham)
         functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
+        if backend == "numba":
+            upgrade = task.compiling.functions
     return Integration(
         functions,
         member_of(task),
@@ -117,7 +129,15 @@ def integration(task: Task, backend: str) -> Integration:
         task.atol,
         task.rtol,
         settings,
+        upgrade,
     )
+
+
+def compiling_meanwhile(task: Task) -> bool:
+    """Whether the task's compiled code is still being built by a helper
+    (and not yet loaded here): its run starts interpreted."""
+    helper = task.compiling
+    return helper is not None and not helper.loaded and helper.functions() is None
 
 
 def run_rk(task: Task, backend: str) -> RunOutput:
@@ -126,6 +146,9 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     # With a terminal event, shorter chunks: the run stops soon after the event.
     out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
     out.stats["integrate_s"] = run.integrate_s
+    if task.compiling is not None:
+        out.stats["interpreted_steps"] = run.steps_before_upgrade
+        out.stats["compile_wait_s"] = run.upgrade_s
     return out
 
 
@@ -153,6 +176,18 @@ def resolve_backend(backend: str, ham: Hamiltonian, spec: MethodSpec) -> str:
     from hamrkq.backends import compiled
 
     return compiled.resolve_backend(backend, ham)
+
+
+def start_background(backend: str, ham: Hamiltonian, spec: MethodSpec) -> BackgroundCompile | None:
+    """With ``backend="auto"`` and a method that has a compiled runner, the
+    helper compiling ``ham``'s code on a first use while the run starts
+    interpreted (:func:`hamrkq.backends.background.start`); None when there
+    is nothing to compile, or the compile should be waited for."""
+    if backend != "auto" or "numba" not in spec.backends:
+        return None
+    from hamrkq.backends import background
+
+    return background.start(ham)
 
 
 def _run_fixed(task: Task, backend: str) -> Solution:
