@@ -1,6 +1,6 @@
 """A first use, compiled first (``HAMRKQ_COMPILE=wait``) or in the background.
 
-    python benchmarks/first_use.py [--rounds N]
+    python benchmarks/first_use.py [--rounds N] [--helpers]
 
 Each case runs in a fresh interpreter with empty caches (temporary
 directories), once per mode and round, the modes alternating: ``solve`` of a
@@ -12,6 +12,12 @@ helpers waited for: the next run's start).
 
 Writes ``benchmarks/first_use.json`` and ``benchmarks/first_use.md`` (the
 table in docs/performance.md, block ``first_use``).
+
+``--helpers`` measures instead the whole default run of outer_solar_system
+compiled first, in the background with two helpers (system and kernel side
+by side, what hamrkq does at 12 state variables or more) and with one
+helper compiling both (the second core left to the run), and writes
+``benchmarks/first_use_helpers.json`` and ``.md``.
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ CASES = [
     ("outer_solar_system", None),
 ]
 MODES = ("wait", "background")
+#: Makes every system "small" for hamrkq.backends.background: one helper.
+ONE_HELPER = "from hamrkq.backends import kernel as _kernel; _kernel.HELPER_MIN_DIM = 10**9\n"
 
 
 def run(rounds: int) -> dict:
@@ -65,6 +73,56 @@ def run(rounds: int) -> dict:
     results["finished"] = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
     results["load_average_end"] = measure.machine()["load_average"]
     return results
+
+
+def run_helpers(rounds: int) -> dict:
+    """outer_solar_system's whole run: compiled first, two helpers, one helper."""
+    root = HERE.parent
+    startup.compile_bytecode(root)
+    code = startup.FIRST_CALL.format(name="outer_solar_system", span=None)
+    one = code.replace("import hamrkq\n", "import hamrkq\n" + ONE_HELPER, 1)
+    variants = {"compiled first": (code, "wait"), "two helpers": (code, "background"),
+                "one helper": (one, "background")}  # fmt: skip
+    results = {
+        "machine": measure.machine(),
+        "started": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+        "rounds": rounds,
+        "runs": {label: [] for label in variants},
+    }
+    with tempfile.TemporaryDirectory(prefix="hamrkq-first-use-") as tmp:
+        for k in range(rounds):
+            for label, (text, mode) in variants.items():
+                cache = Path(tmp) / f"{label.replace(' ', '-')}-{k}"
+                wall, info = startup._python(text, root, cache, compile_mode=mode)
+                info["wall"] = wall
+                results["runs"][label].append(info)
+                print(f"{label}: solve {info['solve']:.2f} s, interpreted "
+                      f"{info['interpreted_steps']}/{info['steps']}", flush=True)  # fmt: skip
+    results["finished"] = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
+    results["load_average_end"] = measure.machine()["load_average"]
+    return results
+
+
+def helpers_table(results: dict) -> str:
+    lines = [
+        "| outer_solar_system, whole default span | `solve` (median) | each round | "
+        "steps interpreted |",
+        "|---|---|---|---|",
+    ]
+    for label, runs in results["runs"].items():
+        each = ", ".join(f"{r['solve']:.2f}" for r in runs)
+        lines.append(
+            f"| {label} | {_median(runs, 'solve'):.2f} s | {each} s | "
+            f"{_median(runs, 'interpreted_steps'):.0f} of {_median(runs, 'steps'):.0f} |"
+        )
+    m = results["machine"]
+    head = (
+        f"`benchmarks/first_use.py --helpers`, {results['rounds']} round(s), fresh processes "
+        f"with empty caches, run {results['started']} to {results['finished']}: {m['cpu']}, "
+        f"{m['cores']} cores, load average {m['load_average']} at the start and "
+        f"{results['load_average_end']} at the end."
+    )
+    return head + "\n\n" + "\n".join(lines)
 
 
 def _median(runs: list[dict], key: str) -> float:
@@ -102,7 +160,15 @@ def table(results: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--helpers", action="store_true", help=run_helpers.__doc__)
     args = parser.parse_args(argv)
+    if args.helpers:
+        results = run_helpers(args.rounds)
+        (HERE / "first_use_helpers.json").write_text(json.dumps(results, indent=1) + "\n")
+        text = helpers_table(results)
+        (HERE / "first_use_helpers.md").write_text(text + "\n")
+        print(text)
+        return 0
     results = run(args.rounds)
     (HERE / "first_use.json").write_text(json.dumps(results, indent=1) + "\n")
     text = table(results)

@@ -18,6 +18,8 @@ markers in ``docs/performance.md`` with tables built from
   "now"): ``startup``;
 - ``benchmarks/nbody_rhs.json`` and ``benchmarks/nbody_rhs_before.json``
   (``benchmarks/nbody_rhs.py``): ``nbody``;
+- ``benchmarks/first_use.json`` (``benchmarks/first_use.py``): ``first_use``, and
+  ``benchmarks/first_use_helpers.json`` (its ``--helpers``): ``first_use_helpers``;
 - ``benchmarks/cli_warm.json`` (``benchmarks/cli_warm.py``, checkouts side by
   side): ``cli``.
 
@@ -202,11 +204,30 @@ def cli_block() -> str:
     return f"{cli_warm.table(results)} {m['cpu']}, {m['cores']} cores."
 
 
+def first_use_block() -> str:
+    results = _load("first_use.json")
+    if results is None:
+        return "(run `python benchmarks/first_use.py`)"
+    import first_use
+
+    return first_use.table(results)
+
+
+def first_use_helpers_block() -> str:
+    results = _load("first_use_helpers.json")
+    if results is None:
+        return "(run `python benchmarks/first_use.py --helpers`)"
+    import first_use
+
+    return first_use.helpers_table(results)
+
+
 def main() -> int:
     text = DOC.read_text()
     for name, block in (("peers", peers_block), ("startup", startup_block),
                         ("memory", memory_block), ("nbody", nbody_block),
-                        ("cli", cli_block)):  # fmt: skip
+                        ("cli", cli_block), ("first_use", first_use_block),
+                        ("first_use_helpers", first_use_helpers_block)):  # fmt: skip
         pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)

@@ -188,7 +188,12 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         :mod:`hamrkq.backends.compiled`); ``"python"`` interprets it; ``"auto"`` uses
         numba when it can (``HAMRKQ_DISABLE_NUMBA=1`` turns it off) and
         otherwise Python with one :class:`~hamrkq.errors.HamrkqWarning`.
-        Both give the same nodes and values, bit for bit.
+        Both give the same nodes and values, bit for bit.  On a first use,
+        ``"auto"`` compiles in helper processes while the run starts
+        interpreted and switches to the compiled code when it is ready
+        (:mod:`hamrkq.backends.background`; ``HAMRKQ_COMPILE=wait``
+        compiles first instead); ``sol.stats["interpreted_steps"]`` counts
+        the steps run before the switch.
     progress : bool or callable, optional
         True: a progress bar (tqdm) on stderr when it is a terminal, with the
         share of the time span done and the current ``t``.  A callable is
