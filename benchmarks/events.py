@@ -13,6 +13,8 @@ import math
 import statistics
 import time
 
+import measure  # noqa: F401 - compiles a first use before timing (HAMRKQ_COMPILE=wait)
+
 import hamrkq
 
 

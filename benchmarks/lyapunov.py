@@ -21,6 +21,7 @@ import math
 import time
 from pathlib import Path
 
+import measure  # noqa: F401 - compiles a first use before timing (HAMRKQ_COMPILE=wait)
 import numpy as np
 
 import hamrkq

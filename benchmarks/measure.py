@@ -1,6 +1,7 @@
 """Measuring helpers for ``benchmarks/run.py``: clocks, memory, subprocesses,
 the machine's description, and the tolerance search that matches SciPy's true
-error to hamrkq's."""
+error to hamrkq's.  Importing it makes a first use compile before it runs
+(``HAMRKQ_COMPILE=wait``)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,13 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# Benchmarks time compiled runs: a first use with backend="auto" would
+# otherwise start interpreted while helper processes compile
+# (hamrkq.backends.background), and runs timed soon after it would be
+# interpreted too.  Every benchmark that runs hamrkq in its own process
+# imports this module; benchmarks/first_use.py sets the mode per process.
+os.environ.setdefault("HAMRKQ_COMPILE", "wait")
 
 
 # -- the machine -----------------------------------------------------------------

@@ -27,6 +27,7 @@ import warnings
 from pathlib import Path
 
 import extended_reference
+import measure  # noqa: F401 - compiles a first use before timing (HAMRKQ_COMPILE=wait)
 import numpy as np
 
 import hamrkq
