@@ -125,7 +125,7 @@ class SolveOptions:
         options = cls(**checked)
         if options.method in MEMBERS or options.method == "auto":
             member = get_member(
-                auto_member(1.0)[0] if options.method == "auto" else options.method,
+                auto_member()[0] if options.method == "auto" else options.method,
                 options.z_method,
                 options.z_substeps,
             )
@@ -141,11 +141,12 @@ class SolveOptions:
         """The RKQ family member these options run (:mod:`hamrkq.rkq.family`)."""
         return get_member(self.method, self.z_method, self.z_substeps)
 
-    def with_auto(self, tightest_tolerance: float) -> SolveOptions:
-        """``method="auto"`` replaced by the member chosen for the tolerance."""
+    def with_auto(self) -> SolveOptions:
+        """``method="auto"`` replaced by its member and its first run's
+        quencher steps (:func:`~hamrkq.rkq.family.auto_member`)."""
         if self.method != "auto":
             return self
-        name, substeps = auto_member(tightest_tolerance)
+        name, substeps = auto_member()
         return replace(self, method=name, z_substeps=self.z_substeps or substeps)
 
     @property
@@ -153,7 +154,7 @@ class SolveOptions:
         """The Gamma estimate: the option, or the method's default."""
         if self.global_error_estimate is not None:
             return self.global_error_estimate
-        member = MEMBERS.get(auto_member(1.0)[0] if self.method == "auto" else self.method)
+        member = MEMBERS.get(auto_member()[0] if self.method == "auto" else self.method)
         return member.gamma if member is not None else "tangent"
 
     @property

@@ -234,9 +234,8 @@ def test_ctrl_c_inside_a_member_stops_the_whole_ensemble(monkeypatch):
 def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_member(monkeypatch):
     """The batch loop is what runs an RKQ ensemble on the compiled backend
     (solve_members is never called), with the bits of solve alone, also for
-    method="auto" when every member's tolerance picks the same member; the
-    interpreted backend, a baseline method and auto whose members would
-    pick different members (rtol > 0) run member by member."""
+    method="auto"; the interpreted backend, a baseline method and members of
+    which only some run the rounding witness run member by member."""
     from hamrkq.ensemble import chunk
 
     real, used = chunk.solve_members, []
@@ -263,15 +262,18 @@ def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_membe
         used.clear()
         hamrkq.ensemble(system, q0=q0[:2], p0=[[0.5]], t_span=(0, 0.5), workers=1, **how)
         assert sum(used) == 2, how
-    # rtol |p| = 2e-5 and 2e-6 fall on either side of auto's 1e-5 threshold:
-    # in one chunk the members cannot share the batch loop's options.
-    used.clear()
-    auto = {"method": "auto", "rtol": 1e-5, "atol": 1e-12}
-    ens = hamrkq.ensemble(pend, q0=[[2.0]], p0=[[2.0], [0.2]], t_span=(0, 0.5), workers=1,
-                          chunk_size=2, **auto)  # fmt: skip
-    assert used == [2]
-    for i in range(2):
-        _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)
+    # With rtol > 0 auto's members share the batch loop (auto's member does
+    # not depend on the tolerance) unless the rounding witness runs for some
+    # and not others: the tightest tolerance max(1e-12, 1e-9 |y|) is 2e-9 at
+    # p = 2 (no witness) and 1e-12 at p = 0 (the witness).
+    for p0, batched in (([[2.0], [1.0]], True), ([[2.0], [0.0]], False)):
+        used.clear()
+        auto = {"method": "auto", "rtol": 1e-9, "atol": 1e-12}
+        ens = hamrkq.ensemble(pend, q0=[[2.0]], p0=p0, t_span=(0, 0.5), workers=1,
+                              chunk_size=2, **auto)  # fmt: skip
+        assert used == ([] if batched else [2])
+        for i in range(2):
+            _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)
 
 
 def test_members_with_the_rounding_witness_run_in_the_batch_loop(monkeypatch):

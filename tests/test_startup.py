@@ -92,4 +92,7 @@ def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, dela
         # handler, and the default action ended the process (no traceback).
         pytest.skip("the signal arrived while the interpreter itself started")
     assert proc.returncode == 1, stderr
-    assert "interrupted" in stderr
+    # During start-up "hamrkq: interrupted" on stderr; on a fast machine the
+    # signal may come during the run or its report instead, which say so on
+    # stdout ("partial run: Interrupted ...", "interrupted during diagnostics").
+    assert "interrupted" in (stderr + stdout).lower()

@@ -30,7 +30,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
 from hamrkq.rkq.batch import allocate_batch, run_members
-from hamrkq.rkq.family import needs_witness, tightest_tolerance
+from hamrkq.rkq.family import needs_witness
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.dispatch import integration, run_rk, uses_witness
@@ -107,10 +107,9 @@ def run_batched(request: Request) -> ChunkResult | None:
 
 
 def _same_options(prepared, request: Request) -> bool:
-    """Whether every member resolves to the task's options: ``method="auto"``
-    chooses its member from the tightest tolerance at ``y0``, which differs
-    between members when ``rtol > 0``, and so does whether the rounding
-    witness runs."""
+    """Whether every member resolves to the task's options: whether the
+    rounding witness runs depends on the tightest tolerance at ``y0``, which
+    differs between members when ``rtol > 0``."""
     task = prepared.task
     # The rounding witness runs by each member's tolerance and y0 too.
     witness = uses_witness(task)
@@ -118,12 +117,7 @@ def _same_options(prepared, request: Request) -> bool:
         needs_witness(task.atol, task.rtol, y0) != witness for y0 in request.y0
     ):
         return False
-    if prepared.requested.method != "auto":
-        return True
-    return all(
-        prepared.requested.with_auto(tightest_tolerance(task.atol, task.rtol, y0)) == task.options
-        for y0 in request.y0
-    )
+    return True
 
 
 def solve_members(request: Request) -> ChunkResult:

@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hamrkq.rkq import arith, loop
-from hamrkq.rkq.family import WITNESS_SAFETY, Member
+from hamrkq.rkq.family import AUTO_PROJECT_FROM, AUTO_PROJECT_UNTIL, WITNESS_SAFETY, Member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -95,6 +95,9 @@ class Settings:
     t_eval: np.ndarray | None = None
     first_step: float | None = None
     witness: bool = False  # the rounding witness beside the shadow (GAMMA_SHADOW only)
+    #: Abandon the run when Gamma projected to t_end fails (status
+    #: ST_ABANDONED; method="auto", :func:`hamrkq.rkq.family.auto_abandon_substeps`).
+    project: bool = False
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,7 @@ class RunOutput:
     floor_ratio: float  # the rounding witness's part of the ratio that ended the run
     bad_component: int  # first non-finite component found, or -1
     stats: dict
+    projected: float = 0.0  # |Gamma| / delta projected to t_end (status ST_ABANDONED)
 
 
 def _floats(values: Any) -> np.ndarray:
@@ -200,6 +204,10 @@ class Integration:
             beta=member.beta,
             witness=int(settings.witness and gamma == GAMMA_SHADOW),
             witness_scale=WITNESS_SAFETY,
+            project=int(settings.project and member.use_z),
+            t_start=self.t0,
+            project_from=AUTO_PROJECT_FROM,
+            project_until=AUTO_PROJECT_UNTIL,
         )
         self.state = new_state(self.t0)
         y0 = _floats(y0)
@@ -337,6 +345,7 @@ class Integration:
             floor_ratio=float(s["floor_ratio"]),
             bad_component=int(s["bad_component"]),
             stats=self.stats(),
+            projected=float(s["projected"]),
         )
 
 

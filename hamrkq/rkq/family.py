@@ -30,6 +30,7 @@ from hamrkq.rkq.layout import Tableaus
 __all__ = [
     "MEMBERS",
     "Member",
+    "auto_abandon_substeps",
     "auto_member",
     "auto_retry_substeps",
     "get_member",
@@ -274,12 +275,16 @@ def get_member(name: str, z_method: str | None = None, z_substeps: int | None = 
 #: evaluations that reach the tolerance with SUCCESS, every node within 1.05 of
 #: it, on prentice2011 and Kepler).
 AUTO_MEMBER = "rk78q12"
-#: Quencher steps per step of the pair, by tolerance: (smallest tolerance, m).
-#: The pair's steps grow like tol^(1/8) and the quencher's error like h^12, so
-#: the quencher's error relative to the tolerance grows like tol^(1/2) and
-#: looser tolerances need more quencher steps: in two steps a step,
-#: prentice2011 over [0, 4000] stops at t = 2693 at 1e-8 and at t = 530 at 1e-6.
-AUTO_SUBSTEPS = ((1e-5, 4), (3e-9, 3), (0.0, 2))
+#: Quencher steps per step of ``method="auto"``'s first run.  Enough for a
+#: few dozen orbits at any tolerance (Kepler e = 0.6 over 10 orbits at 1e-6:
+#: the quencher's estimated error reaches 0.01 of the limit), and a run that
+#: needs more learns it from its first 2 % (:func:`auto_abandon_substeps`) or
+#: from where it stops (:func:`auto_retry_substeps`) and runs again.  The
+#: pair's steps grow like tol^(1/8) and the quencher's error like h^12, so
+#: the quencher's error relative to the tolerance grows like tol^(1/2):
+#: loose tolerances and long intervals need more steps (prentice2011 over
+#: [0, 4000] in two steps a step stops at t = 530 at 1e-6 and t = 2693 at 1e-8).
+AUTO_FIRST_SUBSTEPS = 2
 
 
 def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> float:
@@ -289,13 +294,9 @@ def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> flo
     return float(np.min(component_tolerance(atol, rtol, y), initial=np.inf))
 
 
-def auto_member(tightest: float) -> tuple[str, int]:
-    """The member and quencher steps per step ``method="auto"`` runs for a
-    tolerance (:func:`tightest_tolerance` at ``y0``)."""
-    for above, substeps in AUTO_SUBSTEPS:
-        if tightest > above:
-            return AUTO_MEMBER, substeps
-    return AUTO_MEMBER, AUTO_SUBSTEPS[-1][1]
+def auto_member() -> tuple[str, int]:
+    """The member ``method="auto"`` runs and its first run's quencher steps per step."""
+    return AUTO_MEMBER, AUTO_FIRST_SUBSTEPS
 
 
 #: The rounding witness's divergence from the quencher, times this, is taken
@@ -330,13 +331,13 @@ AUTO_MAX_SUBSTEPS = 12
 def auto_retry_substeps(
     substeps: int, z_order: int, gamma_ratio: float, gamma_limit: float, reached: float
 ) -> int | None:
-    """Quencher steps per step for ``method="auto"``'s second run, or None.
+    """Quencher steps per step for ``method="auto"``'s next run, or None.
 
     A run that stopped because the quencher's estimated error (not its
     rounding) reached ``gamma_limit`` of the tolerance, at the fraction
-    ``reached`` of the interval, is run again with more quencher steps.  The
-    rule by tolerance (:data:`AUTO_SUBSTEPS`) is set for prentice2011 over
-    [0, 4000]; a longer interval needs a more accurate quencher.  The
+    ``reached`` of the interval, is run again with more quencher steps
+    (:data:`AUTO_FIRST_SUBSTEPS` are enough for a few dozen orbits; a longer
+    interval needs a more accurate quencher).  The
     quencher's error falls like ``m^-z``; on a periodic orbit its phase error
     grows like ``t^2``, so to reach the end with half the limit to spare the
     error must fall by ``r = 2 (gamma_ratio / gamma_limit) / reached^2`` and
@@ -364,8 +365,54 @@ def auto_retry_substeps(
     """
     if not (0.0 < reached < 1.0) or not gamma_ratio >= 0.5 * gamma_limit:
         return None
+    return _grown_substeps(substeps, z_order, gamma_ratio / reached**2, gamma_limit)
+
+
+def _grown_substeps(substeps: int, z_order: int, projected: float, gamma_limit: float):
+    """``ceil(m r^(1/z))``, at least ``m + 1`` and at most
+    :data:`AUTO_MAX_SUBSTEPS` (None at the most), for a quencher whose error
+    at ``t_end`` is projected to be ``projected`` times the tolerance:
+    ``r = 2 projected / gamma_limit`` leaves half the limit to spare."""
     if substeps >= AUTO_MAX_SUBSTEPS:
         return None
-    needed = 2.0 * (gamma_ratio / gamma_limit) / reached**2
+    needed = 2.0 * projected / gamma_limit
     grown = math.ceil(substeps * needed ** (1.0 / z_order) - 1e-9)
     return min(AUTO_MAX_SUBSTEPS, max(substeps + 1, grown))
+
+
+#: ``method="auto"``'s runs are projected to their end (and abandoned if they
+#: would fail) from this fraction of the interval ...
+AUTO_PROJECT_FROM = 0.02
+#: ... to this one: later, a run goes on, and runs again only if it stops
+#: (:func:`auto_retry_substeps`).
+AUTO_PROJECT_UNTIL = 0.25
+
+
+def auto_abandon_substeps(
+    substeps: int, z_order: int, projected: float, gamma_limit: float
+) -> int | None:
+    """Quencher steps per step for the run after ``method="auto"`` abandoned
+    one on its projection; None if ``substeps`` is already the most.
+
+    The quencher's truncation error grows like ``t^2`` on a periodic orbit
+    (its phase error), so ``max |Gamma| / delta / reached^2`` at a node that
+    covered the fraction ``reached`` of the interval projects it to ``t_end``
+    (``hamrkq.rkq.loop.projected_ratio``).  A run whose projection exceeds
+    ``gamma_limit`` at a node between :data:`AUTO_PROJECT_FROM` and
+    :data:`AUTO_PROJECT_UNTIL` of the interval is abandoned there and run
+    again with the quencher steps :func:`auto_retry_substeps` would choose at
+    its stop, without running to it: prentice2011 at 1e-6 in 2 steps a step
+    stops at t = 530 of 4000, and is projected at 46 times the limit from
+    t = 80.  On a chaotic orbit the error grows faster than the projection,
+    and the run stops (and runs again) later; where it grows more slowly
+    (the FPU chain, like t in its first 2 %), the next run may have more
+    quencher steps than it needed.
+
+    Parameters
+    ----------
+    substeps, z_order, gamma_limit
+        As in :func:`auto_retry_substeps`.
+    projected : float
+        The projected ``max |Gamma| / delta`` at ``t_end``.
+    """
+    return _grown_substeps(substeps, z_order, projected, gamma_limit)

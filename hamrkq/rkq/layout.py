@@ -51,6 +51,10 @@ GAMMA_OFF, GAMMA_TANGENT, GAMMA_PAPER, GAMMA_SHADOW = 0, 1, 2, 3
 # Status codes (values of hamrkq.result.Status.code) and return codes of advance.
 ST_RUNNING, ST_SUCCESS, ST_UNDERFLOW, ST_NON_FINITE, ST_MAX_STEPS = -1, 0, 1, 2, 3
 ST_INTERRUPTED, ST_UNATTAINABLE = 4, 5
+#: The run was abandoned on its projection (``method="auto"``'s first run,
+#: :func:`hamrkq.rkq.family.auto_abandon_substeps`): never a final status,
+#: :func:`hamrkq.solve` runs again.
+ST_ABANDONED = 9
 RET_DONE, RET_BUFFER_FULL, RET_BUDGET = 0, 1, 2
 
 _I, _F = np.int64, np.float64
@@ -80,6 +84,10 @@ CONFIG = np.dtype(
         ("beta", _F),  # PI controller: weight of the previous error
         ("witness", _I),  # 1: run the rounding witness beside the quencher
         ("witness_scale", _F),  # the witness's divergence times this estimates z's rounding
+        ("project", _I),  # 1: abandon when the projection of Gamma to t_end fails
+        ("t_start", _F),  # t0, for the fraction of the interval covered
+        ("project_from", _F),  # the projection is made from this fraction ...
+        ("project_until", _F),  # ... to this one
     ]
 )
 
@@ -113,6 +121,7 @@ STATE = np.dtype(
         ("prev_rejected", _I),
         ("bad_component", _I),  # first non-finite component found, or -1
         ("floor_ratio", _F),  # the witness's share of the ratio that ended the run
+        ("projected", _F),  # |Gamma| / delta projected to t_end when abandoned (ST_ABANDONED)
     ]
 )
 

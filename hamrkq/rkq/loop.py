@@ -54,6 +54,7 @@ from hamrkq.rkq.layout import (
     RHO2,
     SHI,
     SLO,
+    ST_ABANDONED,
     ST_MAX_STEPS,
     ST_NON_FINITE,
     ST_RUNNING,
@@ -150,6 +151,25 @@ def attainability(work, problem, cfg, unew):
         if value > top:
             top = value
     return top
+
+
+@jitable
+def projected_ratio(work, cfg, t_new):
+    """``max_k |Gamma_k| / delta_k`` at the candidate node projected to
+    ``t_end`` as growing like ``t^2`` (a periodic orbit's phase error), from
+    a node between ``project_from`` and ``project_until`` of the interval;
+    -1 elsewhere (:func:`hamrkq.rkq.family.auto_abandon_substeps`).  Uses
+    ``V[DELTA]`` as :func:`attainability` left it."""
+    reached = (t_new - cfg["t_start"]) / (cfg["t_end"] - cfg["t_start"])
+    if not (cfg["project_from"] <= reached <= cfg["project_until"]):
+        return -1.0
+    V = work.V
+    top = 0.0
+    for i in range(V.shape[1]):
+        value = abs(V[GNEW, i]) / V[DELTA, i]
+        if value > top:
+            top = value
+    return top / (reached * reached)
 
 
 @jitable
@@ -313,6 +333,12 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
         s["floor_ratio"] = arith.weighted_norm(V[NFLOOR], V[DELTA])
         stop(ST_UNATTAINABLE, work, out, s, c)
         return -1 - RET_DONE
+    if c["project"]:
+        projected = projected_ratio(work, c, s["t"] + h)
+        if projected > c["gamma_limit"]:
+            s["projected"] = projected
+            stop(ST_ABANDONED, work, out, s, c)
+            return -1 - RET_DONE
     if quench:
         arith.copy(nhi, V[U])
         s["quenches"] += 1

@@ -51,7 +51,12 @@ from hamrkq.options import (
     SolveOptions,
 )
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.family import auto_retry_substeps, tightest_tolerance
+from hamrkq.rkq.family import (
+    AUTO_MAX_SUBSTEPS,
+    auto_abandon_substeps,
+    auto_retry_substeps,
+)
+from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve import arguments, outcome
 from hamrkq.solve.dispatch import (
     METHODS,
@@ -235,9 +240,10 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         started = time.perf_counter()
         try:
             out = spec.run(task, chosen)
-            first = out
-            rerun = _auto_rerun(prepared.requested, task, out)
-            if rerun is not None:
+            # method="auto"'s runs that ran again with more quencher steps: (z_substeps, run)
+            discarded = []
+            while (rerun := _auto_rerun(prepared.requested, task, out)) is not None:
+                discarded.append((task.options.z_substeps, out))
                 task = rerun
                 out = spec.run(task, chosen)
         finally:
@@ -252,27 +258,50 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         out.stats["compile_s"] = prepared.compile_s + out.stats.pop("compile_wait_s", 0.0)
         if task.compiling is not None and not task.compiling.loaded:
             chosen = "python"
-        if out is not first:
-            out.stats["discarded_evaluations"] = first.stats["nfev"] + first.stats["njev"]
+        if discarded:
+            out.stats["discarded_evaluations"] = sum(
+                r.stats["nfev"] + r.stats["njev"] for _, r in discarded
+            )
         sol = outcome.solution(task, spec, out, chosen)
-        if out is not first:
-            sol = sol.replace(message=sol.message + outcome.rerun_note(task, first))
+        if discarded:
+            sol = sol.replace(message=sol.message + outcome.rerun_note(task, discarded))
         if dense_output or prepared.events:
             sol = _with_events(task, sol, chosen, prepared.events, dense_output)
         return sol
 
 
+def _projects(requested: SolveOptions, spec: MethodSpec, options: SolveOptions) -> bool:
+    """Whether ``method="auto"`` chooses the quencher's steps, and its run is
+    abandoned when its projection fails (:func:`_auto_rerun`)."""
+    return (
+        requested.method == "auto"
+        and requested.z_substeps is None
+        and spec.run is run_rk
+        and options.member().z_substeps < AUTO_MAX_SUBSTEPS
+    )
+
+
 def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
-    """``method="auto"``'s second run, with more quencher steps per step, when
-    the first stopped on the quencher's truncation error before ``t_end``
+    """``method="auto"``'s next run, with more quencher steps per step, when
+    this one was abandoned on its projection
+    (:func:`hamrkq.rkq.family.auto_abandon_substeps`) or stopped on the
+    quencher's truncation error before ``t_end``
     (:func:`hamrkq.rkq.family.auto_retry_substeps`); None otherwise."""
-    if requested.method != "auto" or requested.z_substeps is not None:
+    if isinstance(out, Solution):
         return None
-    if isinstance(out, Solution) or out.status != Status.TOLERANCE_UNATTAINABLE.code:
+    member = member_of(task)
+    if out.status == ST_ABANDONED:
+        substeps = auto_abandon_substeps(
+            member.z_substeps, member.z_order, out.projected, task.options.gamma_limit
+        )
+        assert substeps is not None  # only a run that can run again projects
+        return _with_substeps(requested, task, substeps)
+    if out.status != Status.TOLERANCE_UNATTAINABLE.code:
+        return None
+    if requested.method != "auto" or requested.z_substeps is not None:
         return None
     if out.gamma is None or out.y.shape[0] == 0:
         return None
-    member = member_of(task)
     # The ratio that stopped the run, less the rounding the witness measured
     # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
     ratio = out.max_ratio - out.floor_ratio
@@ -287,7 +316,14 @@ def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     )
     if substeps is None:
         return None
-    return replace(task, options=replace(task.options, z_substeps=substeps))
+    return _with_substeps(requested, task, substeps)
+
+
+def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
+    options = replace(task.options, z_substeps=substeps)
+    return replace(
+        task, options=options, project=_projects(requested, METHODS[options.method], options)
+    )
 
 
 @dataclass(frozen=True)
@@ -359,7 +395,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
     requested = options
-    options = options.with_auto(tightest_tolerance(atol_v, rtol_v, y0))
+    options = options.with_auto()
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
@@ -388,9 +424,11 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             f"valid: {', '.join(map(repr, spec.backends))}"
         )
     watch = _events.terminal_watch(event_list)
+    project = _projects(requested, spec, options)
     task = Task(
-        ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
-    )
+        ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling,
+        project,
+    )  # fmt: skip
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 

@@ -65,6 +65,9 @@ class Task:
     #: On the "numba" backend, the helper compiling the code meanwhile
     #: (:mod:`hamrkq.backends.background`): the run starts interpreted.
     compiling: BackgroundCompile | None = None
+    #: Abandon the run when Gamma projected to t_end fails (``method="auto"``,
+    #: which then runs again: :func:`hamrkq.rkq.family.auto_abandon_substeps`).
+    project: bool = False
 
 
 @dataclass(frozen=True)
@@ -108,6 +111,7 @@ def integration(task: Task, backend: str) -> Integration:
         t_eval=task.t_eval,
         first_step=o.first_step,
         witness=uses_witness(task),
+        project=task.project,
     )
     upgrade = None
     if backend == "numba" and not compiling_meanwhile(task):

@@ -18,6 +18,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
@@ -182,13 +183,25 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     return text
 
 
-def rerun_note(task: Task, first: RunOutput) -> str:
-    """What ``method="auto"``'s discarded first run did, for the message."""
-    m = task.options.z_substeps
+def rerun_note(task: Task, discarded: list[tuple[int, RunOutput]]) -> str:
+    """What ``method="auto"``'s discarded runs (``(z_substeps, run)``) did, for the message."""
+    notes = []
+    for substeps, run in discarded:
+        if run.status == ST_ABANDONED:
+            what = (
+                f"was abandoned at t = {run.t_last!r}, where the quencher's estimated error, "
+                f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
+                "at t_end"
+            )
+        else:
+            what = (
+                f"stopped at t = {run.t_last!r}, where the quencher's "
+                f"estimated error reached {run.max_ratio:.3g} x the tolerance"
+            )
+        notes.append(f"the run with z_substeps={substeps} {what}")
+    evaluations = sum(run.stats["nfev"] + run.stats["njev"] for _, run in discarded)
     return (
-        f" method='auto' ran {task.options.method} with z_substeps={m}: a first run with "
-        f"fewer quencher steps stopped at t = {first.t_last!r}, where the quencher's "
-        f"estimated error reached {first.max_ratio:.3g} x the tolerance "
-        f"({first.stats['nfev'] + first.stats['njev']} evaluations: "
-        "stats['discarded_evaluations'], not in nfev/njev)."
+        f" method='auto' ran {task.options.method} with "
+        f"z_substeps={task.options.z_substeps}: {'; '.join(notes)} "
+        f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
     )
