@@ -18,7 +18,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hamrkq.rkq import arith, loop
-from hamrkq.rkq.family import AUTO_PROJECT_FROM, AUTO_PROJECT_UNTIL, WITNESS_SAFETY, Member
+from hamrkq.rkq.family import (
+    AUTO_PROJECT_FROM,
+    AUTO_PROJECT_SHARE,
+    AUTO_PROJECT_UNTIL,
+    WITNESS_SAFETY,
+    Member,
+)
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -208,6 +214,7 @@ class Integration:
             t_start=self.t0,
             project_from=AUTO_PROJECT_FROM,
             project_until=AUTO_PROJECT_UNTIL,
+            project_limit=AUTO_PROJECT_SHARE * settings.gamma_limit,
         )
         self.state = new_state(self.t0)
         y0 = _floats(y0)

@@ -88,6 +88,7 @@ CONFIG = np.dtype(
         ("t_start", _F),  # t0, for the fraction of the interval covered
         ("project_from", _F),  # the projection is made from this fraction ...
         ("project_until", _F),  # ... to this one
+        ("project_limit", _F),  # abandon when the projected |Gamma| / delta exceeds this
     ]
 )
 

@@ -335,7 +335,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
         return -1 - RET_DONE
     if c["project"]:
         projected = projected_ratio(work, c, s["t"] + h)
-        if projected > c["gamma_limit"]:
+        if projected > c["project_limit"]:
             s["projected"] = projected
             stop(ST_ABANDONED, work, out, s, c)
             return -1 - RET_DONE
