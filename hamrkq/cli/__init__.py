@@ -90,6 +90,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "hamrkq.cli.compare",
     "hamrkq.cli.ensemble",
     "hamrkq.cli.poincare",
+    "hamrkq.cli.compile",
 )
 
 
