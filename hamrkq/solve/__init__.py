@@ -132,7 +132,15 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
         t0`` returns the single initial node.
     method : str
-        ``"rk34q8"`` (default): Prentice's RKQ.  ``"rk34"``: RK3/RK4 local
+        ``"rk34q8"`` (default): Prentice's RKQ.  ``"auto"``: the RKQ family's
+        member for tight tolerances and long runs, Verner's 8(7) pair with
+        Feagin's 12th-order quencher (``"rk78q12"``), whose quencher steps
+        per step (``z_substeps``) are learned from the run: it starts with 2
+        and runs again with more when its projection or its stop says so
+        (``docs/algorithm.md``, "The RKQ family and method='auto'").  Other
+        family members ``"rk{r}{v}q{z}"`` (``"rk45q12"``, ``"rk67q9"``, ...;
+        :data:`hamrkq.rkq.family.MEMBERS`) pair an embedded r(v) method with
+        a quencher of order z.  ``"rk34"``: RK3/RK4 local
         extrapolation only (no RK8 track: ``z``, ``global_error``, ``gamma``
         and ``quenched`` are None).  Fixed-step symplectic baselines
         (:mod:`hamrkq.fixed_step.symplectic`, they need ``step``): ``"midpoint"``,
@@ -161,12 +169,18 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     tolerance_rule : {"componentwise", "prentice"}, default "componentwise"
         ``delta_k = max(atol_k, rtol_k |y_k|)`` per component, or the paper's
         scalar ``delta = min_k max(atol_k, rtol_k |y_k|)``.
-    global_error_estimate : {"tangent", "paper", "off"}, default "tangent"
-        How Gamma (the RK8 track's global error) is propagated: the exact
-        linearisation of the RK8 step, the paper's ``(I + h J)``, or not at
-        all (then ``gamma`` is None).
+    global_error_estimate : {"tangent", "paper", "shadow", "off"}, optional
+        How Gamma (the quencher track's global error) is estimated: the exact
+        linearisation of the quencher's step (the default of ``rk34q8``),
+        the paper's ``(I + h J)``, global extrapolation from a shadow track
+        on a mesh ``z_substeps`` times coarser (the default of the other
+        family members), or not at all (then ``gamma`` is None).
     z_method : {"dop853", "cooper_verner"}, default "dop853"
-        The RK8 tableau of the track.
+        The RK8 tableau of the track (members with an 8th-order quencher).
+    z_substeps : int, optional
+        Quencher steps per step of the pair (family members; the member's
+        default, 2, or, with ``method="auto"``, learned from the run).  A
+        value given here is kept: ``"auto"`` then never runs again.
     first_step : float, optional
         Initial step size; by default Hairer-Norsett-Wanner's heuristic for
         order 3 (as SciPy's ``select_initial_step``).
