@@ -125,7 +125,8 @@ class SolveOptions:
         options = cls(**checked)
         if options.method in MEMBERS or options.method == "auto":
             member = get_member(
-                auto_member()[0] if options.method == "auto" else options.method,
+                # auto's members share their Gamma and steps: either checks them
+                auto_member(0)[0] if options.method == "auto" else options.method,
                 options.z_method,
                 options.z_substeps,
             )
@@ -141,12 +142,13 @@ class SolveOptions:
         """The RKQ family member these options run (:mod:`hamrkq.rkq.family`)."""
         return get_member(self.method, self.z_method, self.z_substeps)
 
-    def with_auto(self) -> SolveOptions:
-        """``method="auto"`` replaced by its member and its first run's
-        quencher steps (:func:`~hamrkq.rkq.family.auto_member`)."""
+    def with_auto(self, dim: int) -> SolveOptions:
+        """``method="auto"`` replaced by its member for a system of ``dim``
+        state variables and its first run's quencher steps
+        (:func:`~hamrkq.rkq.family.auto_member`)."""
         if self.method != "auto":
             return self
-        name, substeps = auto_member()
+        name, substeps = auto_member(dim)
         return replace(self, method=name, z_substeps=self.z_substeps or substeps)
 
     @property
@@ -154,7 +156,7 @@ class SolveOptions:
         """The Gamma estimate: the option, or the method's default."""
         if self.global_error_estimate is not None:
             return self.global_error_estimate
-        member = MEMBERS.get(auto_member()[0] if self.method == "auto" else self.method)
+        member = MEMBERS.get(auto_member(0)[0] if self.method == "auto" else self.method)
         return member.gamma if member is not None else "tangent"
 
     @property

@@ -17,7 +17,13 @@ import sympy as sp
 import hamrkq
 from hamrkq.backends import compiled, kernel
 from hamrkq.errors import HamrkqWarning, InputError
-from hamrkq.rkq.family import AUTO_FIRST_SUBSTEPS, AUTO_MEMBER, MEMBERS, auto_member
+from hamrkq.rkq.family import (
+    AUTO_FIRST_SUBSTEPS,
+    AUTO_LARGE_MEMBER,
+    AUTO_MEMBER,
+    MEMBERS,
+    auto_member,
+)
 
 KEPLER = hamrkq.load_problem("kepler", e=0.6)
 TEN_ORBITS = (0.0, 10 * 2 * np.pi)
@@ -42,7 +48,15 @@ def test_members_keep_every_node_within_the_tolerance(method, tol):
 
 
 def test_auto_reports_its_member_and_starts_with_two_quencher_steps():
-    assert auto_member() == (AUTO_MEMBER, AUTO_FIRST_SUBSTEPS) == ("rk78q12", 2)
+    assert auto_member(11) == (AUTO_MEMBER, AUTO_FIRST_SUBSTEPS) == ("rk78q12", 2)
+    assert auto_member(12) == (AUTO_LARGE_MEMBER, AUTO_FIRST_SUBSTEPS) == ("rk67q9", 2)
+    # options are checked with either: they must agree on what is checked
+    small, large = MEMBERS[AUTO_MEMBER], MEMBERS[AUTO_LARGE_MEMBER]
+    assert small.gamma == large.gamma == "shadow" and small.z_substeps == large.z_substeps
+    solar = hamrkq.solve(
+        hamrkq.load_problem("outer_solar_system"), method="auto", t_span=(0, 1000)
+    )
+    assert solar.method == AUTO_LARGE_MEMBER
     loose = hamrkq.solve(KEPLER, method="auto", atol=1e-6, t_span=TEN_ORBITS)
     tight = hamrkq.solve(KEPLER, method="auto", atol=1e-10, t_span=(0, 1))
     assert loose.method == tight.method == AUTO_MEMBER

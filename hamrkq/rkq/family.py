@@ -271,10 +271,21 @@ def get_member(name: str, z_method: str | None = None, z_substeps: int | None = 
 
 
 #: ``method="auto"``: Verner's robust 8(7) pair with Feagin's 12th-order
-#: quencher, chosen by the measurements in ``benchmarks/family.py`` (the fewest
-#: evaluations that reach the tolerance with SUCCESS, every node within 1.05 of
-#: it, on prentice2011 and Kepler).
+#: quencher below :data:`AUTO_LARGE_DIM` state variables, chosen by the
+#: measurements in ``benchmarks/family.py`` (the fewest evaluations that reach
+#: the tolerance with SUCCESS, every node within 1.05 of it, on prentice2011
+#: and Kepler) ...
 AUTO_MEMBER = "rk78q12"
+#: ... and Verner's 7(6) pair with Verner's 9th-order quencher from
+#: :data:`AUTO_LARGE_DIM` on: fewer evaluations on every large catalogue
+#: problem at 1e-6 to 1e-9 (the outer solar system 11 to 20 %, the Pleiades 7
+#: to 19 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
+#: the Pleiades take 7 % more).  Small systems are split: fewer on most short
+#: runs, but 11 to 53 % more on prentice2011, whose 600 periods need the
+#: 12th-order quencher, so they keep :data:`AUTO_MEMBER`.  What decides is
+#: the number of periods, which auto cannot know before the run.
+AUTO_LARGE_MEMBER = "rk67q9"
+AUTO_LARGE_DIM = 12
 #: Quencher steps per step of ``method="auto"``'s first run.  Enough for a
 #: few dozen orbits at any tolerance (Kepler e = 0.6 over 10 orbits at 1e-6:
 #: the quencher's estimated error reaches 0.01 of the limit), and a run that
@@ -294,9 +305,13 @@ def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> flo
     return float(np.min(component_tolerance(atol, rtol, y), initial=np.inf))
 
 
-def auto_member() -> tuple[str, int]:
-    """The member ``method="auto"`` runs and its first run's quencher steps per step."""
-    return AUTO_MEMBER, AUTO_FIRST_SUBSTEPS
+def auto_member(dim: int) -> tuple[str, int]:
+    """The member ``method="auto"`` runs for a system of ``dim`` state
+    variables, and its first run's quencher steps per step.  Both members
+    estimate Gamma with the shadow track and start with
+    :data:`AUTO_FIRST_SUBSTEPS` (``tests/test_family.py``)."""
+    name = AUTO_LARGE_MEMBER if dim >= AUTO_LARGE_DIM else AUTO_MEMBER
+    return name, AUTO_FIRST_SUBSTEPS
 
 
 #: The rounding witness's divergence from the quencher, times this, is taken

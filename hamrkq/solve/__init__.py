@@ -409,7 +409,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
     requested = options
-    options = options.with_auto()
+    options = options.with_auto(ham.dim)
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
