@@ -17,10 +17,14 @@ reference there.
 
 Run: ``python benchmarks/promise.py``; writes ``promise.json`` and
 ``promise.md`` beside this file (docs/algorithm.md quotes the summary).
+``--members`` runs every RKQ family member the same way, each with its
+defaults (two quencher steps a step, no rerun), and writes
+``promise_members.json`` and ``promise_members.md``: one line per member.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 import warnings
@@ -31,6 +35,7 @@ import measure  # noqa: F401 - compiles a first use before timing (HAMRKQ_COMPIL
 import numpy as np
 
 import hamrkq
+from hamrkq.rkq.family import MEMBERS
 
 HERE = Path(__file__).resolve().parent
 ABSOLUTE = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
@@ -48,9 +53,9 @@ def tolerances():
         yield f"rtol {rtol:g}", 1e-3 * rtol, rtol
 
 
-def row(problem, grid, truth, bound, label, atol, rtol) -> dict:
+def row(problem, grid, truth, bound, label, atol, rtol, method="auto") -> dict:
     started = time.perf_counter()
-    sol = hamrkq.solve(problem, method="auto", atol=atol, rtol=rtol, t_eval=grid)
+    sol = hamrkq.solve(problem, method=method, atol=atol, rtol=rtol, t_eval=grid)
     elapsed = time.perf_counter() - started
     n = sol.t.size
     ref = truth[:n]
@@ -58,6 +63,7 @@ def row(problem, grid, truth, bound, label, atol, rtol) -> dict:
     ratio = float((np.abs(sol.y - ref) / delta).max()) if n else 0.0
     return {
         "problem": problem.name,
+        "method": method,
         "tolerance": label,
         "status": sol.status.name,
         "t_last": float(sol.t[-1]) if n else float("nan"),
@@ -108,10 +114,9 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
-    warnings.simplefilter("ignore")
-    rows: list[dict] = []
-    skipped: list[str] = []
+def references() -> tuple[dict, list[str]]:
+    """The catalogue's problems with their long-double references on the grid."""
+    problems, skipped = {}, []
     for name in hamrkq.list_problems():
         problem = hamrkq.load_problem(name)
         grid = np.linspace(*problem.t_span, NODES)
@@ -122,12 +127,60 @@ def main() -> None:
             skipped.append(f"{name}: no reference ({exc})")
             print(skipped[-1], flush=True)
             continue
+        problems[name] = (problem, grid, truth, bound)
+    return problems, skipped
+
+
+def members_table(rows: list[dict]) -> str:
+    """One line per member: how its runs ended and where a node broke the promise."""
+    lines = [
+        "| member | runs counted | SUCCESS | stopped, naming the floor | stopped otherwise | "
+        "nodes above 1.05 delta |",
+        "|---|---|---|---|---|---|",
+    ]
+    for method in dict.fromkeys(r["method"] for r in rows):
+        kept = [r for r in rows if r["method"] == method and not r["reference_limits"]]
+        success = sum(r["status"] == "SUCCESS" for r in kept)
+        floor = sum(r["status"] != "SUCCESS" and r["floor_named"] for r in kept)
+        broken = ", ".join(
+            f"{r['problem']} {r['tolerance']} ({r['max_error_over_tol']:.3f})"
+            for r in kept
+            if r["max_error_over_tol"] > 1.05
+        )
+        lines.append(
+            f"| {method} | {len(kept)} | {success} | {floor} | {len(kept) - success - floor} | "
+            f"{broken or 'none'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    warnings.simplefilter("ignore")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--members",
+        action="store_true",
+        help="every family member with its defaults (no reruns), into promise_members.*",
+    )
+    args = parser.parse_args(argv)
+    problems, skipped = references()
+    for problem, _, _, _ in problems.values():
         hamrkq.solve(problem, t_span=(problem.t_span[0], problem.t_span[0] + 1e-3))  # compile
-        for label, atol, rtol in tolerances():
-            rows.append(row(problem, grid, truth, bound, label, atol, rtol))
-            print(json.dumps(rows[-1]), flush=True)
-    (HERE / "promise.json").write_text(json.dumps(rows, indent=1) + "\n")
+    methods = list(MEMBERS) if args.members else ["auto"]
+    rows: list[dict] = []
+    for method in methods:
+        if method not in ("auto",) and not MEMBERS[method].use_z:
+            continue  # rk34: no quencher track, nothing is promised
+        for problem, grid, truth, bound in problems.values():
+            for label, atol, rtol in tolerances():
+                rows.append(row(problem, grid, truth, bound, label, atol, rtol, method))
+                print(json.dumps(rows[-1]), flush=True)
     notes = "".join(f"\nNot checked: {text}.\n" for text in skipped)
+    if args.members:
+        (HERE / "promise_members.json").write_text(json.dumps(rows, indent=1) + "\n")
+        (HERE / "promise_members.md").write_text(members_table(rows) + notes)
+        return
+    (HERE / "promise.json").write_text(json.dumps(rows, indent=1) + "\n")
     (HERE / "promise.md").write_text(markdown(rows) + notes)
 
 
