@@ -161,13 +161,23 @@ def summary_rows(
     """The rows of the run summary: (label, text)."""
     sol, diag = solution, diagnostics
     stats = sol.stats
+    substeps = sol.options.get("z_substeps") if sol.options else None
+    method = sol.method
+    if substeps is not None and substeps > 1:
+        method += f" ({substeps} quencher steps a step)"
+    evaluations = str(stats.get("nfev", 0))
+    if stats.get("njev"):
+        evaluations += f" and {stats['njev']} Jacobian products"
+    if stats.get("discarded_evaluations"):
+        # method="auto" ran again with more quencher steps (sol.message says why)
+        evaluations += f", and {stats['discarded_evaluations']} in discarded runs"
     rows = [
-        ("method", sol.method),
+        ("method", method),
         ("status", f"{sol.status.name}" + ("" if sol.success else " (partial results)")),
         ("nodes", f"{len(sol)} (t = {_num(sol.t[0], 'g')} .. {_num(sol.t[-1], 'g')})"),
         ("steps", f"{stats.get('steps', 0)} accepted, {stats.get('rejected', 0)} rejected"),
         ("quenches", str(stats.get("quenches", 0)) if sol.z is not None else "n/a (no RK8 track)"),
-        ("f evaluations", str(stats.get("nfev", 0))),
+        ("f evaluations", evaluations),
     ]
     if wall_time is not None:
         rows.append(("wall time (solve)", f"{wall_time:.2f} s"))
