@@ -334,6 +334,8 @@ def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
 
 
 def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
+    """``task`` with ``substeps`` quencher steps a step, still projected while
+    it could run again with more."""
     options = replace(task.options, z_substeps=substeps)
     return replace(
         task, options=options, project=_projects(requested, METHODS[options.method], options)
