@@ -164,3 +164,25 @@ def test_non_separable_default_drops_splitting_methods():
     prentice = hamrkq.load_problem("prentice2011")
     methods = default_methods(prentice)
     assert "yoshida4" not in methods and "gauss4" in methods and methods[0] == "rk34q8"
+
+
+def test_compare_compiles_before_it_times_a_run(monkeypatch):
+    # A first use must not be timed: neither the compiler nor, compiling in
+    # the background, the interpreted loop (docs/performance.md).
+    from hamrkq.analysis import comparison
+    from hamrkq.backends import compiled
+
+    events, resolve, timed = [], compiled.resolve_backend, comparison._timed
+
+    def resolving(backend, ham=None):
+        events.append("compile")
+        return resolve(backend, ham)
+
+    def timing(*args):
+        events.append("run")
+        return timed(*args)
+
+    monkeypatch.setattr(compiled, "resolve_backend", resolving)
+    monkeypatch.setattr(comparison, "_timed", timing)
+    compare(hamrkq.load_problem("kepler"), ["scipy:DOP853"], t_end=ONE_PERIOD / 4, quick=True)
+    assert events[0] == "compile" and "run" in events  # (each solve asks again: cheap)
