@@ -180,7 +180,13 @@ def summary_rows(
         ("f evaluations", evaluations),
     ]
     if wall_time is not None:
-        rows.append(("wall time (solve)", f"{wall_time:.2f} s"))
+        text = f"{wall_time:.2f} s"
+        if "integrate_s" in stats:  # the rest: compiling or loading code, diagnostics
+            text += f" (integration {float(stats['integrate_s']):.3f} s"
+            if stats.get("interpreted_steps"):  # a first use compiling in the background
+                text += f", {stats['interpreted_steps']} steps interpreted"
+            text += ")"
+        rows.append(("wall time (solve)", text))
     if diag is None:
         return rows
     if diag.estimated is not None:
