@@ -60,10 +60,29 @@ def compile_command(args: argparse.Namespace) -> int:
     names = list_problems() if args.all else list(args.problems)
     problems = [load_problem(name) for name in names]  # every name checked first
     print(f"cache: {codegen.cache_dir()}", flush=True)
-    if not problems:
+    helper = None
+    if problems and not kernel_module.kernel_cached() and kernel_module.cores() >= 2:
+        # The kernel (10-15 s) compiles in a helper process on another core
+        # while this one compiles the systems.
+        started = time.perf_counter()
+        helper = kernel_module.spawn_helper(
+            "from hamrkq.backends import kernel; kernel.build_kernel()"
+        )
+    if helper is None:
         _timed("the step kernel", kernel_module.build_kernel)
     for problem in problems:
-        _timed(problem.name, lambda p=problem: compiled.warm_up(p.hamiltonian, announce=False))
+        _timed(problem.name, lambda p=problem: compiled.compile_system(p.hamiltonian))
+    if helper is not None:
+        helper.wait()
+        elapsed = time.perf_counter() - started
+        if helper.returncode == 0:
+            print(f"the step kernel: compiled in a helper process ({elapsed:.1f} s)", flush=True)
+        else:  # compiled below, in this process
+            print("the step kernel: the helper process failed; compiling it here", flush=True)
+    for problem in problems:
+        # Each system with the kernel, one step: loads what is cached (or
+        # compiles what the helper did not) and proves that they work together.
+        compiled.warm_up(problem.hamiltonian, announce=False)
     return 0
 
 
