@@ -162,17 +162,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--helpers", action="store_true", help=run_helpers.__doc__)
     args = parser.parse_args(argv)
-    if args.helpers:
-        results = run_helpers(args.rounds)
-        (HERE / "first_use_helpers.json").write_text(json.dumps(results, indent=1) + "\n")
-        text = helpers_table(results)
-        (HERE / "first_use_helpers.md").write_text(text + "\n")
-        print(text)
-        return 0
-    results = run(args.rounds)
-    (HERE / "first_use.json").write_text(json.dumps(results, indent=1) + "\n")
-    text = table(results)
-    (HERE / "first_use.md").write_text(text + "\n")
+    name, measure_, tabulate = (
+        ("first_use_helpers", run_helpers, helpers_table)
+        if args.helpers
+        else ("first_use", run, table)
+    )
+    results = measure_(args.rounds)
+    (HERE / f"{name}.json").write_text(json.dumps(results, indent=1) + "\n")
+    text = tabulate(results)
+    (HERE / f"{name}.md").write_text(text + "\n")
     print(text)
     return 0
 

@@ -20,7 +20,7 @@ from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
-from hamrkq.rkq.family import MEMBERS, Z_METHODS, auto_member, get_member
+from hamrkq.rkq.family import AUTO_MEMBER, MEMBERS, Z_METHODS, auto_member, get_member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -125,8 +125,8 @@ class SolveOptions:
         options = cls(**checked)
         if options.method in MEMBERS or options.method == "auto":
             member = get_member(
-                # auto's members share their Gamma and steps: either checks them
-                auto_member(0)[0] if options.method == "auto" else options.method,
+                # auto's members share their Gamma and steps (tests/test_family.py)
+                AUTO_MEMBER if options.method == "auto" else options.method,
                 options.z_method,
                 options.z_substeps,
             )
@@ -156,7 +156,7 @@ class SolveOptions:
         """The Gamma estimate: the option, or the method's default."""
         if self.global_error_estimate is not None:
             return self.global_error_estimate
-        member = MEMBERS.get(auto_member(0)[0] if self.method == "auto" else self.method)
+        member = MEMBERS.get(AUTO_MEMBER if self.method == "auto" else self.method)
         return member.gamma if member is not None else "tangent"
 
     @property

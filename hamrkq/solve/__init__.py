@@ -32,9 +32,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq import events as _events
-from hamrkq._floats import EPS
 from hamrkq._progress import ProgressBar
-from hamrkq._tolerance import component_tolerance
 from hamrkq._validate import span as _span
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
@@ -50,14 +48,8 @@ from hamrkq.options import (
     Z_METHOD_NAMES,
     SolveOptions,
 )
-from hamrkq.result import Solution, Status
-from hamrkq.rkq.family import (
-    AUTO_MAX_SUBSTEPS,
-    auto_abandon_substeps,
-    auto_retry_substeps,
-)
-from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.solve import arguments, outcome
+from hamrkq.result import Solution
+from hamrkq.solve import arguments, auto, outcome
 from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
@@ -66,7 +58,6 @@ from hamrkq.solve.dispatch import (
     resolve_backend,
     run_rk,
     start_background,
-    uses_witness,
 )
 
 __all__ = [
@@ -135,9 +126,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     method : str
         ``"rk34q8"`` (default): Prentice's RKQ.  ``"auto"``: the RKQ family's
         member for tight tolerances and long runs, Verner's 8(7) pair with
-        Feagin's 12th-order quencher (``"rk78q12"``), whose quencher steps
-        per step (``z_substeps``) are learned from the run: it starts with 2
-        and runs again with more when its projection or its stop says so
+        Feagin's 12th-order quencher (``"rk78q12"``) below 12 state
+        variables, Verner's 7(6) with Verner's 9th-order quencher
+        (``"rk67q9"``) from 12 on, whose quencher steps per step
+        (``z_substeps``) are learned from the run: it starts with 2 and runs
+        again with more when its projection or its stop says so
         (``docs/algorithm.md``, "The RKQ family and method='auto'").  Other
         family members ``"rk{r}{v}q{z}"`` (``"rk45q12"``, ``"rk67q9"``, ...;
         :data:`hamrkq.rkq.family.MEMBERS`) pair an embedded r(v) method with
@@ -257,7 +250,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             out = spec.run(task, chosen)
             # method="auto"'s runs that ran again with more quencher steps: (z_substeps, run)
             discarded = []
-            while (rerun := _auto_rerun(prepared.requested, task, out)) is not None:
+            while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
                 discarded.append((task.options.z_substeps, out))
                 task = rerun
                 out = spec.run(task, chosen)
@@ -279,71 +272,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
         sol = outcome.solution(task, spec, out, chosen)
         if discarded:
-            sol = sol.replace(message=sol.message + outcome.rerun_note(task, discarded))
+            note = outcome.rerun_note(task, discarded, out.stats["discarded_evaluations"])
+            sol = sol.replace(message=sol.message + note)
         if dense_output or prepared.events:
             sol = _with_events(task, sol, chosen, prepared.events, dense_output)
         return sol
-
-
-def _projects(requested: SolveOptions, task: Task) -> bool:
-    """Whether ``method="auto"`` chooses the quencher's steps, and its run is
-    abandoned when its projection fails (:func:`_auto_rerun`).  Not where the
-    rounding witness runs: near double precision's floor more quencher steps
-    add rounding (prentice2011 at 1e-12, abandoned in two at t = 80, stopped
-    at the floor in three at t = 33, where two reach t = 91); a run that stops
-    on the quencher's truncation error there still runs again."""
-    return (
-        requested.method == "auto"
-        and requested.z_substeps is None
-        and METHODS[task.options.method].run is run_rk
-        and task.options.member().z_substeps < AUTO_MAX_SUBSTEPS
-        and not uses_witness(task)
-    )
-
-
-def _auto_rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
-    """``method="auto"``'s next run, with more quencher steps per step, when
-    this one was abandoned on its projection
-    (:func:`hamrkq.rkq.family.auto_abandon_substeps`) or stopped on the
-    quencher's truncation error before ``t_end``
-    (:func:`hamrkq.rkq.family.auto_retry_substeps`); None otherwise."""
-    if isinstance(out, Solution):
-        return None
-    member = member_of(task)
-    if out.status == ST_ABANDONED:
-        substeps = auto_abandon_substeps(
-            member.z_substeps, member.z_order, out.projected, task.options.gamma_limit
-        )
-        assert substeps is not None  # only a run that can run again projects
-        return _with_substeps(requested, task, substeps)
-    if out.status != Status.TOLERANCE_UNATTAINABLE.code:
-        return None
-    if requested.method != "auto" or requested.z_substeps is not None:
-        return None
-    if out.gamma is None or out.y.shape[0] == 0:
-        return None
-    # The ratio that stopped the run, less the rounding the witness measured
-    # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
-    ratio = out.max_ratio - out.floor_ratio
-    last = out.y[-1]
-    if float(np.max(EPS * np.abs(last) / component_tolerance(task.atol, task.rtol, last))) >= (
-        0.5 * task.options.gamma_limit
-    ):
-        return None  # the stored values' own rounding: more substeps cannot help
-    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
-    substeps = auto_retry_substeps(
-        member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
-    )
-    if substeps is None:
-        return None
-    return _with_substeps(requested, task, substeps)
-
-
-def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
-    """``task`` with ``substeps`` quencher steps a step, still projected while
-    it could run again with more."""
-    task = replace(task, options=replace(task.options, z_substeps=substeps))
-    return replace(task, project=_projects(requested, task))
 
 
 @dataclass(frozen=True)
@@ -447,7 +380,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     task = Task(
         ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
     )
-    task = replace(task, project=_projects(requested, task))
+    task = replace(task, project=auto.projects(requested, task))
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 

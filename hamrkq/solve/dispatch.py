@@ -34,7 +34,6 @@ __all__ = [
     "TERMINAL_BUDGET",
     "MethodSpec",
     "Task",
-    "compiling_meanwhile",
     "integration",
     "member_of",
     "resolve_backend",
@@ -113,16 +112,19 @@ def integration(task: Task, backend: str) -> Integration:
         witness=uses_witness(task),
         project=task.project,
     )
-    upgrade = None
-    if backend == "numba" and not compiling_meanwhile(task):
+    functions, upgrade = None, None
+    if backend == "numba" and task.compiling is None:
         from hamrkq.backends import compiled
 
         functions = compiled.kernel_functions(task.ham)
-    else:
+    elif backend == "numba":
+        # The helper's compiled code if it is ready; else start interpreted
+        # and ask again between chunks.
+        functions = task.compiling.functions()
+        upgrade = task.compiling.functions if functions is None else None
+    if functions is None:
         numeric = numeric_of(task.ham)
         functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
-        if backend == "numba":
-            upgrade = task.compiling.functions
     return Integration(
         functions,
         member_of(task),
@@ -135,13 +137,6 @@ def integration(task: Task, backend: str) -> Integration:
         settings,
         upgrade,
     )
-
-
-def compiling_meanwhile(task: Task) -> bool:
-    """Whether the task's compiled code is still being built by a helper
-    (and not yet loaded here): its run starts interpreted."""
-    helper = task.compiling
-    return helper is not None and not helper.loaded and helper.functions() is None
 
 
 def run_rk(task: Task, backend: str) -> RunOutput:

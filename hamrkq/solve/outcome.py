@@ -183,8 +183,9 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     return text
 
 
-def rerun_note(task: Task, discarded: list[tuple[int, RunOutput]]) -> str:
-    """What ``method="auto"``'s discarded runs (``(z_substeps, run)``) did, for the message."""
+def rerun_note(task: Task, discarded: list[tuple[int, RunOutput]], evaluations: int) -> str:
+    """What ``method="auto"``'s discarded runs (``(z_substeps, run)``, with
+    ``evaluations`` between them) did, for the message."""
     notes = []
     for substeps, run in discarded:
         if run.status == ST_ABANDONED:
@@ -199,7 +200,6 @@ def rerun_note(task: Task, discarded: list[tuple[int, RunOutput]]) -> str:
                 f"estimated error reached {run.max_ratio:.3g} x the tolerance"
             )
         notes.append(f"the run with z_substeps={substeps} {what}")
-    evaluations = sum(run.stats["nfev"] + run.stats["njev"] for _, run in discarded)
     return (
         f" method='auto' ran {task.options.method} with "
         f"z_substeps={task.options.z_substeps}: {'; '.join(notes)} "

@@ -1,0 +1,87 @@
+"""``method="auto"``'s runs again: how many quencher steps a step it tries next.
+
+``solve`` runs auto's member (:func:`hamrkq.rkq.family.auto_member`) with
+two quencher steps a step, and runs it again with more (:func:`rerun`) when
+the kernel abandoned the run on its projection (:func:`projects` says which
+runs are projected) or the run stopped on the quencher's truncation error;
+the rules are :func:`hamrkq.rkq.family.auto_abandon_substeps` and
+:func:`hamrkq.rkq.family.auto_retry_substeps` (docs/algorithm.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from hamrkq._floats import EPS
+from hamrkq._tolerance import component_tolerance
+from hamrkq.options import SolveOptions
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.family import AUTO_MAX_SUBSTEPS, auto_abandon_substeps, auto_retry_substeps
+from hamrkq.rkq.layout import ST_ABANDONED
+from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
+
+__all__ = ["projects", "rerun"]
+
+
+def projects(requested: SolveOptions, task: Task) -> bool:
+    """Whether ``method="auto"`` chooses the quencher's steps, and its run is
+    abandoned when its projection fails (:func:`rerun`).  Not where the
+    rounding witness runs: near double precision's floor more quencher steps
+    add rounding (prentice2011 at 1e-12, abandoned in two at t = 80, stopped
+    at the floor in three at t = 33, where two reach t = 91); a run that stops
+    on the quencher's truncation error there still runs again."""
+    return (
+        requested.method == "auto"
+        and requested.z_substeps is None
+        and METHODS[task.options.method].run is run_rk
+        and task.options.member().z_substeps < AUTO_MAX_SUBSTEPS
+        and not uses_witness(task)
+    )
+
+
+def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
+    """``method="auto"``'s next run, with more quencher steps per step, when
+    this one was abandoned on its projection
+    (:func:`hamrkq.rkq.family.auto_abandon_substeps`) or stopped on the
+    quencher's truncation error before ``t_end``
+    (:func:`hamrkq.rkq.family.auto_retry_substeps`); None otherwise."""
+    if isinstance(out, Solution):
+        return None
+    member = member_of(task)
+    if out.status == ST_ABANDONED:
+        substeps = auto_abandon_substeps(
+            member.z_substeps, member.z_order, out.projected, task.options.gamma_limit
+        )
+        assert substeps is not None  # only a run that can run again projects
+        return _with_substeps(requested, task, substeps)
+    if out.status != Status.TOLERANCE_UNATTAINABLE.code:
+        return None
+    if requested.method != "auto" or requested.z_substeps is not None:
+        return None
+    if out.gamma is None or out.y.shape[0] == 0:
+        return None
+    # The ratio that stopped the run, less the rounding the witness measured
+    # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
+    ratio = out.max_ratio - out.floor_ratio
+    last = out.y[-1]
+    if float(np.max(EPS * np.abs(last) / component_tolerance(task.atol, task.rtol, last))) >= (
+        0.5 * task.options.gamma_limit
+    ):
+        return None  # the stored values' own rounding: more substeps cannot help
+    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
+    substeps = auto_retry_substeps(
+        member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
+    )
+    if substeps is None:
+        return None
+    return _with_substeps(requested, task, substeps)
+
+
+def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
+    """``task`` with ``substeps`` quencher steps a step, still projected while
+    it could run again with more."""
+    task = replace(task, options=replace(task.options, z_substeps=substeps))
+    return replace(task, project=projects(requested, task))
