@@ -55,6 +55,7 @@ __all__ = [
     "remember_function_addresses",
     "spawn_helper",
     "start_helper",
+    "start_kernel_helper",
 ]
 
 #: The modules whose functions make up the compiled kernel (their text keys its cache).
@@ -271,7 +272,13 @@ def start_helper(dim: int) -> subprocess.Popen | None:
     core can do it while this process derives, generates and compiles the
     system (outer_solar_system's takes about 6 s beside the kernel's 12 s);
     None otherwise, or if the helper cannot be started."""
-    if dim < HELPER_MIN_DIM or cores() < 2 or kernel_cached():
+    return start_kernel_helper() if dim >= HELPER_MIN_DIM else None
+
+
+def start_kernel_helper() -> subprocess.Popen | None:
+    """A helper process compiling the kernel into the cache (:func:`build_kernel`)
+    when it is not there and a second core can take it; None otherwise."""
+    if cores() < 2 or kernel_cached():
         return None
     return spawn_helper("from hamrkq.backends import kernel; kernel.build_kernel()")
 

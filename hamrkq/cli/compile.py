@@ -60,20 +60,16 @@ def compile_command(args: argparse.Namespace) -> int:
     names = list_problems() if args.all else list(args.problems)
     problems = [load_problem(name) for name in names]  # every name checked first
     print(f"cache: {codegen.cache_dir()}", flush=True)
-    helper = None
-    if problems and not kernel_module.kernel_cached() and kernel_module.cores() >= 2:
-        # The kernel (10-15 s) compiles in a helper process on another core
-        # while this one compiles the systems.
-        started = time.perf_counter()
-        helper = kernel_module.spawn_helper(
-            "from hamrkq.backends import kernel; kernel.build_kernel()"
-        )
+    # The kernel (10-15 s) compiles in a helper process on another core while
+    # this one compiles the systems.
+    started = time.perf_counter()
+    helper = kernel_module.start_kernel_helper() if problems else None
     if helper is None:
         _timed("the step kernel", kernel_module.build_kernel)
     for problem in problems:
         _timed(problem.name, lambda p=problem: compiled.compile_system(p.hamiltonian))
     if helper is not None:
-        helper.wait()
+        kernel_module.join_helper(helper)
         elapsed = time.perf_counter() - started
         if helper.returncode == 0:
             print(f"the step kernel: compiled in a helper process ({elapsed:.1f} s)", flush=True)
