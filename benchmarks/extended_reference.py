@@ -28,17 +28,30 @@ def available() -> bool:
     return np.finfo(np.longdouble).eps < 1e-18
 
 
-def reference(problem, t_nodes, tol: float = 1e-19) -> np.ndarray:
-    """States of ``problem`` (its y0 and parameters, as doubles) at
-    ``t_nodes`` (increasing, starting at or after t0 = 0), rounded to double."""
+def reference(problem, t_nodes, tol: float = 1e-19, fold_parameters: bool = False) -> np.ndarray:
+    """States of ``problem`` (its y0 and parameters, as doubles, with exact
+    arithmetic on them) at ``t_nodes`` (increasing, starting at or after
+    t0 = 0), rounded to double.  ``fold_parameters`` substitutes them as
+    SymPy Floats instead, whose sums SymPy rounds to 53 bits (how the
+    references were made before; ``constant_offsets.py`` compares the two)."""
     import heyoka as hy
     import sympy as sp
 
     ham = problem.hamiltonian
-    values = dict(zip(ham.parameters, problem.parameter_array, strict=True))
     state = list(ham.state)
-    rhs = [sp.sympify(e).subs(values) for e in ham.rhs]
+    rhs = [sp.sympify(e) for e in ham.rhs]
     symbols = {s: hy.expression(str(s)) for s in state}
+    # The parameters' doubles enter as extended-precision constants, so that
+    # sums of them (1 - mu) are exact: substituted into SymPy as Floats, they
+    # would be folded to 53 bits, a different problem (on the Arenstorf orbit
+    # the two end 3.5e-11 apart, benchmarks/constant_offsets.txt).
+    for symbol, value in zip(ham.parameters, problem.parameter_array, strict=True):
+        if fold_parameters:
+            rhs = [e.subs(symbol, float(value)) for e in rhs]
+            continue
+        placeholder = sp.Dummy()
+        symbols[placeholder] = hy.expression(np.longdouble(value))
+        rhs = [e.xreplace({symbol: placeholder}) for e in rhs]
     # heyoka takes only dyadic rationals; others (1/6) become constants in
     # extended precision, through placeholders.
     for rational in set().union(*(e.atoms(sp.Rational) for e in rhs)):
