@@ -8,6 +8,7 @@ counted in f-evaluations plus Jacobian products, which are deterministic.
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -155,6 +156,19 @@ def test_unattainable_message_gives_the_remedy_that_works():
     assert "max_step" in sol.message and "another member" in sol.message
     floor = hamrkq.solve(ham, [1.0], [0.5], (0, 1), atol=1e-17)
     assert "loosen atol/rtol" in floor.message
+
+
+def test_unattainable_message_names_the_quencher_steps_that_carry_the_run():
+    # rk56q8 in its default two quencher steps stops at t = 704 of 4000 on
+    # the paper's problem; the message names z_substeps=4 (auto's rerun rule),
+    # and that run reaches the end with every node within the tolerance.
+    problem = hamrkq.load_problem("prentice2011")
+    sol = hamrkq.solve(problem, method="rk56q8", atol=1e-6)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and sol.t[-1] < 1000
+    named = re.search(r"z_substeps=(\d+)", sol.message)
+    assert named and "method='auto'" in sol.message
+    again = hamrkq.solve(problem, method="rk56q8", atol=1e-6, z_substeps=int(named.group(1)))
+    assert again.success and again.t[-1] == 4000.0
 
 
 def test_scipy_solver_without_jac_warns_that_gamma_is_off():

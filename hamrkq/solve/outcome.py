@@ -17,7 +17,7 @@ from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.driver import RunOutput
-from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.family import MEMBERS, auto_retry_substeps
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
@@ -137,14 +137,39 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
-    remedies = [
-        f"a smaller max_step (the quencher's error falls like h^{member_of(task).z_order})"
-    ]
+    return text + " What helps: " + "; ".join(_remedies(out, task)) + "."
+
+
+def _remedies(out: RunOutput, task: Task) -> list[str]:
+    """What carries the quencher further when its truncation error stopped
+    the run, the most specific first."""
+    o = task.options
+    member = member_of(task)
+    remedies = []
+    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
+    substeps = None
+    if o.gamma_name == "shadow":  # the rule auto's reruns use, measured with this estimate
+        substeps = auto_retry_substeps(
+            member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio, o.gamma_limit,
+            reached,
+        )  # fmt: skip
+    if substeps is not None:
+        remedies.append(
+            f"z_substeps={substeps} (quencher steps per step, {member.z_substeps} in this run: "
+            f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
+            "if its error keeps growing like t^2, as on a periodic orbit)"
+        )
+    if o.method != "auto":
+        remedies.append(
+            "method='auto', which chooses a member and runs again with more quencher steps "
+            "when a run stops on the quencher's truncation error"
+        )
+    remedies.append(f"a smaller max_step (the quencher's error falls like h^{member.z_order})")
     better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
     if better:
         remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
     remedies.append("a looser tolerance only if the quencher's error grows with the step")
-    return text + " What helps: " + "; ".join(remedies) + "."
+    return remedies
 
 
 def _message(status: Status, out: RunOutput, task: Task) -> str:
