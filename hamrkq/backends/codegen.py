@@ -8,6 +8,7 @@ into the text of a small Python module of plain scalar functions::
     jac(t, y, params, out)        # out[:, :] = d rhs / dy
     jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
     rhs_jvp(t, y, params, v, out, dout, JM)  # rhs and J @ v at one point
+    rhs_dd(t, y, params, ylo, out, outlo, JM)  # rhs in double-double (if DD_UNSUPPORTED == "")
     energy(t, y, params) -> float # H
     energy_rows(t, Y, params, out) # out[i] = H(t[i], Y[i])
 
@@ -40,6 +41,7 @@ from typing import TYPE_CHECKING
 
 import sympy as sp
 
+from hamrkq.backends.dd_printer import DD_FUNCTIONS, rhs_dd_block
 from hamrkq.backends.scalar_printer import block, rhs_jvp_block
 from hamrkq.backends.source_cache import (
     CACHE_ENV,
@@ -74,7 +76,7 @@ __all__ = [
 
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 10
+CODEGEN_VERSION = 11
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
 _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -179,6 +181,8 @@ def generate_source(ham: Hamiltonian) -> str:
         "",
         "import math",
         "",
+        f"from hamrkq.rkq.ddarith import {', '.join(DD_FUNCTIONS)}",
+        "",
         f"DIM = {dim}",
         f"NPARAMS = {len(ham.parameters)}",
         f"CODEGEN_VERSION = {CODEGEN_VERSION}",
@@ -218,6 +222,12 @@ def generate_source(ham: Hamiltonian) -> str:
     )
     lines += ["", ""]
     lines += rhs_jvp_block(rhs, jac, nonzero, dim, names, parameters)
+    lines += ["", ""]
+    try:
+        lines += rhs_dd_block(ham)
+        lines += ["", "", 'DD_UNSUPPORTED = ""']
+    except CodegenError as exc:  # the double-double quencher is then refused, by name
+        lines += [f"DD_UNSUPPORTED = {str(exc)!r}"]
     lines += ["", ""]
     lines += block(
         "energy", "t, y, params", "H at one state.", [ham.H], [], names, parameters, returns=True
