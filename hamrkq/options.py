@@ -39,6 +39,7 @@ __all__ = [
     "GAMMA_MODES",
     "METHOD_NAMES",
     "MIN_RTOL",
+    "QUENCHER_PRECISIONS",
     "QUENCH_MODES",
     "TOLERANCE_RULES",
     "Z_METHOD_NAMES",
@@ -68,6 +69,10 @@ GAMMA_MODES = {
     "off": GAMMA_OFF,
 }
 Z_METHOD_NAMES = tuple(Z_METHODS)
+#: The quencher's arithmetic: doubles (with compensated sums), or its stages
+#: and f in double-double (hamrkq.rkq.ddarith), below double precision's
+#: rounding floor.
+QUENCHER_PRECISIONS = ("double", "double-double")
 #: Where the RK loop runs: "numba" (compiled), "python" (interpreted), or
 #: "auto" (numba when it can be used).
 BACKENDS = ("auto", "numba", "python")
@@ -95,6 +100,7 @@ class SolveOptions:
     global_error_estimate: str | None = None
     z_method: str = "dop853"
     z_substeps: int | None = None
+    quencher_precision: str | None = None  # "double", unless method="auto" escalates
     first_step: float | None = None
     max_step: float = math.inf
     step: float | None = None
@@ -136,7 +142,21 @@ class SolveOptions:
                     f"mesh z_substeps times coarser: it needs z_substeps >= 2, got "
                     f"{member.z_substeps}"
                 )
+        if options.double_double and (
+            options.method not in (*MEMBERS, "auto") or options.gamma_name != "shadow"
+        ):
+            raise OptionError(
+                "quencher_precision='double-double' needs a quencher whose Gamma comes from "
+                "the shadow track (method='auto' or a family member other than 'rk34q8', "
+                f"with global_error_estimate='shadow'); got method={options.method!r}, "
+                f"global_error_estimate={options.gamma_name!r}"
+            )
         return options
+
+    @property
+    def double_double(self) -> bool:
+        """Whether the quencher runs in double-double."""
+        return self.quencher_precision == "double-double"
 
     def member(self):
         """The RKQ family member these options run (:mod:`hamrkq.rkq.family`)."""
@@ -198,6 +218,7 @@ _NAMES: dict[str, Any] = {
     "tolerance_rule": TOLERANCE_RULES,
     "global_error_estimate": GAMMA_MODES,
     "z_method": Z_METHOD_NAMES,
+    "quencher_precision": QUENCHER_PRECISIONS,
     "backend": BACKENDS,
 }
 

@@ -98,16 +98,21 @@ def test_at_the_floor_the_run_stops_naming_it_and_keeps_the_promise(problem, spa
     # 2e-13 near the pericentres, so 1e-12 cannot be certified with
     # gamma_limit = 0.05.  The run stops at the floor and says so; every node
     # it kept is within 1.05 delta of the exact orbit.
-    sol = hamrkq.solve(problem, t_span=span, method="auto", atol=tol, rtol=0.0)
+    # (In double: auto would run again with the quencher in double-double,
+    # tests/test_double_double.py.)
+    sol = hamrkq.solve(
+        problem, t_span=span, method="auto", atol=tol, rtol=0.0, quencher_precision="double"
+    )
     assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
     assert sol.t[-1] < span[1]
     assert "rounding witness" in sol.message and "floor" in sol.message
+    assert "quencher_precision='double-double'" in sol.message
     assert np.abs(sol.y - problem.exact(sol.t)).max() <= 1.05 * tol
 
 
 def test_prentice2011_at_1e_12_stops_at_the_floor():
     prentice = hamrkq.load_problem("prentice2011")
-    sol = hamrkq.solve(prentice, method="auto", atol=1e-12, rtol=0.0)
+    sol = hamrkq.solve(prentice, method="auto", atol=1e-12, rtol=0.0, quencher_precision="double")
     assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
     assert sol.t[-1] < 1000
     assert "double precision's floor" in sol.message

@@ -178,6 +178,22 @@ class CompiledSystem:
         self.rhs_jvp = namespace["rhs_jvp"]
         self.energy = namespace["energy"]
         self.energy_rows = namespace["energy_rows"]
+        self._module = module
+        self._rhs_dd = None
+
+    def rhs_dd(self):
+        """``rhs_dd(t, y, params, ylo, out, outlo, JM)``, f in double-double
+        (:mod:`hamrkq.backends.dd_printer`), compiled on its first use with
+        ``rhs_jvp``'s signature (the kernel takes it in the tangent's place)."""
+        if self._rhs_dd is None:
+            from hamrkq.backends.dd_printer import DD_FUNCTIONS
+            from hamrkq.rkq import ddarith
+
+            namespace: dict[str, Any] = {"math": math, "__name__": self._module.__name__}
+            namespace.update({name: getattr(ddarith, name) for name in DD_FUNCTIONS})
+            plain = types.FunctionType(self._module.rhs_dd.__code__, namespace, "rhs_dd")
+            self._rhs_dd = jit(plain, signatures()["rhs_jvp"])
+        return self._rhs_dd
 
 
 def compile_system(ham: Hamiltonian) -> CompiledSystem:

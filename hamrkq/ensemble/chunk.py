@@ -61,6 +61,8 @@ def run_batched(request: Request) -> ChunkResult | None:
     task = prepared.task
     if prepared.spec.run is not run_rk or prepared.backend != "numba" or task.stop:
         return None
+    if task.options.double_double:  # the batch loop passes rhs_jvp, not rhs_dd
+        return None
     if not _same_options(prepared, request):
         return None
     from hamrkq.backends import compiled, extras

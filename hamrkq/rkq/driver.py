@@ -104,6 +104,9 @@ class Settings:
     #: Abandon the run when Gamma projected to t_end fails (status
     #: ST_ABANDONED; method="auto", :func:`hamrkq.rkq.family.auto_abandon_substeps`).
     project: bool = False
+    #: The quencher's stages and f in double-double (GAMMA_SHADOW only; the
+    #: functions' ``tangent`` is then ``rhs_dd``, hamrkq.backends.dd_printer).
+    double_double: bool = False
 
 
 @dataclass(frozen=True)
@@ -215,6 +218,7 @@ class Integration:
             project_from=AUTO_PROJECT_FROM,
             project_until=AUTO_PROJECT_UNTIL,
             project_limit=AUTO_PROJECT_SHARE * settings.gamma_limit,
+            z_double_double=int(settings.double_double and gamma == GAMMA_SHADOW),
         )
         self.state = new_state(self.t0)
         y0 = _floats(y0)

@@ -89,6 +89,7 @@ CONFIG = np.dtype(
         ("project_from", _F),  # the projection is made from this fraction ...
         ("project_until", _F),  # ... to this one
         ("project_limit", _F),  # abandon when the projected |Gamma| / delta exceeds this
+        ("z_double_double", _I),  # 1: the quencher's stages and f in double-double
     ]
 )
 
@@ -177,9 +178,9 @@ VECTORS = (
     ("ERR", "the pair's error estimate"),
     ("DELTA", "tolerance per component"),
     ("YT", "stage argument"),
-    ("DY", "stage argument of the tangent"),
+    ("DY", "stage argument of the tangent (its low words: the quencher in double-double)"),
     ("INC", "an increment"),
-    ("INC_LO", "the other increment of the pair"),
+    ("INC_LO", "the other increment of the pair (and the quencher's low words)"),
     ("DINC", "tangent increment"),
     ("INCA", "Richardson half steps"),
     ("INCB", ""),
@@ -218,7 +219,7 @@ class Work(NamedTuple):
     V: np.ndarray  # (len(VECTORS), d)
     K: np.ndarray  # the pair's stages (s x d)
     Kz: np.ndarray  # the quencher's stages (sz x d)
-    dKz: np.ndarray  # their tangents
+    dKz: np.ndarray  # their tangents (their low words: the quencher in double-double)
     JM: np.ndarray  # a Jacobian (d x d)
 
 

@@ -97,6 +97,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     global_error_estimate: str | None = None,
     z_method: str | None = None,
     z_substeps: int | None = None,
+    quencher_precision: str | None = None,
     first_step: float | None = None,
     max_step: float | None = None,
     step: float | None = None,
@@ -175,6 +176,14 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Quencher steps per step of the pair (family members; the member's
         default, 2, or, with ``method="auto"``, learned from the run).  A
         value given here is kept: ``"auto"`` then never runs again.
+    quencher_precision : {"double", "double-double"}, optional
+        The quencher's arithmetic.  ``"double-double"`` evaluates its stages
+        and ``f`` in double-double (about 32 digits, generated like the
+        rest), for tolerances below double precision's rounding floor of the
+        orbit (prentice2011 at 1e-12); it needs the shadow estimate of Gamma
+        and costs 4 to 8 times as much per evaluation.  ``method="auto"``
+        switches to it by itself when a run stops at the floor and every
+        function of ``f`` has a double-double form (docs/algorithm.md).
     first_step : float, optional
         Initial step size; by default Hairer-Norsett-Wanner's heuristic for
         order 3 (as SciPy's ``select_initial_step``).
@@ -368,6 +377,9 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         )
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
+    if options.double_double:
+        _double_double_available(ham)
+        background = False  # the helper compiles the double functions only
     compiling = start_background(options.backend, ham, spec) if background else None
     chosen = "numba" if compiling is not None else resolve_backend(options.backend, ham, spec)
     compile_s = time.perf_counter() - started
@@ -382,6 +394,15 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     task = replace(task, project=auto.projects(requested, task))
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
+
+
+def _double_double_available(ham) -> None:
+    """Raise :class:`OptionError` when ``f`` has no double-double form."""
+    from hamrkq.backends import codegen
+
+    unsupported = codegen.load_module(ham).DD_UNSUPPORTED
+    if unsupported:
+        raise OptionError(f"quencher_precision='double-double' is not available: {unsupported}")
 
 
 def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:

@@ -71,6 +71,10 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         0.5 * task.options.gamma_limit
     ):
         return None  # the stored values' own rounding: more substeps cannot help
+    if out.floor_ratio >= 0.5 * out.max_ratio:
+        # Double precision's floor for this orbit: the quencher in
+        # double-double goes below it, where f has a double-double form.
+        return _in_double_double(requested, task)
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = auto_retry_substeps(
         member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
@@ -78,6 +82,20 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if substeps is None:
         return None
     return _with_substeps(requested, task, substeps)
+
+
+def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
+    """``task`` with its quencher in double-double, or None when that was
+    chosen already, refused (``quencher_precision="double"``) or is not
+    available for ``f`` (``DD_UNSUPPORTED`` of the generated module)."""
+    from hamrkq.backends import codegen
+
+    if requested.quencher_precision is not None or task.options.double_double:
+        return None
+    if codegen.load_module(task.ham).DD_UNSUPPORTED:
+        return None
+    task = replace(task, options=replace(task.options, quencher_precision="double-double"))
+    return replace(task, project=projects(requested, task))
 
 
 def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:

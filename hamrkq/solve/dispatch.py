@@ -92,7 +92,26 @@ def member_of(task: Task):
 def uses_witness(task: Task) -> bool:
     """Whether an RKQ-family task runs the rounding witness (the shadow
     estimate at a tolerance near double precision's floor, :func:`needs_witness`)."""
-    return task.options.gamma_name == "shadow" and needs_witness(task.atol, task.rtol, task.y0)
+    return (
+        task.options.gamma_name == "shadow"
+        and not task.options.double_double
+        and needs_witness(task.atol, task.rtol, task.y0)
+    )
+
+
+def _double_double_functions(task: Task, backend: str):
+    """The kernel's functions with ``rhs_dd`` (f in double-double,
+    :mod:`hamrkq.backends.dd_printer`) where the tangent goes."""
+    from hamrkq.backends import codegen
+
+    if backend == "numba":
+        from hamrkq.backends import compiled
+
+        system = compiled.compile_system(task.ham)
+        return compiled.system_functions(system)._replace(tangent=system.rhs_dd())
+    numeric = numeric_of(task.ham)
+    functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
+    return functions._replace(tangent=codegen.load_module(task.ham).rhs_dd)
 
 
 def integration(task: Task, backend: str) -> Integration:
@@ -111,9 +130,12 @@ def integration(task: Task, backend: str) -> Integration:
         first_step=o.first_step,
         witness=uses_witness(task),
         project=task.project,
+        double_double=o.double_double,
     )
     functions, upgrade = None, None
-    if backend == "numba" and task.compiling is None:
+    if o.double_double:
+        functions = _double_double_functions(task, backend)
+    elif backend == "numba" and task.compiling is None:
         from hamrkq.backends import compiled
 
         functions = compiled.kernel_functions(task.ham)

@@ -69,6 +69,7 @@ def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solu
             global_error_estimate=o.gamma_name,
             z_method=o.z_method,
             z_substeps=member.z_substeps,
+            quencher_precision="double-double" if o.double_double else "double",
             gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,
             rounding_witness=witness,
         )
@@ -121,13 +122,20 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
             )
     if out.floor_ratio >= 0.5 * out.max_ratio:
-        return text + (
+        text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
             f"quencher run again with its sums in the opposite order), is "
             f"{out.floor_ratio:.3g} x the "
             "tolerance: this is double precision's floor for this orbit and interval, and "
-            "no member or step size goes below it. A looser tolerance or a shorter interval "
-            "is what works."
+            "no member or step size in double goes below it."
+        )
+        if not _double_double_available(task):
+            return text + " A looser tolerance or a shorter interval is what works."
+        return text + (
+            " What works: quencher_precision='double-double' (the quencher's stages and f "
+            "in double-double, 4 to 8 times the cost per evaluation; method='auto' switches "
+            "to it by itself unless quencher_precision='double' is given), a looser "
+            "tolerance or a shorter interval."
         )
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
@@ -138,6 +146,15 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "this orbit), is what works."
         )
     return text + " What helps: " + "; ".join(_remedies(out, task)) + "."
+
+
+def _double_double_available(task: Task) -> bool:
+    """Whether the quencher could run in double-double and does not already."""
+    from hamrkq.backends import codegen
+
+    if task.options.double_double or task.options.gamma_name != "shadow":
+        return False
+    return not codegen.load_module(task.ham).DD_UNSUPPORTED
 
 
 def _remedies(out: RunOutput, task: Task) -> list[str]:

@@ -1,0 +1,142 @@
+"""The quencher in double-double: the generated f against mpmath, the options,
+and runs below double precision's rounding floor checked against exact
+solutions."""
+
+from __future__ import annotations
+
+import mpmath
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.backends import codegen
+from hamrkq.errors import OptionError
+
+CATALOGUE = hamrkq.list_problems()
+
+
+def _mp_rhs(problem, y_hi, y_lo):
+    """The right-hand side at the double-double state, to 40 digits."""
+    ham = problem.hamiltonian
+    values = {
+        s: sp.Float(float(v), 40)
+        for s, v in zip(ham.parameters, problem.parameter_array, strict=True)
+    }
+    for s, hi, lo in zip(ham.state, y_hi, y_lo, strict=True):
+        values[s] = sp.Float(mpmath.mpf(hi) + mpmath.mpf(lo), 40)
+    values[ham.t] = sp.Float(0.0, 40)
+    return [sp.N(e.xreplace(values), 40) for e in ham.rhs]
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_rhs_dd_is_f_to_about_30_digits(name, tmp_path):
+    problem = hamrkq.load_problem(name)
+    module = codegen.load_module(problem.hamiltonian, tmp_path)
+    assert module.DD_UNSUPPORTED == ""
+    rng = np.random.default_rng(7)
+    mpmath.mp.dps = 40
+    for _ in range(3):
+        y = problem.y0 + 0.05 * (1.0 + np.abs(problem.y0)) * rng.standard_normal(problem.y0.size)
+        ylo = y * 2.0**-60 * rng.standard_normal(y.size)  # a genuine low word
+        out, outlo = np.empty_like(y), np.empty_like(y)
+        module.rhs_dd(0.0, y, problem.parameter_array, ylo, out, outlo, np.empty((y.size,) * 2))
+        exact = _mp_rhs(problem, y, ylo)
+        scale = max(1.0, max(abs(float(v)) for v in exact))
+        for k, value in enumerate(exact):
+            got = mpmath.mpf(out[k]) + mpmath.mpf(outlo[k])
+            assert abs(got - mpmath.mpf(str(value))) <= 1e-27 * scale, (name, k)
+
+
+def test_an_unsupported_function_is_named():
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.atan(q) * q, q=[q], p=[p])
+    with pytest.raises(OptionError, match="atan"):
+        hamrkq.solve(
+            ham, [0.5], [0.0], (0, 1), method="rk78q12", quencher_precision="double-double"
+        )
+
+
+def test_double_double_needs_the_shadow_estimate():
+    problem = hamrkq.load_problem("harmonic")
+    with pytest.raises(OptionError, match="shadow"):
+        hamrkq.solve(problem, method="rk34q8", quencher_precision="double-double")
+    with pytest.raises(OptionError, match="quencher_precision"):
+        hamrkq.solve(problem, method="rk78q12", quencher_precision="quad")
+
+
+def _kepler_exact(y0, times) -> np.ndarray:
+    """Kepler's flow from ``y0`` (doubles) to 30 digits (mpmath): the
+    catalogue's exact solution, evaluated in doubles, is itself 1.7e-13 off
+    after ten orbits, a sixth of the tolerance checked here."""
+    ctx = mpmath.MPContext()
+    ctx.dps = 30
+    q1, q2, p1, p2 = (ctx.mpf(float(v)) for v in y0)
+    r0 = ctx.sqrt(q1**2 + q2**2)
+    a = -1 / (2 * ((p1**2 + p2**2) / 2 - 1 / r0))
+    n = a ** ctx.mpf(-1.5)
+    ec, es = 1 - r0 / a, (q1 * p1 + q2 * p2) / ctx.sqrt(a)
+    rows = []
+    for time in times:
+        t = ctx.mpf(float(time))
+        mean = n * t
+        dE = ctx.findroot(lambda d, m=mean: d - ec * ctx.sin(d) + es * (1 - ctx.cos(d)) - m, mean)
+        r = a * (1 - ec * ctx.cos(dE) + es * ctx.sin(dE))
+        f, g = 1 - a / r0 * (1 - ctx.cos(dE)), t - (dE - ctx.sin(dE)) / n
+        fd, gd = -ctx.sqrt(a) / (r * r0) * ctx.sin(dE), 1 - a / r * (1 - ctx.cos(dE))
+        rows.append([float(v) for v in (f * q1 + g * p1, f * q2 + g * p2,
+                                         fd * q1 + gd * p1, fd * q2 + gd * p2)])  # fmt: skip
+    return np.array(rows)
+
+
+def _kepler_errors(sol, problem, atol):
+    exact = _kepler_exact(problem.y0, sol.t)
+    z = sol.y - sol.global_error
+    return np.abs(sol.y - exact).max() / atol, np.abs(z - exact).max()
+
+
+def test_kepler_below_the_double_floor():
+    """Kepler e = 0.6 over ten orbits at 1e-12: in double the quencher stops
+    at its rounding floor; in double-double it reaches the end with every
+    node within the tolerance of the exact solution, and so does auto, which
+    switches by itself."""
+    problem = hamrkq.load_problem("kepler", e=0.6)
+    span = (0.0, 20 * np.pi)
+    double = hamrkq.solve(problem, t_span=span, method="rk78q12", atol=1e-12, rtol=0.0)
+    assert double.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and "floor" in double.message
+    dd = hamrkq.solve(
+        problem, t_span=span, method="rk78q12", atol=1e-12, rtol=0.0,
+        quencher_precision="double-double", z_substeps=3,
+    )  # fmt: skip
+    assert dd.success, dd.message
+    ratio, z_error = _kepler_errors(dd, problem, 1e-12)
+    assert ratio <= 1.05
+    assert z_error < 1e-13  # the quencher far below the tolerance
+    auto = hamrkq.solve(problem, t_span=span, method="auto", atol=1e-12, rtol=0.0)
+    assert auto.success and auto.options["quencher_precision"] == "double-double"
+    assert _kepler_errors(auto, problem, 1e-12)[0] <= 1.05
+
+
+def test_both_backends_agree():
+    problem = hamrkq.load_problem("kepler", e=0.6)
+    options = dict(method="rk78q12", atol=1e-12, rtol=0.0, quencher_precision="double-double")
+    runs = [
+        hamrkq.solve(problem, t_span=(0.0, 2.0), backend=backend, **options)
+        for backend in ("numba", "python")
+    ]
+    np.testing.assert_array_equal(runs[0].t, runs[1].t)
+    np.testing.assert_allclose(runs[0].y, runs[1].y, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(runs[0].global_error, runs[1].global_error, rtol=0, atol=1e-15)
+
+
+def test_auto_carries_prentice2011_at_1e_12():
+    """The paper's problem over [0, 4000] at 1e-12: in double the quencher
+    stops at its floor near t = 90; auto runs again in double-double and
+    reaches the end (every node within 0.993 of the tolerance against the
+    long-double reference, benchmarks/double_double.md)."""
+    prentice = hamrkq.load_problem("prentice2011")
+    sol = hamrkq.solve(prentice, method="auto", atol=1e-12, rtol=0.0)
+    assert sol.success and sol.t[-1] == 4000.0
+    assert sol.options["quencher_precision"] == "double-double"
+    assert sol.stats["discarded_evaluations"] > 0  # the double run, counted
+    assert np.abs(sol.gamma).max() <= 0.05e-12
