@@ -355,6 +355,13 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
     if not clipped and abs(h) < max(FLOOR_ULPS * EPS * abs(s["t"]), MIN_SUBNORMAL):
         s["failed_h"] = h
         return stop(ST_NON_FINITE if s["last_nonfinite"] else ST_UNDERFLOW, work, out, s, c)
+    if not clipped:
+        # The step that ends on a double: every node's time is then exact (no
+        # low word), so a node reports the solution at the time it names.
+        # With t + h rounded instead, the tracks arrive up to half an ulp of t
+        # away from the reported time: |f| x 2.3e-13 at t = 4000, a fifth of
+        # a tolerance of 1e-12 (docs/algorithm.md).
+        h = (s["t"] + h) - s["t"]
     if not s["k1_valid"]:
         rhs(s["t"], work.V[U], problem.params, work.V[K1])
         s["nfev"] += 1
