@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from hamrkq._floats import EPS
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import RULE_PRENTICE
@@ -77,14 +79,50 @@ def stage_value(base, h, A, j, K, out):
         out[i] = stage_sum(A, j, K, i) * h + base[i] if j else base[i]
 
 
+#: The fractional part of the golden ratio: ``frac(n GOLDEN)``, n = 0, 1,
+#: ..., is Weyl's equidistributed sequence in [0, 1).
+GOLDEN = 0.6180339887498949
+
+
 @jitable
-def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False):
+def uniform(seed):
+    """A number in [0, 1) for the integer ``seed`` (a float): Weyl's
+    sequence, the same on every backend."""
+    x = seed * GOLDEN
+    return x - math.floor(x)
+
+
+@jitable
+def round_stochastically(big, small, u):
+    """``big + small`` (``|big| >= |small|``) rounded to one of the two
+    doubles around it, the farther with probability its distance over their
+    spacing, decided by ``u`` in [0, 1): stochastic rounding, an unbiased
+    rounding independent of round-to-nearest's."""
+    nearest = big + small
+    residual = (big - nearest) + small  # exact (Fast2Sum)
+    if residual == 0.0 or not math.isfinite(nearest):
+        return nearest
+    other = np.nextafter(nearest, math.inf if residual > 0.0 else -math.inf)
+    if u * abs(other - nearest) < abs(residual):
+        return other
+    return nearest
+
+
+@jitable
+def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False, seed=-1.0):
     """``out = base + (lo + h sum_{l<j} (A + A_low)[j, l] K[l])``: a stage
     from the compensated state ``(base, lo)`` with double-double
     coefficients (the low words summed apart, then added once); the sum runs
     over l = 0, 1, ... or, with ``reverse``, the other way (another rounding
-    of the same value: the rounding witness's)."""
+    of the same value: the rounding witness's).  With ``seed >= 0`` each
+    component is rounded stochastically (:func:`round_stochastically`, the
+    seeds ``seed + i``): rounded to nearest, two tracks whose exact stage
+    values differ by less than an ulp get the same double, so the witness
+    would share the quencher's rounding of every stage value, which is what
+    dominates where ``h J`` is large and the weights are (DOP853's absolute
+    weights sum to 12.9: the Arenstorf orbit near the Moon)."""
     for i in range(out.shape[0]):
+        small = lo[i]
         if j:
             acc = 0.0
             low = 0.0
@@ -92,9 +130,11 @@ def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False):
                 m = j - 1 - k if reverse else k
                 acc += A[j, m] * K[m, i]
                 low += A_low[j, m] * K[m, i]
-            out[i] = base[i] + (lo[i] + (acc + low) * h)
+            small = lo[i] + (acc + low) * h
+        if seed >= 0.0:
+            out[i] = round_stochastically(base[i], small, uniform(seed + i))
         else:
-            out[i] = base[i] + lo[i]
+            out[i] = base[i] + small
 
 
 @jitable

@@ -77,18 +77,21 @@ def pair_step(rhs, t, h, tab, params, work):
 
 @jitable
 def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
-    rhs, t, hi, lo, h, tab, params, work, out, first_done, reverse=False
+    rhs, t, hi, lo, h, tab, params, work, out, first_done, reverse=False, seed=-1.0
 ):
     """Stages of one quencher step of size ``h`` from the compensated state
     ``(hi, lo)`` into ``work.Kz`` and the increment into ``out``;
     ``work.Kz[0]`` is reused when ``first_done``; ``reverse`` sums the stages
-    the other way round (the rounding witness).  Returns the evaluations."""
+    the other way round and ``seed >= 0`` rounds the stage values
+    stochastically (the rounding witness; seeds ``seed``, ``seed + 1``, ...
+    over the stages and components).  Returns the evaluations."""
     Kz, y = work.Kz, work.V[YT]
     nfev = 0
     for j in range(tab.bz.shape[0]):
         if j == 0 and first_done:
             continue
-        arith.stage_value_compensated(hi, lo, h, tab.Az, tab.Az_low, j, Kz, y, reverse)
+        stage_seed = seed + j * y.shape[0] if seed >= 0.0 else -1.0
+        arith.stage_value_compensated(hi, lo, h, tab.Az, tab.Az_low, j, Kz, y, reverse, stage_seed)
         rhs(t + tab.cz[j] * h, y, params, Kz[j])
         nfev += 1
     arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
@@ -240,7 +243,10 @@ def quencher_step(rhs, tangent, jac, t, h, tab, cfg, problem, work, state):
         arith.two_sum(shi, slo, inc, nshi, nslo)
         arith.scaled_difference(nshi, nslo, nhi, nlo, cfg["shadow_scale"], gnew)
         if cfg["witness"]:
-            state["nfev"] += witness_step(rhs, t, h, tab, cfg, problem.witness_params, work)
+            attempt = float(state["steps"] + state["rejected"])
+            state["nfev"] += witness_step(
+                rhs, t, h, tab, cfg, problem.witness_params, work, attempt
+            )
     elif mode == GAMMA_OFF:
         for i in range(gnew.shape[0]):
             gnew[i] = 0.0
@@ -248,7 +254,7 @@ def quencher_step(rhs, tangent, jac, t, h, tab, cfg, problem, work, state):
 
 
 @jitable
-def witness_step(rhs, t, h, tab, cfg, params, work):
+def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     """The rounding witness over one step of the pair: the quencher's
     ``z_substeps`` steps from ``(V[WHI], V[WLO])`` into ``(V[NWHI], V[NWLO])``,
     and the floor's candidate ``V[NFLOOR] = max(V[FLOOR], scale |w - z|)``.
@@ -276,9 +282,11 @@ def witness_step(rhs, t, h, tab, cfg, params, work):
     arith.copy(whi, nwhi)
     arith.copy(wlo, nwlo)
     nfev = 0
+    seeds = float(tab.bz.shape[0] * whi.shape[0])  # per quencher step
     for k in range(n):
+        seed = (attempt * n + k) * seeds
         nfev += explicit_increment(
-            rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False, True
+            rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False, True, seed
         )
         arith.two_sum(nwhi, nwlo, inc, nwhi, nwlo)
     scale = cfg["witness_scale"]
