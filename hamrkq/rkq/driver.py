@@ -213,6 +213,7 @@ class Integration:
             beta=member.beta,
             witness=int(settings.witness and gamma == GAMMA_SHADOW),
             witness_scale=WITNESS_SAFETY,
+            witness_stochastic=int(member.stage_rounding_dominates),
             project=int(settings.project and member.use_z),
             t_start=self.t0,
             project_from=AUTO_PROJECT_FROM,

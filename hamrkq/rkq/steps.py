@@ -284,7 +284,7 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     nfev = 0
     seeds = float(tab.bz.shape[0] * whi.shape[0])  # per quencher step
     for k in range(n):
-        seed = (attempt * n + k) * seeds
+        seed = (attempt * n + k) * seeds if cfg["witness_stochastic"] else -1.0
         nfev += explicit_increment(
             rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False, True, seed
         )
