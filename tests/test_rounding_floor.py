@@ -116,3 +116,37 @@ def test_prentice2011_at_1e_12_stops_at_the_floor():
     assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
     assert sol.t[-1] < 1000
     assert "double precision's floor" in sol.message
+
+
+def test_stochastic_rounding_picks_a_neighbour_without_bias():
+    """The witness's stage rounding: one of the two doubles around the exact
+    sum, the farther as often as its distance says (the mean over u is the
+    exact value)."""
+    from fractions import Fraction
+
+    from hamrkq.rkq import arith
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        big = float(rng.uniform(0.5, 4.0)) * (1 if rng.random() < 0.5 else -1)
+        small = float(rng.uniform(-1, 1)) * 1e-9
+        exact = Fraction(big) + Fraction(small)
+        nearest = big + small
+        results = [arith.round_stochastically(big, small, u) for u in (np.arange(400) + 0.5) / 400]
+        assert set(results) <= {nearest, float(np.nextafter(nearest, np.inf)),
+                                float(np.nextafter(nearest, -np.inf))}  # fmt: skip
+        mean = sum(Fraction(r) for r in results) / len(results)
+        spacing = abs(float(np.nextafter(nearest, np.inf)) - nearest)
+        assert abs(float(mean - exact)) <= 0.01 * spacing
+
+
+def test_the_witness_rounds_stochastically_only_where_the_weights_magnify_it():
+    from hamrkq.rkq.family import MEMBERS, STAGE_ROUNDING_WEIGHTS
+
+    for name, member in MEMBERS.items():
+        if not member.use_z:
+            continue
+        weights = float(np.abs(member.quencher.b).sum())
+        assert member.stage_rounding_dominates == (weights > STAGE_ROUNDING_WEIGHTS), name
+    assert MEMBERS["rk56q8"].stage_rounding_dominates  # DOP853: 12.9
+    assert not MEMBERS["rk78q12"].stage_rounding_dominates  # Feagin 12: 1.7
