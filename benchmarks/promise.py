@@ -80,6 +80,7 @@ def row(problem, grid, truth, bound, label, atol, rtol, method="auto", **options
         # the reference's own error could be a twentieth of the tolerance
         "reference_limits": bool(n and bound > LIMITS * float(delta.min())),
         "floor_named": "floor" in sol.message,
+        "quencher": sol.options.get("quencher_precision", "-"),
     }
 
 
@@ -97,7 +98,10 @@ def markdown(rows: list[dict]) -> str:
         f"Of the {len(kept)} counted: {len(success)} SUCCESS, "
         f"{len(unattainable)} TOLERANCE_UNATTAINABLE "
         f"({sum(r['floor_named'] for r in unattainable)} naming double precision's floor), "
-        f"{len(broken)} with a node above 1.05 tolerances" + (f": {where}." if broken else "."),
+        f"{len(broken)} with a node above 1.05 tolerances"
+        + (f": {where}." if broken else ".")
+        + f"  {sum(r.get('quencher') == 'double-double' for r in kept)} of the counted ran "
+        "their quencher in double-double.",
         "",
         "| problem | tolerance | status | t reached / t_end | witness | evaluations | time (s) | "
         "max true error / tol | reference error |",
