@@ -39,7 +39,7 @@ def reference(problem, t_nodes, tol: float = 1e-19, fold_parameters: bool = Fals
 
     ham = problem.hamiltonian
     state = list(ham.state)
-    rhs = [sp.sympify(e) for e in ham.rhs]
+    rhs = list(ham.rhs)
     symbols = {s: hy.expression(str(s)) for s in state}
     # The parameters' doubles enter as extended-precision constants, so that
     # sums of them (1 - mu) are exact: substituted into SymPy as Floats, they

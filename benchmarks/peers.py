@@ -151,7 +151,7 @@ def to_heyoka(expr, mapping):
             return functions[e.func](convert(e.args[0]))
         raise ValueError(f"no heyoka counterpart for {e.func.__name__}")
 
-    return convert(sp.sympify(expr))
+    return convert(expr)  # a SymPy expression already: nothing is parsed
 
 
 class Heyoka:

@@ -173,6 +173,20 @@ def test_a_sum_of_constants_is_added_as_a_double_double(tmp_path):
     assert naive_wrong > 10  # the test can tell the two apart
 
 
+def test_the_printer_parses_no_text(monkeypatch):
+    """Generation works on SymPy objects only: no sympify, and a string
+    handed to the printer is refused, not parsed."""
+    from hamrkq.backends import scalar_printer
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("sympify called")
+
+    monkeypatch.setattr(sp, "sympify", forbidden)
+    codegen.generate_source(hamrkq.load_problem("arenstorf").hamiltonian)
+    with pytest.raises(TypeError, match="str"):
+        scalar_printer._constant_offsets(["q + 1"], frozenset(), sp.numbered_symbols("_k"))
+
+
 def test_a_single_constant_term_is_added_plainly(tmp_path):
     """q + mu has nothing to lose (mu is one double): no offset is generated."""
     q, p, mu = sp.symbols("q p mu", real=True)
@@ -210,8 +224,10 @@ def test_user_names_never_reach_the_source(tmp_path):
     allowed = {"math", "t", "y", "params", "out", "dout", "JM", "v", "Y", "i", "k", "acc", "range",
                "energy", "ylo", "outlo", *DD_FUNCTIONS}  # fmt: skip
     # Numbered temporaries: c0 (CSE), f0/g0 (rhs_jvp's two CSEs), r0/d0 (its
-    # outputs), j0_1 (its Jacobian entries), h0/l0 (rhs_dd's high and low words).
-    temporaries = {n for n in identifiers if re.fullmatch(r"[cfgrdhl][0-9]+|j[0-9]+_[0-9]+", n)}
+    # outputs), j0_1 (its Jacobian entries), h0/l0 (rhs_dd's high and low words,
+    # sh0/sl0/ch0/cl0 a sine and cosine of one argument).
+    pattern = r"[cfgrdhl][0-9]+|(sh|sl|ch|cl)[0-9]+|j[0-9]+_[0-9]+"
+    temporaries = {n for n in identifiers if re.fullmatch(pattern, n)}
     constants = {"DIM", "NPARAMS", "CODEGEN_VERSION", "DD_UNSUPPORTED"}
     assert identifiers - temporaries <= allowed | constants
     imports = [node for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)]

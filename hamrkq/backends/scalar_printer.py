@@ -110,8 +110,18 @@ def _constant_offsets(
         high, low = offsets[constant]
         return OffsetSum(sp.Add(*varying, evaluate=False), high, low)
 
-    rewritten = [_bottom_up(sp.sympify(e), offset) for e in exprs]
+    rewritten = [_bottom_up(_expression(e), offset) for e in exprs]
     return rewritten, [(high, low, terms) for terms, (high, low) in offsets.items()]
+
+
+def _expression(value) -> sp.Basic:
+    """``value`` as a SymPy object: SymPy objects as they are, Python
+    numbers as SymPy numbers; never text (nothing here parses a string)."""
+    if isinstance(value, sp.Basic):
+        return value
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return sp.Integer(value) if isinstance(value, int) else sp.Float(value)
+    raise TypeError(f"expected a SymPy expression or a number, got {type(value).__name__}")
 
 
 def _bottom_up(expr: sp.Expr, rule) -> sp.Expr:
