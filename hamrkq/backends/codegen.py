@@ -67,6 +67,7 @@ __all__ = [
     "cache_dir",
     "cache_key",
     "check_supported",
+    "double_double_unsupported",
     "generate_source",
     "is_cached",
     "load_module",
@@ -241,6 +242,12 @@ def generate_source(ham: Hamiltonian) -> str:
         "        out[i] = energy(t[i], Y[i], params)",
     ]
     return "\n".join(lines) + "\n"
+
+
+def double_double_unsupported(ham: Hamiltonian) -> str:
+    """Why ``ham``'s right-hand side has no double-double form (``rhs_dd``,
+    :mod:`hamrkq.backends.dd_printer`), or ``""`` when it has one."""
+    return load_module(ham).DD_UNSUPPORTED
 
 
 def is_cached(ham: Hamiltonian, directory: Path | None = None) -> bool:

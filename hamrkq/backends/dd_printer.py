@@ -39,6 +39,7 @@ __all__ = ["DD_FUNCTIONS", "rhs_dd_block"]
 #: The ddarith functions the printed code calls (imported by the module).
 DD_FUNCTIONS = (
     "dd_add",
+    "dd_neg",
     "dd_mul",
     "dd_mul_d",
     "dd_div",
@@ -47,6 +48,7 @@ DD_FUNCTIONS = (
     "dd_log",
     "dd_sin",
     "dd_cos",
+    "dd_sincos",
     "dd_pow_int",
     "dd_pow",
 )
@@ -74,7 +76,11 @@ class _Printer:
     """Emits one assignment per operation into ``lines``; each value is a
     pair of names (or literals) ``(hi, lo)``."""
 
-    def __init__(self, state: Sequence[sp.Symbol], parameters: Sequence[sp.Symbol], time):
+    def __init__(
+        self, state: Sequence[sp.Symbol], parameters: Sequence[sp.Symbol], time, paired=()
+    ):
+        #: Arguments whose sine and cosine both occur: one ``dd_sincos``.
+        self.paired = frozenset(paired)
         self.values: dict[sp.Expr, tuple[str, str]] = {}
         for i, s in enumerate(state):
             self.values[s] = (f"y[{i}]", f"ylo[{i}]")
@@ -130,6 +136,8 @@ class _Printer:
         if coefficient == 1:
             return self._fold("dd_mul", expr.args)
         value = self.emit(factors)
+        if coefficient == -1:
+            return self._new(f"dd_neg({value[0]}, {value[1]})")
         ch, cl = self.emit(coefficient)
         if cl == "0.0":  # an integer or a float: a double times a double-double
             return self._new(f"dd_mul_d({value[0]}, {value[1]}, {ch})")
@@ -150,6 +158,14 @@ class _Printer:
         return self._new(f"dd_pow({bh}, {bl}, {eh}, {el})")
 
     def _function(self, expr: sp.Expr) -> tuple[str, str]:
+        if expr.func in (sp.sin, sp.cos) and expr.args[0] in self.paired:
+            ah, al = self.emit(expr.args[0])
+            n = self.count
+            self.count += 1
+            self.lines.append(f"    sh{n}, sl{n}, ch{n}, cl{n} = dd_sincos({ah}, {al})")
+            self.values[sp.sin(expr.args[0])] = (f"sh{n}", f"sl{n}")
+            self.values[sp.cos(expr.args[0])] = (f"ch{n}", f"cl{n}")
+            return self.values[expr]
         unary = {sp.sin: "dd_sin", sp.cos: "dd_cos", sp.exp: "dd_exp", sp.log: "dd_log"}
         if expr.func in unary:
             ah, al = self.emit(expr.args[0])
@@ -184,9 +200,12 @@ def rhs_dd_block(ham) -> list[str]:
     CodegenError
         If the right-hand side contains a function with no double-double form.
     """
-    printer = _Printer(ham.state, ham.parameters, ham.t)
     temps = sp.numbered_symbols("_d")
     replacements, reduced = sp.cse(list(ham.rhs), symbols=temps, order="none")
+    exprs = [value for _, value in replacements] + list(reduced)
+    sines = {a.args[0] for e in exprs for a in e.atoms(sp.sin)}
+    cosines = {a.args[0] for e in exprs for a in e.atoms(sp.cos)}
+    printer = _Printer(ham.state, ham.parameters, ham.t, sines & cosines)
     for symbol, value in replacements:
         printer.bind(symbol, value)
     results = [printer.emit(value) for value in reduced]

@@ -92,12 +92,13 @@ def uniform(seed):
 
 @jitable
 def round_stochastically(big, small, u):
-    """``big + small`` (``|big| >= |small|``) rounded to one of the two
-    doubles around it, the farther with probability its distance over their
-    spacing, decided by ``u`` in [0, 1): stochastic rounding, an unbiased
-    rounding independent of round-to-nearest's."""
+    """``big + small`` rounded to one of the two doubles around it, the
+    farther with probability its distance over their spacing, decided by
+    ``u`` in [0, 1): stochastic rounding, an unbiased rounding independent of
+    round-to-nearest's."""
     nearest = big + small
-    residual = (big - nearest) + small  # exact (Fast2Sum)
+    back = nearest - big
+    residual = (big - (nearest - back)) + (small - back)  # exact (TwoSum)
     if residual == 0.0 or not math.isfinite(nearest):
         return nearest
     # The neighbour on the residual's side: 0.75 eps |nearest| is between

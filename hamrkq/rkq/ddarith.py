@@ -71,7 +71,6 @@ __all__ = [
     "dd_cos",
     "dd_div",
     "dd_exp",
-    "dd_from_float",
     "dd_log",
     "dd_mul",
     "dd_mul_d",
@@ -82,7 +81,6 @@ __all__ = [
     "dd_sincos",
     "dd_sqrt",
     "dd_sub",
-    "dd_to_float",
     "fast_two_sum",
     "two_prod",
     "two_sum",
@@ -232,18 +230,6 @@ def _nonfinite(z, v):
 
 # ----------------------------------------------------------------------------
 # Arithmetic
-
-
-@jitable
-def dd_from_float(x):
-    """The double-double ``(x, 0.0)``."""
-    return x, 0.0
-
-
-@jitable
-def dd_to_float(ah, al):
-    """The double nearest the double-double: ``ah + al``."""
-    return ah + al
 
 
 @jitable

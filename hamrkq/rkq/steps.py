@@ -112,7 +112,6 @@ def double_double_increment(rhs_dd, t, hi, lo, h, tab, params, work, out_hi, out
     s = tab.bz.shape[0]
     for j in range(s):
         for i in range(y.shape[0]):
-            acc, acc_lo = 0.0, 0.0
             acc, acc_lo = dd_weighted_sum(tab.Az[j], tab.Az_low[j], Kz, Kzlo, j, i)
             acc, acc_lo = ddarith.dd_mul_d(acc, acc_lo, h)
             y[i], ylo[i] = ddarith.dd_add(hi[i], lo[i], acc, acc_lo)
@@ -261,7 +260,10 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
 
     The witness is the quencher track again, from the same initial value on
     the same mesh, with every stage sum and the increment added in the
-    opposite order (the same value, rounded differently) and the parameters
+    opposite order (the same value, rounded differently), its stage values
+    rounded stochastically where the quencher's weights magnify their
+    rounding (``cfg["witness_stochastic"]``,
+    :data:`hamrkq.rkq.family.STAGE_ROUNDING_WEIGHTS`), and the parameters
     moved by about an ulp (``witness_params``: constants formed from them,
     such as products, are rounded the same way at every evaluation, a
     systematic error that differs between the two only this way; a sum such

@@ -92,7 +92,7 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
 
     if requested.quencher_precision is not None or task.options.double_double:
         return None
-    if codegen.load_module(task.ham).DD_UNSUPPORTED:
+    if codegen.double_double_unsupported(task.ham):
         return None
     task = replace(task, options=replace(task.options, quencher_precision="double-double"))
     return replace(task, project=projects(requested, task))

@@ -133,7 +133,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             return text + " A looser tolerance or a shorter interval is what works."
         return text + (
             " What works: quencher_precision='double-double' (the quencher's stages and f "
-            "in double-double, 4 to 8 times the cost per evaluation; method='auto' switches "
+            "in double-double, 5 to 6 times the cost per evaluation; method='auto' switches "
             "to it by itself unless quencher_precision='double' is given), a looser "
             "tolerance or a shorter interval."
         )
@@ -154,7 +154,7 @@ def _double_double_available(task: Task) -> bool:
 
     if task.options.double_double or task.options.gamma_name != "shadow":
         return False
-    return not codegen.load_module(task.ham).DD_UNSUPPORTED
+    return not codegen.double_double_unsupported(task.ham)
 
 
 def _remedies(out: RunOutput, task: Task) -> list[str]:
