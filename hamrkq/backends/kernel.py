@@ -59,7 +59,7 @@ __all__ = [
 ]
 
 #: The modules whose functions make up the compiled kernel (their text keys its cache).
-KERNEL_MODULES = ("jit", "layout", "arith", "steps", "loop", "start", "batch")
+KERNEL_MODULES = ("jit", "layout", "arith", "ddarith", "steps", "loop", "start", "batch")
 
 _KERNEL: dict[str, Any] = {}
 
