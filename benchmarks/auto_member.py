@@ -9,7 +9,7 @@ For every catalogue problem with a long-double reference
 projection and the reruns of docs/algorithm.md), on 201 output times: its
 status, quencher steps, evaluations (f plus Jacobian products, discarded runs
 included) and largest true error over the tolerance.  The rule in
-``hamrkq.rkq.family.auto_member`` is read from this table.
+``hamrkq.rkq.auto_rules.auto_member`` is read from this table.
 
 Writes ``benchmarks/auto_member.json`` and ``benchmarks/auto_member.md``.
 """
@@ -25,7 +25,7 @@ import extended_reference
 import numpy as np
 
 import hamrkq
-from hamrkq.rkq import family
+from hamrkq.rkq import auto_rules
 
 HERE = Path(__file__).resolve().parent
 CANDIDATES = ("rk78q12", "rk67q9", "rk67q12")
@@ -33,12 +33,12 @@ TOLERANCES = (1e-6, 1e-8, 1e-9, 1e-10)
 
 
 def run(problem, grid, truth, member: str, tol: float) -> dict:
-    chosen = family.AUTO_MEMBER, family.AUTO_LARGE_MEMBER
-    family.AUTO_MEMBER = family.AUTO_LARGE_MEMBER = member  # what auto_member reads
+    chosen = auto_rules.AUTO_MEMBER, auto_rules.AUTO_LARGE_MEMBER
+    auto_rules.AUTO_MEMBER = auto_rules.AUTO_LARGE_MEMBER = member  # what auto_member reads
     try:
         sol = hamrkq.solve(problem, method="auto", atol=tol, rtol=0.0, t_eval=grid)
     finally:
-        family.AUTO_MEMBER, family.AUTO_LARGE_MEMBER = chosen
+        auto_rules.AUTO_MEMBER, auto_rules.AUTO_LARGE_MEMBER = chosen
     stats = sol.stats
     n = sol.t.size
     error = float(np.abs(sol.y - truth[:n]).max() / tol) if truth is not None and n else None

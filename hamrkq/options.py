@@ -20,7 +20,8 @@ from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
-from hamrkq.rkq.family import AUTO_MEMBER, MEMBERS, Z_METHODS, auto_member, get_member
+from hamrkq.rkq.auto_rules import AUTO_MEMBER, auto_member
+from hamrkq.rkq.family import MEMBERS, Z_METHODS, get_member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -165,7 +166,7 @@ class SolveOptions:
     def with_auto(self, dim: int) -> SolveOptions:
         """``method="auto"`` replaced by its member for a system of ``dim``
         state variables and its first run's quencher steps
-        (:func:`~hamrkq.rkq.family.auto_member`)."""
+        (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
         name, substeps = auto_member(dim)

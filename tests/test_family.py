@@ -18,13 +18,8 @@ import sympy as sp
 import hamrkq
 from hamrkq.backends import compiled, kernel
 from hamrkq.errors import HamrkqWarning, InputError
-from hamrkq.rkq.family import (
-    AUTO_FIRST_SUBSTEPS,
-    AUTO_LARGE_MEMBER,
-    AUTO_MEMBER,
-    MEMBERS,
-    auto_member,
-)
+from hamrkq.rkq.auto_rules import AUTO_FIRST_SUBSTEPS, AUTO_LARGE_MEMBER, AUTO_MEMBER, auto_member
+from hamrkq.rkq.family import MEMBERS
 
 KEPLER = hamrkq.load_problem("kepler", e=0.6)
 TEN_ORBITS = (0.0, 10 * 2 * np.pi)
@@ -187,7 +182,7 @@ def test_scipy_solver_without_jac_warns_that_gamma_is_off():
 
 
 def test_auto_rerun_rule_grows_the_quenchers_steps_only_for_its_truncation_error():
-    from hamrkq.rkq.family import AUTO_MAX_SUBSTEPS, auto_retry_substeps
+    from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_retry_substeps
 
     # prentice2011 to t = 40 000 at 1e-6: 3 steps reach the limit at t = 5687;
     # 3 (2 x 49.5)^(1/12) = 4.4, so 5 steps.
@@ -201,7 +196,7 @@ def test_auto_rerun_rule_grows_the_quenchers_steps_only_for_its_truncation_error
 
 
 def test_auto_abandon_rule_grows_the_quenchers_steps_by_the_projection():
-    from hamrkq.rkq.family import AUTO_MAX_SUBSTEPS, auto_abandon_substeps
+    from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_abandon_substeps
 
     # prentice2011 at 1e-6 in 2 steps a step: projected at 46 x the limit from
     # t = 80; 2 (2 x 46)^(1/12) = 2.9, so 3 steps.

@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 import hamrkq
-from hamrkq.rkq.family import WITNESS_SAFETY, needs_witness
 from hamrkq.rkq.layout import FLOOR
+from hamrkq.rkq.witness_rules import WITNESS_SAFETY, needs_witness
 from hamrkq.solve import prepare
 from hamrkq.solve.dispatch import integration
 
@@ -141,7 +141,8 @@ def test_stochastic_rounding_picks_a_neighbour_without_bias():
 
 
 def test_the_witness_rounds_stochastically_only_where_the_weights_magnify_it():
-    from hamrkq.rkq.family import MEMBERS, STAGE_ROUNDING_WEIGHTS
+    from hamrkq.rkq.family import MEMBERS
+    from hamrkq.rkq.witness_rules import STAGE_ROUNDING_WEIGHTS
 
     for name, member in MEMBERS.items():
         if not member.use_z:

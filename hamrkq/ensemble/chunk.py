@@ -30,8 +30,8 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
 from hamrkq.rkq.batch import allocate_batch, run_members
-from hamrkq.rkq.family import needs_witness
 from hamrkq.rkq.layout import allocate_output
+from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.dispatch import integration, run_rk, uses_witness
 

@@ -18,13 +18,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hamrkq.rkq import arith, loop
-from hamrkq.rkq.family import (
-    AUTO_PROJECT_FROM,
-    AUTO_PROJECT_SHARE,
-    AUTO_PROJECT_UNTIL,
-    WITNESS_SAFETY,
-    Member,
-)
+from hamrkq.rkq.auto_rules import AUTO_PROJECT_FROM, AUTO_PROJECT_SHARE, AUTO_PROJECT_UNTIL
+from hamrkq.rkq.family import Member
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -43,6 +38,7 @@ from hamrkq.rkq.layout import (
     new_state,
 )
 from hamrkq.rkq.start import begin
+from hamrkq.rkq.witness_rules import WITNESS_SAFETY
 
 __all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings"]
 
@@ -102,7 +98,7 @@ class Settings:
     first_step: float | None = None
     witness: bool = False  # the rounding witness beside the shadow (GAMMA_SHADOW only)
     #: Abandon the run when Gamma projected to t_end fails (status
-    #: ST_ABANDONED; method="auto", :func:`hamrkq.rkq.family.auto_abandon_substeps`).
+    #: ST_ABANDONED; method="auto", :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`).
     project: bool = False
     #: The quencher's stages and f in double-double (GAMMA_SHADOW only; the
     #: functions' ``tangent`` is then ``rhs_dd``, hamrkq.backends.dd_printer).

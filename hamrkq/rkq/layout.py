@@ -52,7 +52,7 @@ GAMMA_OFF, GAMMA_TANGENT, GAMMA_PAPER, GAMMA_SHADOW = 0, 1, 2, 3
 ST_RUNNING, ST_SUCCESS, ST_UNDERFLOW, ST_NON_FINITE, ST_MAX_STEPS = -1, 0, 1, 2, 3
 ST_INTERRUPTED, ST_UNATTAINABLE = 4, 5
 #: The run was abandoned on its projection (``method="auto"``'s first run,
-#: :func:`hamrkq.rkq.family.auto_abandon_substeps`): never a final status,
+#: :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`): never a final status,
 #: :func:`hamrkq.solve` runs again.
 ST_ABANDONED = 9
 RET_DONE, RET_BUFFER_FULL, RET_BUDGET = 0, 1, 2

@@ -158,7 +158,7 @@ def projected_ratio(work, cfg, t_new):
     """``max_k |Gamma_k| / delta_k`` at the candidate node projected to
     ``t_end`` as growing like ``t^2`` (a periodic orbit's phase error), from
     a node between ``project_from`` and ``project_until`` of the interval;
-    -1 elsewhere (:func:`hamrkq.rkq.family.auto_abandon_substeps`).  Uses
+    -1 elsewhere (:func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`).  Uses
     ``V[DELTA]`` as :func:`attainability` left it."""
     reached = (t_new - cfg["t_start"]) / (cfg["t_end"] - cfg["t_start"])
     if not (cfg["project_from"] <= reached <= cfg["project_until"]):

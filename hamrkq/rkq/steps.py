@@ -263,7 +263,7 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     opposite order (the same value, rounded differently), its stage values
     rounded stochastically where the quencher's weights magnify their
     rounding (``cfg["witness_stochastic"]``,
-    :data:`hamrkq.rkq.family.STAGE_ROUNDING_WEIGHTS`), and the parameters
+    :data:`hamrkq.rkq.witness_rules.STAGE_ROUNDING_WEIGHTS`), and the parameters
     moved by about an ulp (``witness_params``: constants formed from them,
     such as products, are rounded the same way at every evaluation, a
     systematic error that differs between the two only this way; a sum such

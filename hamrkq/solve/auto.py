@@ -1,11 +1,11 @@
 """``method="auto"``'s runs again: how many quencher steps a step it tries next.
 
-``solve`` runs auto's member (:func:`hamrkq.rkq.family.auto_member`) with
+``solve`` runs auto's member (:func:`hamrkq.rkq.auto_rules.auto_member`) with
 two quencher steps a step, and runs it again with more (:func:`rerun`) when
 the kernel abandoned the run on its projection (:func:`projects` says which
 runs are projected) or the run stopped on the quencher's truncation error;
-the rules are :func:`hamrkq.rkq.family.auto_abandon_substeps` and
-:func:`hamrkq.rkq.family.auto_retry_substeps` (docs/algorithm.md).
+the rules are :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps` and
+:func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.family import AUTO_MAX_SUBSTEPS, auto_abandon_substeps, auto_retry_substeps
+from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_abandon_substeps, auto_retry_substeps
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
 
@@ -45,9 +45,9 @@ def projects(requested: SolveOptions, task: Task) -> bool:
 def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     """``method="auto"``'s next run, with more quencher steps per step, when
     this one was abandoned on its projection
-    (:func:`hamrkq.rkq.family.auto_abandon_substeps`) or stopped on the
+    (:func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`) or stopped on the
     quencher's truncation error before ``t_end``
-    (:func:`hamrkq.rkq.family.auto_retry_substeps`); None otherwise."""
+    (:func:`hamrkq.rkq.auto_rules.auto_retry_substeps`); None otherwise."""
     if isinstance(out, Solution):
         return None
     member = member_of(task)

@@ -23,7 +23,8 @@ from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution
 from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
-from hamrkq.rkq.family import MEMBERS, needs_witness
+from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 if TYPE_CHECKING:
@@ -65,7 +66,7 @@ class Task:
     #: (:mod:`hamrkq.backends.background`): the run starts interpreted.
     compiling: BackgroundCompile | None = None
     #: Abandon the run when Gamma projected to t_end fails (``method="auto"``,
-    #: which then runs again: :func:`hamrkq.rkq.family.auto_abandon_substeps`).
+    #: which then runs again: :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`).
     project: bool = False
 
 

@@ -16,8 +16,9 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
+from hamrkq.rkq.auto_rules import auto_retry_substeps
 from hamrkq.rkq.driver import RunOutput
-from hamrkq.rkq.family import MEMBERS, auto_retry_substeps
+from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 

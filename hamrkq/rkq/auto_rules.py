@@ -1,0 +1,163 @@
+"""``method="auto"``'s rules: its member by the system's dimension, its
+quencher steps per step, and when a run is abandoned on its projection or
+run again with more steps.
+
+The kernel applies the projection (:func:`hamrkq.rkq.loop.projected_ratio`,
+with the fractions and share below in its configuration);
+:mod:`hamrkq.solve.auto` runs again with what these rules say.  The
+measurements behind the numbers are in ``benchmarks/family.md`` and
+``benchmarks/auto_member.md`` (docs/algorithm.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = [
+    "AUTO_FIRST_SUBSTEPS",
+    "AUTO_LARGE_DIM",
+    "AUTO_LARGE_MEMBER",
+    "AUTO_MAX_SUBSTEPS",
+    "AUTO_MEMBER",
+    "AUTO_PROJECT_FROM",
+    "AUTO_PROJECT_SHARE",
+    "AUTO_PROJECT_UNTIL",
+    "auto_abandon_substeps",
+    "auto_member",
+    "auto_retry_substeps",
+]
+
+#: ``method="auto"``: Verner's robust 8(7) pair with Feagin's 12th-order
+#: quencher below :data:`AUTO_LARGE_DIM` state variables, chosen by the
+#: measurements in ``benchmarks/family.py`` (the fewest evaluations that reach
+#: the tolerance with SUCCESS, every node within 1.05 of it, on prentice2011
+#: and Kepler) ...
+AUTO_MEMBER = "rk78q12"
+#: ... and Verner's 7(6) pair with Verner's 9th-order quencher from
+#: :data:`AUTO_LARGE_DIM` on: fewer evaluations on every large catalogue
+#: problem at 1e-6 to 1e-9 (the outer solar system 11 to 20 %, the Pleiades 7
+#: to 19 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
+#: the Pleiades take 7 % more).  Small systems are split: fewer on most short
+#: runs, but 11 to 53 % more on prentice2011, whose 600 periods need the
+#: 12th-order quencher, so they keep :data:`AUTO_MEMBER`.  What decides is
+#: the number of periods, which auto cannot know before the run.
+AUTO_LARGE_MEMBER = "rk67q9"
+AUTO_LARGE_DIM = 12
+#: Quencher steps per step of ``method="auto"``'s first run.  Enough for a
+#: few dozen orbits at any tolerance (Kepler e = 0.6 over 10 orbits at 1e-6:
+#: the quencher's true error ends at 6.8e-9, 0.14 of the limit), and a run that
+#: needs more learns it from its first 2 % (:func:`auto_abandon_substeps`) or
+#: from where it stops (:func:`auto_retry_substeps`) and runs again.  The
+#: pair's steps grow like tol^(1/8) and the quencher's error like h^12, so
+#: the quencher's error relative to the tolerance grows like tol^(1/2):
+#: loose tolerances and long intervals need more steps (prentice2011 over
+#: [0, 4000] in two steps a step stops at t = 530 at 1e-6 and t = 2693 at 1e-8).
+AUTO_FIRST_SUBSTEPS = 2
+
+
+def auto_member(dim: int) -> tuple[str, int]:
+    """The member ``method="auto"`` runs for a system of ``dim`` state
+    variables, and its first run's quencher steps per step.  Both members
+    estimate Gamma with the shadow track and start with
+    :data:`AUTO_FIRST_SUBSTEPS` (``tests/test_family.py``)."""
+    name = AUTO_LARGE_MEMBER if dim >= AUTO_LARGE_DIM else AUTO_MEMBER
+    return name, AUTO_FIRST_SUBSTEPS
+
+
+#: The most quencher steps per step ``method="auto"`` tries.
+AUTO_MAX_SUBSTEPS = 12
+
+
+def auto_retry_substeps(
+    substeps: int, z_order: int, gamma_ratio: float, gamma_limit: float, reached: float
+) -> int | None:
+    """Quencher steps per step for ``method="auto"``'s next run, or None.
+
+    A run that stopped because the quencher's estimated error (not its
+    rounding) reached ``gamma_limit`` of the tolerance, at the fraction
+    ``reached`` of the interval, is run again with more quencher steps
+    (:data:`AUTO_FIRST_SUBSTEPS` are enough for a few dozen orbits; a longer
+    interval needs a more accurate quencher).  The
+    quencher's error falls like ``m^-z``; on a periodic orbit its phase error
+    grows like ``t^2``, so to reach the end with half the limit to spare the
+    error must fall by ``r = 2 (gamma_ratio / gamma_limit) / reached^2`` and
+    ``m`` grows to ``ceil(m r^(1/z))``, at least by one.
+
+    Parameters
+    ----------
+    substeps : int
+        Quencher steps per step of the run that stopped.
+    z_order : int
+        Order of the quencher.
+    gamma_ratio : float
+        ``max |Gamma| / delta`` at the last node kept.
+    gamma_limit : float
+        The run's ``gamma_limit``.
+    reached : float
+        ``(t_last - t0) / (t_end - t0)``, in (0, 1).
+
+    Returns
+    -------
+    int or None
+        None when the stop was not the quencher's truncation error (its
+        estimate is below half the limit: rounding stopped it, and more
+        quencher steps do not help) or when ``AUTO_MAX_SUBSTEPS`` is reached.
+    """
+    if not (0.0 < reached < 1.0) or not gamma_ratio >= 0.5 * gamma_limit:
+        return None
+    return _grown_substeps(substeps, z_order, gamma_ratio / reached**2, gamma_limit)
+
+
+def _grown_substeps(substeps: int, z_order: int, projected: float, gamma_limit: float):
+    """``ceil(m r^(1/z))``, at least ``m + 1`` and at most
+    :data:`AUTO_MAX_SUBSTEPS` (None at the most), for a quencher whose error
+    at ``t_end`` is projected to be ``projected`` times the tolerance:
+    ``r = 2 projected / gamma_limit`` leaves half the limit to spare."""
+    if substeps >= AUTO_MAX_SUBSTEPS:
+        return None
+    needed = 2.0 * projected / gamma_limit
+    grown = math.ceil(substeps * needed ** (1.0 / z_order) - 1e-9)
+    return min(AUTO_MAX_SUBSTEPS, max(substeps + 1, grown))
+
+
+#: ``method="auto"``'s runs are projected to their end (and abandoned if they
+#: would fail) from this fraction of the interval ...
+AUTO_PROJECT_FROM = 0.02
+#: ... to this one: later, a run goes on, and runs again only if it stops
+#: (:func:`auto_retry_substeps`).
+AUTO_PROJECT_UNTIL = 0.25
+#: A run is abandoned when its projection exceeds this share of
+#: ``gamma_limit``: the projection is rough, and a run that stops near its end
+#: costs nearly twice (prentice2011 at 1e-8 with 401 output times: projected
+#: just below the limit, it stopped at t = 3839 of 4000).
+AUTO_PROJECT_SHARE = 0.5
+
+
+def auto_abandon_substeps(
+    substeps: int, z_order: int, projected: float, gamma_limit: float
+) -> int | None:
+    """Quencher steps per step for the run after ``method="auto"`` abandoned
+    one on its projection; None if ``substeps`` is already the most.
+
+    The quencher's truncation error grows like ``t^2`` on a periodic orbit
+    (its phase error), so ``max |Gamma| / delta / reached^2`` at a node that
+    covered the fraction ``reached`` of the interval projects it to ``t_end``
+    (``hamrkq.rkq.loop.projected_ratio``).  A run whose projection exceeds
+    :data:`AUTO_PROJECT_SHARE` of ``gamma_limit`` at a node between :data:`AUTO_PROJECT_FROM` and
+    :data:`AUTO_PROJECT_UNTIL` of the interval is abandoned there and run
+    again with the quencher steps :func:`auto_retry_substeps` would choose at
+    its stop, without running to it: prentice2011 at 1e-6 in 2 steps a step
+    stops at t = 530 of 4000, and is projected at 46 times the limit from
+    t = 80.  On a chaotic orbit the error grows faster than the projection,
+    and the run stops (and runs again) later; where it grows more slowly
+    (the FPU chain, like t in its first 2 %), the next run may have more
+    quencher steps than it needed.
+
+    Parameters
+    ----------
+    substeps, z_order, gamma_limit
+        As in :func:`auto_retry_substeps`.
+    projected : float
+        The projected ``max |Gamma| / delta`` at ``t_end``.
+    """
+    return _grown_substeps(substeps, z_order, projected, gamma_limit)
