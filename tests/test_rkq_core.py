@@ -268,3 +268,60 @@ def test_redo_mode_restarts_from_the_track():
     s = redo.stats
     assert s["nfev"] == 1 + 40 * s["steps"] + 4 * s["rejected"] + 5 * s["quenches"]
     assert node.stats["nfev"] == 1 + 40 * node.stats["steps"] + 4 * node.stats["rejected"]
+
+
+def _one_component_at_a_time(base, lo, h, A, A_low, j, K, reverse, compensated):
+    """Reference stage values: one component's sum at a time over every
+    coefficient, the order of the kernel's first release."""
+    out = np.empty(base.shape[0])
+    for i in range(out.shape[0]):
+        acc, low = 0.0, 0.0
+        for k in range(j):
+            m = j - 1 - k if reverse else k
+            acc += A[j, m] * K[m, i]
+            low += A_low[j, m] * K[m, i]
+        if compensated:
+            out[i] = base[i] + (lo[i] + (acc + low) * h if j else lo[i])
+        else:
+            out[i] = acc * h + base[i] if j else base[i]
+    return out
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_stage_sums_side_by_side_keep_every_bit(compiled):
+    """The stage sums run several components at once and skip zero
+    coefficients (arith.stage_value_compensated, arith.stage_value): each
+    component's sum must be the same sequence of roundings as one at a time,
+    bit for bit, for every count of components (the blocks of four and two
+    and the last one) and both orders of summation."""
+    from hamrkq.rkq import arith
+
+    compensated, plain = arith.stage_value_compensated, arith.stage_value
+    if compiled:
+        numba = pytest.importorskip("numba")
+
+        @numba.njit
+        def compensated(base, lo, h, A, A_low, j, K, out, reverse):
+            arith.stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse)
+
+        @numba.njit
+        def plain(base, h, A, j, K, out):
+            arith.stage_value(base, h, A, j, K, out)
+
+    tab = get_member("rk78q12").tableaus  # Feagin 12: 130 zero coefficients of 300
+    A, A_low = tab.Az, tab.Az_low
+    zeros = np.zeros_like(A)
+    rng = np.random.default_rng(7)
+    for d in (1, 2, 3, 4, 5, 6, 7, 9, 12):
+        K = rng.standard_normal((25, d)) * 10.0 ** rng.integers(-6, 6, (25, d))
+        base, lo = rng.standard_normal(d), rng.standard_normal(d) * 1e-17
+        h = rng.uniform(0.01, 1.0)
+        for j in range(25):
+            for reverse in (False, True):
+                out = np.empty(d)
+                compensated(base, lo, h, A, A_low, j, K, out, reverse)
+                expected = _one_component_at_a_time(base, lo, h, A, A_low, j, K, reverse, True)
+                assert out.tobytes() == expected.tobytes(), (d, j, reverse)
+            plain(base, h, A, j, K, out)
+            expected = _one_component_at_a_time(base, lo, h, A, zeros, j, K, False, False)
+            assert out.tobytes() == expected.tobytes(), (d, j)

@@ -62,19 +62,46 @@ def vmax(x):
 
 
 @jitable
-def stage_sum(A, j, K, i):
-    """``sum_{l<j} A[j, l] K[l, i]``, added in the order l = 0, 1, ..."""
-    acc = 0.0
-    for m in range(j):
-        acc += A[j, m] * K[m, i]
-    return acc
-
-
-@jitable
 def stage_value(base, h, A, j, K, out):
-    """``out = base + h sum_{l<j} A[j, l] K[l]``."""
-    for i in range(out.shape[0]):
-        out[i] = stage_sum(A, j, K, i) * h + base[i] if j else base[i]
+    """``out = base + h sum_{l<j} A[j, l] K[l]``, each component's sum
+    added in the order l = 0, 1, ..., four or two components side by side
+    and zero coefficients skipped, as in :func:`stage_value_compensated`."""
+    d = out.shape[0]
+    i = 0
+    while i < d:
+        if j == 0:
+            out[i] = base[i]
+            i += 1
+        elif i + 4 <= d:
+            s0 = s1 = s2 = s3 = 0.0
+            for m in range(j):
+                a = A[j, m]
+                if a != 0.0:
+                    s0 += a * K[m, i]
+                    s1 += a * K[m, i + 1]
+                    s2 += a * K[m, i + 2]
+                    s3 += a * K[m, i + 3]
+            out[i] = s0 * h + base[i]
+            out[i + 1] = s1 * h + base[i + 1]
+            out[i + 2] = s2 * h + base[i + 2]
+            out[i + 3] = s3 * h + base[i + 3]
+            i += 4
+        elif i + 2 <= d:
+            s0 = s1 = 0.0
+            for m in range(j):
+                a = A[j, m]
+                if a != 0.0:
+                    s0 += a * K[m, i]
+                    s1 += a * K[m, i + 1]
+            out[i] = s0 * h + base[i]
+            out[i + 1] = s1 * h + base[i + 1]
+            i += 2
+        else:
+            acc = 0.0
+            for m in range(j):
+                acc += A[j, m] * K[m, i]
+            out[i] = acc * h + base[i]
+            i += 1
 
 
 #: The fractional part of the golden ratio: ``frac(n GOLDEN)``, n = 0, 1,
@@ -123,21 +150,76 @@ def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False, see
     values differ by less than an ulp get the same double, so the witness
     would share the quencher's rounding of every stage value, which is what
     dominates where ``h J`` is large and the weights are (DOP853's absolute
-    weights sum to 12.9: the Arenstorf orbit near the Moon)."""
-    for i in range(out.shape[0]):
-        small = lo[i]
-        if j:
+    weights sum to 12.9: the Arenstorf orbit near the Moon).
+
+    Four (or two) components' sums run side by side, in accumulators the processor
+    adds in parallel (one component's sum alone waits on each addition), and
+    zero coefficients are skipped (a zero term adds an exact zero); each
+    component's sum is the same sequence of roundings either way.  Measured
+    (a step of Feagin's 12th-order method with a trivial f): four
+    components 1.7 -> 1.2 us, 36 components 6.5 -> 4.0 us.  The sums are
+    written out here, not in a helper returning them: numba's code for
+    that was slower than one component at a time."""
+    d = out.shape[0]
+    i = 0
+    while i < d:
+        if i + 4 <= d:
+            s0 = s1 = s2 = s3 = 0.0
+            t0 = t1 = t2 = t3 = 0.0
+            for k in range(j):
+                m = j - 1 - k if reverse else k
+                a = A[j, m]
+                if a != 0.0:
+                    a_low = A_low[j, m]
+                    k0, k1, k2, k3 = K[m, i], K[m, i + 1], K[m, i + 2], K[m, i + 3]
+                    s0 += a * k0
+                    s1 += a * k1
+                    s2 += a * k2
+                    s3 += a * k3
+                    t0 += a_low * k0
+                    t1 += a_low * k1
+                    t2 += a_low * k2
+                    t3 += a_low * k3
+            _finish_stage(base, lo, h, j, out, i, s0, t0, seed)
+            _finish_stage(base, lo, h, j, out, i + 1, s1, t1, seed)
+            _finish_stage(base, lo, h, j, out, i + 2, s2, t2, seed)
+            _finish_stage(base, lo, h, j, out, i + 3, s3, t3, seed)
+            i += 4
+        elif i + 2 <= d:
+            s0 = s1 = 0.0
+            t0 = t1 = 0.0
+            for k in range(j):
+                m = j - 1 - k if reverse else k
+                a = A[j, m]
+                if a != 0.0:
+                    a_low = A_low[j, m]
+                    k0, k1 = K[m, i], K[m, i + 1]
+                    s0 += a * k0
+                    s1 += a * k1
+                    t0 += a_low * k0
+                    t1 += a_low * k1
+            _finish_stage(base, lo, h, j, out, i, s0, t0, seed)
+            _finish_stage(base, lo, h, j, out, i + 1, s1, t1, seed)
+            i += 2
+        else:
             acc = 0.0
             low = 0.0
             for k in range(j):
                 m = j - 1 - k if reverse else k
                 acc += A[j, m] * K[m, i]
                 low += A_low[j, m] * K[m, i]
-            small = lo[i] + (acc + low) * h
-        if seed >= 0.0:
-            out[i] = round_stochastically(base[i], small, uniform(seed + i))
-        else:
-            out[i] = base[i] + small
+            _finish_stage(base, lo, h, j, out, i, acc, low, seed)
+            i += 1
+
+
+@jitable
+def _finish_stage(base, lo, h, j, out, i, acc, low, seed):
+    """``out[i]`` of :func:`stage_value_compensated` from its sums."""
+    small = lo[i] + (acc + low) * h if j else lo[i]
+    if seed >= 0.0:
+        out[i] = round_stochastically(base[i], small, uniform(seed + i))
+    else:
+        out[i] = base[i] + small
 
 
 @jitable
