@@ -75,6 +75,29 @@ def test_the_witness_measures_the_quenchers_rounding_error():
     assert z_error / 3 < witness < 10 * z_error
 
 
+def test_the_witness_measures_each_component_by_its_own_size():
+    """Per-component floors declare the components' sizes: the outer solar
+    system's file gives Pluto's momentum (2e-11) a floor of 8e-20, and at
+    rtol 1e-6 its tolerance 2e-17 is 1e-6 of its size, far from the floor
+    of double precision, as is every other component's.  Measured against
+    the state's largest component (25 AU) it asked for the witness."""
+    problem = hamrkq.load_problem("outer_solar_system")
+    y0, atol = problem.y0, np.asarray(problem.integration["atol"])
+    d = y0.shape[0]
+    for rtol in (1e-6, 1e-8, 1e-10):
+        assert not needs_witness(atol, np.full(d, rtol), y0)
+    # the file's floors bind below rtol 1e-10; a thousand times lower, the
+    # positions' 1e-11 AU is below 3e-10 of 25 AU
+    assert needs_witness(atol * 1e-3, np.full(d, 1e-11), y0)
+    # Pluto's momentum asked for 100 times less than its floor: 8e-22 < 3e-10 * 2e-11
+    tighter = atol.copy()
+    tighter[-3:] = 8e-22
+    assert needs_witness(tighter, np.full(d, 0.0), y0)
+    # one atol for all: the state's largest component decides, as before
+    assert needs_witness(np.full(d, 7e-9), np.zeros(d), y0)
+    assert not needs_witness(np.full(d, 8e-9), np.zeros(d), y0)
+
+
 def test_the_witness_runs_only_near_double_precisions_floor():
     y0 = np.array([0.4, 0.0, 0.0, 2.0])
     assert not needs_witness(np.full(4, 1e-9), np.zeros(4), y0)

@@ -1,0 +1,149 @@
+"""When the rounding witness runs: each component by its own size, measured.
+
+    python benchmarks/witness_rule.py
+
+The rounding witness (docs/algorithm.md) is one more quencher track, run
+where the tolerance nears double precision's floor.  The rule used to compare
+the tightest component tolerance with 3e-10 times the largest ``|y0|`` of the
+whole state; it now compares each component's tolerance with 3e-10 times its
+own size (``hamrkq.rkq.witness_rules.component_scales``).  This script:
+
+1. decides both rules on every catalogue problem at the tolerances of
+   ``benchmarks/promise.py`` (``atol`` 1e-4 ... 1e-12; ``rtol`` 1e-6 ... 1e-10
+   with ``atol = 1e-3 rtol``) and at the problem file's own, and lists where
+   they differ;
+2. where they differ (the outer solar system with the file's per-component
+   floors), runs ``method="auto"`` with and without the witness at ``rtol``
+   1e-6, 1e-8 and 1e-10, on 201 times, against the long-double reference
+   (``extended_reference.py``): status, largest true error over the
+   tolerance, the quencher's, evaluations and time (best of 3, warm).
+
+Writes ``benchmarks/witness_rule.txt``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from pathlib import Path
+
+import extended_reference
+import numpy as np
+
+import hamrkq
+from hamrkq._tolerance import component_tolerance
+from hamrkq.rkq.witness_rules import WITNESS_BELOW, needs_witness
+from hamrkq.solve import dispatch
+
+HERE = Path(__file__).resolve().parent
+NODES = 201
+
+
+def whole_state_rule(atol, rtol, y0) -> bool:
+    """The rule before: the tightest tolerance against the largest ``|y0|``."""
+    scale = float(np.max(np.abs(y0), initial=0.0)) or 1.0
+    tightest = float(np.min(component_tolerance(atol, rtol, y0), initial=np.inf))
+    return tightest < WITNESS_BELOW * scale
+
+
+def tolerances(problem):
+    """The promise's tolerances and the file's, as (label, atol, rtol)."""
+    for atol in (1e-4, 1e-6, 1e-8, 1e-10, 1e-12):
+        yield f"atol {atol:g}", atol, 0.0
+    for rtol in (1e-6, 1e-8, 1e-10):
+        yield f"rtol {rtol:g}", 1e-3 * rtol, rtol
+    own = problem.integration
+    if "atol" in own or "rtol" in own:
+        yield "the file's", own.get("atol", 0.0), own.get("rtol", 0.0)
+        if isinstance(own.get("atol"), list):
+            for rtol in (1e-6, 1e-10):
+                yield f"the file's atol, rtol {rtol:g}", own["atol"], rtol
+
+
+def decisions() -> tuple[int, list[str]]:
+    """Part 1: (cases decided, the cases where the rules differ)."""
+    count, differ = 0, []
+    for name in hamrkq.list_problems():
+        problem = hamrkq.load_problem(name)
+        y0 = problem.y0
+        for label, atol, rtol in tolerances(problem):
+            a = np.broadcast_to(np.asarray(atol, dtype=float), y0.shape)
+            r = np.broadcast_to(np.asarray(rtol, dtype=float), y0.shape)
+            before, now = whole_state_rule(a, r, y0), needs_witness(a, r, y0)
+            count += 1
+            if before != now:
+                differ.append(f"| {name} | {label} | {before} | {now} |")
+    return count, differ
+
+
+def runs() -> list[str]:
+    """Part 2: the outer solar system with the file's floors, with and
+    without the witness."""
+    problem = hamrkq.load_problem("outer_solar_system")
+    grid = np.linspace(*problem.t_span, NODES)
+    truth = extended_reference.reference(problem, grid)
+    atol = np.asarray(problem.integration["atol"])
+    rows = []
+    rule = dispatch.needs_witness
+    try:
+        for rtol in (1e-6, 1e-8, 1e-10):
+            for witness in (True, False):
+                dispatch.needs_witness = lambda a, r, y, on=witness: on
+                kw = dict(method="auto", atol=atol, rtol=rtol, t_eval=grid)
+                sol = hamrkq.solve(problem, **kw)
+                times = []
+                for _ in range(3):
+                    start = time.perf_counter()
+                    sol = hamrkq.solve(problem, **kw)
+                    times.append(time.perf_counter() - start)
+                n = sol.t.size
+                delta = np.maximum(atol, rtol * np.abs(truth[:n]))
+                y_error = (np.abs(sol.y - truth[:n]) / delta).max()
+                z_error = (np.abs(sol.y - sol.global_error - truth[:n]) / delta).max()
+                evaluations = sol.stats["nfev"] + sol.stats.get("discarded_evaluations", 0)
+                rows.append(
+                    f"| {rtol:g} | {'yes' if witness else 'no'} | {sol.status.name} "
+                    f"| {sol.t[-1]:.0f} | {y_error:.3f} | {z_error:.4f} | {evaluations} "
+                    f"| {min(times):.3f} |"
+                )
+    finally:
+        dispatch.needs_witness = rule
+    return rows
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    load = [round(x, 2) for x in os.getloadavg()]
+    count, differ = decisions()
+    lines = [
+        "# When the rounding witness runs (generated by `benchmarks/witness_rule.py`)",
+        "",
+        f"Run {started}, {os.cpu_count()} cores, load average at the start {load}.",
+        "",
+        f"{count} cases (every catalogue problem at the promise's tolerances and its",
+        f"file's own); the rules differ in {len(differ)}:",
+        "",
+        "| problem | tolerance | witness, whole state's size | witness, own size |",
+        "|---|---|---|---|",
+        *differ,
+        "",
+        "outer_solar_system with the file's per-component atol, method='auto', on",
+        f"{NODES} times against the long-double reference (errors over the tolerance;",
+        "evaluations include a discarded first run; time: best of 3, warm):",
+        "",
+        "| rtol | witness | status | t reached | max true error | quencher's error "
+        "| evaluations | time (s) |",
+        "|---|---|---|---|---|---|---|---|",
+        *runs(),
+        "",
+        f"Load average at the end {[round(x, 2) for x in os.getloadavg()]}.",
+    ]
+    text = "\n".join(lines) + "\n"
+    (HERE / "witness_rule.txt").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
