@@ -81,8 +81,11 @@ CASES = [
     Case("prentice2011_1e-6", "prentice2011", 4000.0, 400.0, tol=1e-6),
     Case("prentice2011_1e-9", "prentice2011", 4000.0, 400.0, tol=1e-9),
     Case("kepler_e0.9", "kepler", 20 * math.pi, 4 * math.pi, params={"e": 0.9}),
+    Case("outer_solar_system", "outer_solar_system", 500_000.0, 50_000.0, tol_scale=100.0),
+    # The same run asked for 2001 output times: hamrkq's steps are clipped to
+    # land on them (about twice the steps), heyoka's dense output is nearly free.
     Case(
-        "outer_solar_system",
+        "outer_solar_system_grid",
         "outer_solar_system",
         500_000.0,
         50_000.0,
