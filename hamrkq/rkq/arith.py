@@ -152,14 +152,16 @@ def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False, see
     dominates where ``h J`` is large and the weights are (DOP853's absolute
     weights sum to 12.9: the Arenstorf orbit near the Moon).
 
-    Four (or two) components' sums run side by side, in accumulators the processor
-    adds in parallel (one component's sum alone waits on each addition), and
-    zero coefficients are skipped (a zero term adds an exact zero); each
-    component's sum is the same sequence of roundings either way.  Measured
-    (a step of Feagin's 12th-order method with a trivial f): four
-    components 1.7 -> 1.2 us, 36 components 6.5 -> 4.0 us.  The sums are
-    written out here, not in a helper returning them: numba's code for
-    that was slower than one component at a time."""
+    Four (or two) components' sums run side by side, in accumulators the
+    processor adds in parallel (one component's sum alone waits on each
+    addition), and zero coefficients are skipped (a zero term adds an exact
+    zero); each component's sum is the same sequence of roundings either
+    way (``tests/test_rkq_core.py``).  Measured on whole runs
+    (``benchmarks/stage_sums.txt``): the outer solar system's ``auto`` 1.3
+    times faster, prentice2011's 1.1 to 1.3.  The sums are written out
+    here: a helper returning them, sums kept in arrays, and a vectorised
+    loop over whole rows were each slower in the kernel
+    (docs/performance.md)."""
     d = out.shape[0]
     i = 0
     while i < d:
