@@ -187,6 +187,26 @@ def test_t_eval_lands_exactly_on_the_requested_times():
     np.testing.assert_array_equal(later.t, times[2:])
 
 
+def test_t_eval_times_as_dense_as_the_steps_do_not_double_them():
+    """A step shortened to land on a t_eval time has a small error; the PI
+    controller used to remember it and hold back the next steps' growth, so
+    output times spaced like the natural steps took two steps each (the
+    harmonic oscillator with as many times as steps: 293 steps for 146;
+    the outer solar system with 2001 times over 500 000 days: 4004 for
+    1931).  The landing step no longer counts as the controller's memory."""
+    import hamrkq
+
+    harmonic = hamrkq.load_problem("harmonic")
+    free = hamrkq.solve(harmonic, method="auto", atol=1e-8)
+    steps = free.stats["steps"]
+    grid = np.linspace(free.t[0], free.t[-1], steps + 1)
+    landed = hamrkq.solve(harmonic, method="auto", atol=1e-8, t_eval=grid)
+    np.testing.assert_array_equal(landed.t, grid)
+    assert landed.stats["steps"] <= 1.2 * steps
+    exact_y = harmonic.exact(grid)
+    assert np.abs(landed.y - exact_y).max() <= 1.05e-8
+
+
 def test_compensated_track_beats_plain_summation():
     # Harmonic oscillator, 10 periods at 1e-10: the RK8 truncation error is
     # ~1e-17 per step, so the track's error is its rounding.

@@ -389,7 +389,11 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
             return RET_DONE if quenched == -1 - RET_DONE else -1
     else:
         arith.copy(work.V[CAND], work.V[U])
-    s["err_prev"] = err
+    if not clipped:
+        # A step shortened to land on a target has a small error that says
+        # nothing about the free step; remembered, it would hold the PI
+        # controller's growth back at every t_eval time.
+        s["err_prev"] = err
     return accept(c, s, work, out, problem.t_eval, h, h_next, clipped, target, quenched)
 
 
