@@ -103,7 +103,7 @@ STATE = np.dtype(
         ("max_ratio", _F),  # largest attainability ratio so far
         ("cached_h", _F),  # step size of the cached quencher step (redo mode)
         ("failed_h", _F),  # the step size that failed (underflow, non-finite)
-        ("err_prev", _F),  # the last accepted step's error norm (PI control)
+        ("err_prev", _F),  # the last accepted free step's error norm (PI control)
         ("steps", _I),
         ("rejected", _I),
         ("quenches", _I),
