@@ -35,10 +35,11 @@ __all__ = [
 AUTO_MEMBER = "rk78q12"
 #: ... and Verner's 7(6) pair with Verner's 9th-order quencher from
 #: :data:`AUTO_LARGE_DIM` on: fewer evaluations on every large catalogue
-#: problem at 1e-6 to 1e-9 (the outer solar system 11 to 20 %, the Pleiades 7
-#: to 19 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
-#: the Pleiades take 7 % more).  Small systems are split: fewer on most short
-#: runs, but 11 to 53 % more on prentice2011, whose 600 periods need the
+#: problem at 1e-6 to 1e-9 (the outer solar system 10 to 17 %, the Pleiades 6
+#: to 21 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
+#: the outer solar system takes 20 % more and the FPU chain 79 %).  Small
+#: systems are split: fewer on most short runs, but up to 54 % more on
+#: prentice2011 (7 to 54 % at 1e-8 to 1e-10), whose 600 periods need the
 #: 12th-order quencher, so they keep :data:`AUTO_MEMBER`.  What decides is
 #: the number of periods, which auto cannot know before the run.
 AUTO_LARGE_MEMBER = "rk67q9"
