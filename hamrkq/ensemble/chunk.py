@@ -110,8 +110,9 @@ def run_batched(request: Request) -> ChunkResult | None:
 
 def _same_options(prepared, request: Request) -> bool:
     """Whether every member resolves to the task's options: whether the
-    rounding witness runs depends on the tightest tolerance at ``y0``, which
-    differs between members when ``rtol > 0``."""
+    rounding witness runs depends on each component's tolerance and size at
+    ``y0`` (:func:`hamrkq.rkq.witness_rules.needs_witness`), which can
+    differ between members."""
     task = prepared.task
     # The rounding witness runs by each member's tolerance and y0 too.
     witness = uses_witness(task)
