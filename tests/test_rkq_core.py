@@ -309,11 +309,12 @@ def _one_component_at_a_time(base, lo, h, A, A_low, j, K, reverse, compensated):
 
 @pytest.mark.parametrize("compiled", [False, True])
 def test_stage_sums_side_by_side_keep_every_bit(compiled):
-    """The stage sums run several components at once and skip zero
-    coefficients (arith.stage_value_compensated, arith.stage_value): each
-    component's sum must be the same sequence of roundings as one at a time,
-    bit for bit, for every count of components (the blocks of four and two
-    and the last one) and both orders of summation."""
+    """The quencher's stage sums run several components at once and skip
+    zero coefficients (arith.stage_value_compensated): each component's sum
+    must be the same sequence of roundings as one at a time, bit for bit,
+    for every count of components (the blocks of four and two and the last
+    one) and both orders of summation; the pair's plain sums
+    (arith.stage_value) likewise."""
     from hamrkq.rkq import arith
 
     compensated, plain = arith.stage_value_compensated, arith.stage_value

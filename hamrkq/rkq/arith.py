@@ -63,45 +63,13 @@ def vmax(x):
 
 @jitable
 def stage_value(base, h, A, j, K, out):
-    """``out = base + h sum_{l<j} A[j, l] K[l]``, each component's sum
-    added in the order l = 0, 1, ..., four or two components side by side
-    and zero coefficients skipped, as in :func:`stage_value_compensated`."""
-    d = out.shape[0]
-    i = 0
-    while i < d:
-        if j == 0:
-            out[i] = base[i]
-            i += 1
-        elif i + 4 <= d:
-            s0 = s1 = s2 = s3 = 0.0
-            for m in range(j):
-                a = A[j, m]
-                if a != 0.0:
-                    s0 += a * K[m, i]
-                    s1 += a * K[m, i + 1]
-                    s2 += a * K[m, i + 2]
-                    s3 += a * K[m, i + 3]
-            out[i] = s0 * h + base[i]
-            out[i + 1] = s1 * h + base[i + 1]
-            out[i + 2] = s2 * h + base[i + 2]
-            out[i + 3] = s3 * h + base[i + 3]
-            i += 4
-        elif i + 2 <= d:
-            s0 = s1 = 0.0
-            for m in range(j):
-                a = A[j, m]
-                if a != 0.0:
-                    s0 += a * K[m, i]
-                    s1 += a * K[m, i + 1]
-            out[i] = s0 * h + base[i]
-            out[i + 1] = s1 * h + base[i + 1]
-            i += 2
-        else:
-            acc = 0.0
-            for m in range(j):
-                acc += A[j, m] * K[m, i]
-            out[i] = acc * h + base[i]
-            i += 1
+    """``out = base + h sum_{l<j} A[j, l] K[l]``, each component's sum added
+    in the order l = 0, 1, ..."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for m in range(j):
+            acc += A[j, m] * K[m, i]
+        out[i] = acc * h + base[i] if j else base[i]
 
 
 #: The fractional part of the golden ratio: ``frac(n GOLDEN)``, n = 0, 1,
@@ -159,9 +127,10 @@ def stage_value_compensated(base, lo, h, A, A_low, j, K, out, reverse=False, see
     way (``tests/test_rkq_core.py``).  Measured on whole runs
     (``benchmarks/stage_sums.txt``): the outer solar system's ``auto`` 1.3
     times faster, prentice2011's 1.1 to 1.3.  The sums are written out
-    here: a helper returning them, sums kept in arrays, and a vectorised
-    loop over whole rows were each slower in the kernel
-    (docs/performance.md)."""
+    here: a helper returning them and sums kept in arrays were slower in
+    the kernel, a vectorised loop over whole rows no faster
+    (docs/performance.md).  The pair's plain :func:`stage_value`, a smaller
+    share of the work, measured the same either way and stays simple."""
     d = out.shape[0]
     i = 0
     while i < d:

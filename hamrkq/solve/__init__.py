@@ -181,7 +181,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         and ``f`` in double-double (about 32 digits, generated like the
         rest), for tolerances below double precision's rounding floor of the
         orbit (prentice2011 at 1e-12); it needs the shadow estimate of Gamma
-        and costs 5 to 6 times as much per evaluation.  ``method="auto"``
+        and costs 5 to 7 times as much per evaluation.  ``method="auto"``
         switches to it by itself when a run stops at the floor and every
         function of ``f`` has a double-double form (docs/algorithm.md).
     first_step : float, optional

@@ -134,7 +134,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             return text + " A looser tolerance or a shorter interval is what works."
         return text + (
             " What works: quencher_precision='double-double' (the quencher's stages and f "
-            "in double-double, 5 to 6 times the cost per evaluation; method='auto' switches "
+            "in double-double, 5 to 7 times the cost per evaluation; method='auto' switches "
             "to it by itself unless quencher_precision='double' is given), a looser "
             "tolerance or a shorter interval."
         )
