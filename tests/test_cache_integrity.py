@@ -224,3 +224,17 @@ def test_the_compiled_path_never_lambdifies(monkeypatch):
     # interpreted rhs runs the generated scalar code, not a lambdified one.
     f = numeric_of(ham).rhs(0.0, np.array([1.0, 0.0, 0.0, 1.0]), np.empty(0))
     np.testing.assert_allclose(f, [0.0, 1.0, -1.0031, 0.0], rtol=1e-15)
+
+
+def test_the_key_changes_with_the_code_the_generated_module_calls(monkeypatch):
+    """``rhs_dd`` calls hamrkq.rkq.ddarith, which numba compiles into it, and
+    numba's cache checks only the generated file: an edit to ddarith must
+    name a new module (and so a new machine-code cache), as a new generator
+    version does."""
+    from hamrkq.rkq import ddarith
+
+    assert Path(ddarith.__file__).resolve() in codegen.CALLED_SOURCES
+    ham = _system(0.071)
+    before = codegen.cache_key(ham)
+    monkeypatch.setattr(codegen, "_called_sources_digest", lambda: "edited")
+    assert codegen.cache_key(ham) != before

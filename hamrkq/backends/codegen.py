@@ -95,11 +95,30 @@ def _tool_versions() -> str:
     return f"sympy={sp.__version__};numba={numba_version};python={sys.version_info[:2]}"
 
 
+#: Sources the generated module calls into: ``rhs_dd`` calls
+#: :mod:`hamrkq.rkq.ddarith`, whose code numba compiles into it.  numba's cache
+#: of a function checks only that function's own file, so an edit to these
+#: would load stale machine code unless the key hashes them too.
+CALLED_SOURCES = (Path(__file__).resolve().parent.parent / "rkq" / "ddarith.py",)
+
+
+@functools.cache
+def _called_sources_digest() -> str:
+    # Cached: the installed sources cannot change within a process.
+    digest = hashlib.sha256()
+    for path in CALLED_SOURCES:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def _versions() -> str:
     # Read from the module each time (a dictionary lookup), not bound at import.
     from hamrkq import _version
 
-    return f"codegen={CODEGEN_VERSION};hamrkq={_version.__version__};{_tool_versions()}"
+    return (
+        f"codegen={CODEGEN_VERSION};hamrkq={_version.__version__};{_tool_versions()};"
+        f"called={_called_sources_digest()}"
+    )
 
 
 def cache_key(ham: Hamiltonian, extra: str = "") -> str:
@@ -108,7 +127,8 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
     The key hashes ``srepr`` of H and of the ordered coordinates, momenta,
     parameters and time symbol (everything generated is derived from these, in
     this order), the versions of this generator, hamrkq, SymPy (which does the
-    derivation), numba and Python, and ``extra`` (for instance a method name).
+    derivation), numba and Python, a digest of the sources the generated code
+    calls (:data:`CALLED_SOURCES`), and ``extra`` (for instance a method name).
     It does not need the derived equations, so a warm cache is found without
     differentiating anything.
 
