@@ -378,7 +378,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
     if options.double_double:
-        _double_double_available(ham)
+        _require_double_double(ham)
         background = False  # the helper compiles the double functions only
     compiling = start_background(options.backend, ham, spec) if background else None
     chosen = "numba" if compiling is not None else resolve_backend(options.backend, ham, spec)
@@ -396,7 +396,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 
-def _double_double_available(ham) -> None:
+def _require_double_double(ham) -> None:
     """Raise :class:`OptionError` when ``f`` has no double-double form."""
     from hamrkq.backends import codegen
 
