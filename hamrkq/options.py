@@ -99,7 +99,7 @@ class SolveOptions:
     safety: float = 0.9
     tolerance_rule: str = "componentwise"
     global_error_estimate: str | None = None
-    z_method: str = "dop853"
+    z_method: str | None = None  # the member's own quencher (DOP853's for rk34q8)
     z_substeps: int | None = None
     quencher_precision: str | None = None  # "double", unless method="auto" escalates
     first_step: float | None = None
@@ -130,6 +130,8 @@ class SolveOptions:
             key: (None if value is None else _check(key, value)) for key, value in values.items()
         }
         options = cls(**checked)
+        if given.get("z_method") is not None:
+            _check_z_method_applies(options.method, options.z_method)
         if options.method in MEMBERS or options.method == "auto":
             member = get_member(
                 # auto's members share their Gamma and steps (tests/test_family.py)
@@ -192,6 +194,29 @@ class SolveOptions:
             "rule": TOLERANCE_RULES[self.tolerance_rule],
             "gamma": GAMMA_MODES[self.gamma_name],
         }
+
+
+def _check_z_method_applies(method: str, z_method: str) -> None:
+    """``z_method`` given for a method whose quencher it cannot replace: an
+    error, not an option silently ignored (it chooses among the 8th-order
+    quenchers).  A problem file's ``z_method`` applies where it can."""
+    if method == f"{SCIPY_PREFIX}RK34Q8":  # the SciPy form of rk34q8
+        return
+    if method not in (*MEMBERS, "auto"):
+        raise OptionError(f"z_method={z_method!r} needs an RKQ method; method={method!r} has none")
+    eight = ", ".join(repr(k) for k, m in MEMBERS.items() if m.use_z and m.z_order == 8)
+    if method == "auto":
+        has = "method='auto' runs members with quenchers of order 9 to 12"
+    else:
+        member = MEMBERS[method]
+        if member.use_z and member.z_order == 8:
+            return
+        has = f"{method!r} has " + (
+            f"the order-{member.z_order} quencher {member.quencher.name!r}"
+            if member.use_z
+            else "no quencher"
+        )
+    raise OptionError(f"z_method={z_method!r} replaces the quencher of {eight}; {has}")
 
 
 def _check(key: str, value: Any) -> Any:

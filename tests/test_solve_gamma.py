@@ -46,6 +46,13 @@ def test_cooper_verner_track_estimated_as_well():
     assert np.abs(sol.y - pr.exact(sol.t)).max() <= 1.05e-3
 
 
+def test_options_name_the_quencher_a_member_ran():
+    pr = load_problem("pendulum")
+    assert solve(pr, t_span=(0, 1), method="rk78q12").options["z_method"] == "feagin12"
+    assert solve(pr, t_span=(0, 1), method="rk67q9").options["z_method"] == "vern98"
+    assert solve(pr, t_span=(0, 1)).options["z_method"] == "dop853"
+
+
 def test_paper_propagation_grows_on_the_harmonic_oscillator():
     pr = load_problem("harmonic")
     runs = {

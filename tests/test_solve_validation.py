@@ -41,6 +41,16 @@ def call(**changes):
         ({"tolerance_rule": "mixed"}, OptionError, "'componentwise', 'prentice'"),
         ({"global_error_estimate": "exact"}, OptionError, "'tangent', 'paper', 'shadow', 'off'"),
         ({"z_method": "rk4"}, OptionError, "z_method='rk4'.*'dop853', 'cooper_verner'"),
+        # z_method replaces an 8th-order quencher; elsewhere it is refused, not ignored
+        (
+            {"method": "rk78q12", "z_method": "cooper_verner"},
+            OptionError,
+            "quencher of 'rk34q8', 'rk45q8', 'rk56q8'; 'rk78q12' has the order-12 quencher "
+            "'feagin12'",
+        ),
+        ({"method": "auto", "z_method": "dop853"}, OptionError, "quenchers of order 9 to 12"),
+        ({"method": "rk34", "z_method": "dop853"}, OptionError, "'rk34' has no quencher"),
+        ({"method": "verlet", "step": 0.1, "z_method": "dop853"}, OptionError, "needs an RKQ"),
         ({"backend": "cuda"}, OptionError, "backend='cuda'.*'auto', 'numba', 'python'"),
         ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),
         ({"safety": 1.5}, InputError, "safety must be at most 1.0, got 1.5"),

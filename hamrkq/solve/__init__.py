@@ -170,8 +170,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         the paper's ``(I + h J)``, global extrapolation from a shadow track
         on a mesh ``z_substeps`` times coarser (the default of the other
         family members), or not at all (then ``gamma`` is None).
-    z_method : {"dop853", "cooper_verner"}, default "dop853"
-        The RK8 tableau of the track (members with an 8th-order quencher).
+    z_method : {"dop853", "cooper_verner"}, optional
+        The 8th-order quencher of ``rk34q8``, ``rk45q8`` and ``rk56q8``
+        (default DOP853's); an ``OptionError`` for any other method.
+        ``sol.options["z_method"]`` names the quencher a run used
+        (``"feagin12"`` for ``rk78q12``, say).
     z_substeps : int, optional
         Quencher steps per step of the pair (family members; the member's
         default, 2, or, with ``method="auto"``, learned from the run).  A

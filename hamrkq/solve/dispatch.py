@@ -257,7 +257,11 @@ def _run_scipy(task: Task, backend: str) -> Solution:
         keep_every=o.keep_every,
         t_eval=task.t_eval,
         progress=task.progress,
-        options={k: getattr(o, k) for k in _RKQ_OPTIONS} if name == "RK34Q8" else None,
+        options=(
+            {k: v for k in _RKQ_OPTIONS if (v := getattr(o, k)) is not None}
+            if name == "RK34Q8"
+            else None
+        ),
     )
 
 

@@ -68,7 +68,7 @@ def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solu
             quench=o.quench,
             quench_threshold=o.quench_threshold,
             global_error_estimate=o.gamma_name,
-            z_method=o.z_method,
+            z_method=member.quencher.name,
             z_substeps=member.z_substeps,
             quencher_precision="double-double" if o.double_double else "double",
             gamma_limit=None if math.isinf(o.gamma_limit) else o.gamma_limit,
