@@ -40,8 +40,7 @@ class Status(enum.Enum):
     INTERRUPTED = (4, "The run was interrupted (KeyboardInterrupt).")
     TOLERANCE_UNATTAINABLE = (
         5,
-        "The tolerance cannot be met in double precision: the RK8 track's own "
-        "error is not small against it.",
+        "The tolerance cannot be met: the quencher track's own error is not small against it.",
     )
     NEWTON_FAILED = (6, "The Newton iteration of an implicit method did not converge.")
     EXTERNAL_FAILURE = (7, "An external solver reported a failure.")

@@ -138,7 +138,7 @@ def test_rk34_without_reference(tmp_path, capsys):
     assert {p.name for p in out.iterdir()} == {"summary.json", "solution.npz", FIGURES[0]}
     assert any("figure2_global_error.png not drawn" in note for note in summary["notes"])
     text = capsys.readouterr().out
-    assert "n/a (no RK8 track)" in text
+    assert "n/a (no quencher)" in text
 
 
 def test_parameters_override_the_problem(tmp_path, capsys):
@@ -225,7 +225,7 @@ def test_default_output_directory(tmp_path, monkeypatch, capsys):
         (["--atol", "nan"], "--atol 'nan': expected a positive finite number"),
         (["--method", "nope"], "method='nope' is not valid"),
         (["--reference", "exact"], "has no exact solution"),
-        (["--method", "rk34", "--reference", "rk8"], "has no RK8 track"),
+        (["--method", "rk34", "--reference", "rk8"], "has no quencher track"),
         (["--param", "a"], "--param 'a'"),
         (["--param", "a=exp(1)"], "NAME=NUMBER"),
         (["--param", "a=2"], "has no parameter"),

@@ -185,7 +185,7 @@ def test_bad_reference_requests():
     with pytest.raises(InputError, match="needs a problem"):
         diagnose(sol, reference="independent")
     no_track = make_solution(sol.t, sol.y, sol.energy, method="rk34")
-    with pytest.raises(InputError, match="RK8 track"):
+    with pytest.raises(InputError, match="needs a quencher track"):
         diagnose(no_track, reference="rk8")
     other = integrate_reference(lambda t, y, p: np.array([y[1], -y[0]]), sol.y[0], sol.t[:5])
     with pytest.raises(InputError, match="node times"):
@@ -199,6 +199,21 @@ def test_roundoff_gamma_and_partial_run_are_noted():
     assert any("roundoff" in note for note in diag.notes)
     assert any("partial run" in note for note in diag.notes)
     assert diag.status == "MAX_STEPS"
+
+
+def test_the_quencher_track_is_named_by_its_order_and_the_estimate_by_its_name():
+    # rk78q12's "RK8 track" is Feagin 12's, its Gamma the shadow's: the
+    # report names both as they are (it said "RK8" and "Richardson" before).
+    sol, _, _ = synthetic_run(51)
+    tiny = sol.replace(gamma=np.full_like(sol.y, 1e-17))
+    diag = diagnose(tiny, reference="rk8")
+    assert "RK8 track" in diag.error.description
+    assert any("the tangent estimate measures rounding" in n for n in diag.notes)
+    member = tiny.replace(method="rk78q12", options={"global_error_estimate": "shadow"})
+    diag = diagnose(member, reference="rk8")
+    assert diag.error.description == "the run's own RK12 track (the paper's yardstick)"
+    assert any("RK12 track: the shadow estimate measures rounding" in n for n in diag.notes)
+    assert "RK12 track |Gamma|" in diag.table()
 
 
 def test_to_dict_is_strict_json_and_table_reads_well():

@@ -35,6 +35,7 @@ from hamrkq.analysis.summaries import (
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.result import Solution
+from hamrkq.rkq.family import track_name
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
@@ -102,9 +103,11 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
         return kind.y, "independent", kind.method, kind.estimated_error
     if kind == "rk8":
         if sol.z is None:
-            raise InputError(f"reference='rk8' needs an RK8 track; method {sol.method!r} has none")
+            raise InputError(
+                f"reference='rk8' needs a quencher track; method {sol.method!r} has none"
+            )
         gamma = float(np.max(np.abs(sol.gamma))) if sol.gamma is not None else float("nan")
-        return sol.z, "rk8", "the run's own RK8 track (the paper's yardstick)", gamma
+        return sol.z, "rk8", _own_track(sol), gamma
     if kind == "exact":
         if exact is None:
             raise InputError("reference='exact' needs an exact solution (exact= or a problem)")
@@ -133,11 +136,17 @@ def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
     track = sol.z if sol.z is not None else sol.y
     roundoff = GAMMA_ROUNDOFF_ULPS * EPS * float(np.max(np.abs(track)))
     if gamma_max < roundoff:
+        estimate = (sol.options or {}).get("global_error_estimate", "tangent")
         notes.append(
-            f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the RK8 "
-            "track: the Richardson estimate measures rounding, not truncation"
+            f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the "
+            f"{track_name(sol.method)}: the {estimate} estimate measures rounding, not "
+            "truncation"
         )
     return gamma_max
+
+
+def _own_track(sol: Any) -> str:
+    return f"the run's own {track_name(sol.method)} (the paper's yardstick)"
 
 
 def diagnose(
@@ -240,7 +249,7 @@ def diagnose(
             source="rk8",
             reference_accuracy=accuracy,
             names=names,
-            description="the run's own RK8 track (the paper's yardstick)",
+            description=_own_track(sol),
         )
     error = None
     if not (isinstance(kind, str) and kind == "none"):

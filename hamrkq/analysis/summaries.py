@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq.analysis.bounds import bound_ratio, trajectory_bound, trajectory_error
+from hamrkq.rkq.family import track_name
 
 __all__ = [
     "NOT_CONSERVED",
@@ -214,7 +215,8 @@ class Diagnostics:
     error : ErrorSummary or None
         Against the chosen reference (``estimated`` itself for ``"rk8"``).
     gamma_max : float
-        Largest ``|Gamma|``, the estimated global error of the RK8 track.
+        Largest ``|Gamma|``, the estimated global error of the quencher's
+        track (the paper's RK8 track).
     notes : tuple of str
         Caveats a reader should see.
     series : mapping of str to ndarray
@@ -359,7 +361,7 @@ class Diagnostics:
                 )
             )
         if np.isfinite(self.gamma_max):
-            rows.append(("RK8 track |Gamma|", f"max {self.gamma_max:.3e}"))
+            rows.append((f"{track_name(self.method)} |Gamma|", f"max {self.gamma_max:.3e}"))
         rows += [("note", note) for note in self.notes]
         width = max(len(label) for label, _ in rows)
         return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)

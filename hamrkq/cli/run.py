@@ -208,7 +208,7 @@ def resolve_reference(kind: str, problem: Any, method: str) -> str:
         )
     spec = METHODS.get(method)
     if kind == "rk8" and spec is not None and not spec.rk8:
-        raise OptionError(f"--reference rk8: method {method!r} has no RK8 track")
+        raise OptionError(f"--reference rk8: method {method!r} has no quencher track")
     return kind
 
 

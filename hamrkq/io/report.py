@@ -33,6 +33,7 @@ from hamrkq.io.output_dir import (
     check_dpi,
     close_all,
 )
+from hamrkq.rkq.family import track_name
 
 __all__ = [
     "LOCK_NAME",
@@ -176,7 +177,7 @@ def summary_rows(
         ("status", f"{sol.status.name}" + ("" if sol.success else " (partial results)")),
         ("nodes", f"{len(sol)} (t = {_num(sol.t[0], 'g')} .. {_num(sol.t[-1], 'g')})"),
         ("steps", f"{stats.get('steps', 0)} accepted, {stats.get('rejected', 0)} rejected"),
-        ("quenches", str(stats.get("quenches", 0)) if sol.z is not None else "n/a (no RK8 track)"),
+        ("quenches", str(stats.get("quenches", 0)) if sol.z is not None else "n/a (no quencher)"),
         ("f evaluations", evaluations),
     ]
     if wall_time is not None:
@@ -215,7 +216,7 @@ def summary_rows(
     for inv in diag.invariants:
         rows.append((f"max |{inv.name} - {inv.name}(0)|", _num(inv.max_abs)))
     if math.isfinite(diag.gamma_max):
-        rows.append(("max |Gamma| (RK8 track)", _num(diag.gamma_max)))
+        rows.append((f"max |Gamma| ({track_name(sol.method)})", _num(diag.gamma_max)))
     return rows
 
 

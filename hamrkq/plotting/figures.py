@@ -8,7 +8,8 @@ J.S.C. Prentice, arXiv:1111.6996, Section 4 shows, for RK34Q8 against RK34:
    the tolerance line;
 3. :func:`figure3`: the trajectory error (Euclidean, phase space) with its
    bound ``sqrt(sum_k delta_k**2)`` (``sqrt(2) delta`` in the paper's case);
-4. :func:`figure4`: the estimated global error |Gamma| of the RK8 track.
+4. :func:`figure4`: the estimated global error |Gamma| of the quencher track
+   (the paper's RK8 track; ``RK12 track`` for ``rk78q12``).
 
 Matplotlib is imported only when a figure is made, and only its
 object-oriented API is used (``matplotlib.figure.Figure``, never ``pyplot``),
@@ -54,6 +55,7 @@ from hamrkq.plotting.series import MAX_POINTS as MAX_POINTS
 from hamrkq.plotting.series import downsample_indices, upper_envelope
 from hamrkq.plotting.series import log_series as _log_series
 from hamrkq.plotting.series import thin as _thin
+from hamrkq.rkq.family import track_name
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -245,13 +247,22 @@ def _orbits(items, found, panels) -> None:
 
 def _against(arrays, prefix: str) -> str:
     """What the error curves were measured against, from where they came from
-    (a fixed-step run has no RK8 track even when the estimated error is asked)."""
+    (a fixed-step run has no quencher track even when the estimated error is
+    asked)."""
     sources = {source for *_, source in arrays}
-    if sources == {"rk8"}:
-        return f"{prefix} RK8 track"
     if sources == {"reference"}:
         return f"{prefix} reference"
-    return f"{prefix} RK8 track or reference, see the legend"
+    tracks = _track_names(sol for _, sol, _, source in arrays if source == "rk8")
+    if sources == {"rk8"}:
+        return f"{prefix} {tracks}"
+    return f"{prefix} {tracks} or reference, see the legend"
+
+
+def _track_names(solutions) -> str:
+    """The runs' quencher tracks by name (``RK8 track``, ``RK12 track``), or
+    ``quencher track`` when they differ."""
+    names = {track_name(sol.method) for sol in solutions}
+    return names.pop() if len(names) == 1 else "quencher track"
 
 
 def _error_arrays(items, diagnostics, which: str) -> list[tuple[str, Solution, np.ndarray, str]]:
@@ -373,13 +384,14 @@ def figure3(
 
 
 def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> Figure:
-    """Figure 4: estimated global error |Gamma| of the RK8 track, q and p, log scale.
+    """Figure 4: estimated global error |Gamma| of the quencher track (the
+    paper's RK8 track), q and p, log scale.
 
     Runs without a Gamma estimate are skipped; at least one must have it.
     """
     items = [(label, sol) for label, sol in _runs(runs) if sol.gamma is not None]
     if not items:
-        raise InputError("no run has an estimated RK8 global error (Gamma) to plot")
+        raise InputError("no run has an estimated quencher global error (Gamma) to plot")
     fig, (axis,) = _new_axes(None if ax is None else [ax], 1, (9, 4.5))
     relative = _per_delta(items[0][1])
     for label, sol in items:
@@ -390,15 +402,16 @@ def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> F
             _log_series(axis, sol.t, worst, tag, _STYLES[number % 2])
         _mark_partial(axis, sol)
     _gamma_limit_line(axis, items[0][1], relative)
+    track = _track_names(sol for _, sol in items)
     axis.set(
         xlabel="time t", yscale="log",
-        ylabel="|Γ| / δ (estimated error of RK8)" if relative else "|Γ| (estimated error of RK8)",
-        title="estimated global error of the RK8 track" + (" per tolerance" if relative else ""),
+        ylabel=("|Γ| / δ" if relative else "|Γ|") + f" (estimated error of the {track})",
+        title=f"estimated global error of the {track}" + (" per tolerance" if relative else ""),
     )  # fmt: skip
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize="small")
     if title:
-        fig.suptitle(f"{title}: RK8 error estimate")
+        fig.suptitle(f"{title}: {track.split()[0]} error estimate")
     return fig
 
 

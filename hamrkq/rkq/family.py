@@ -26,7 +26,7 @@ from hamrkq.methods.tableaus import (
 from hamrkq.rkq.layout import Tableaus
 from hamrkq.rkq.witness_rules import STAGE_ROUNDING_WEIGHTS
 
-__all__ = ["MEMBERS", "Z_METHODS", "Member", "get_member", "merge_pair"]
+__all__ = ["MEMBERS", "Z_METHODS", "Member", "get_member", "merge_pair", "track_name"]
 
 
 def _read_only(values) -> np.ndarray:
@@ -266,3 +266,13 @@ def get_member(name: str, z_method: str | None = None, z_substeps: int | None = 
     if z_substeps is not None and member.use_z and z_substeps != member.z_substeps:
         changes["z_substeps"] = z_substeps
     return replace(member, **changes) if changes else member
+
+
+def track_name(method: str) -> str:
+    """What the paper calls the RK8 track, named by the order of the
+    method's quencher: ``"RK8 track"`` for ``rk34q8``, ``"RK12 track"`` for
+    ``rk78q12`` (and ``"RK8 track"`` for a method outside the family, the
+    SciPy form of RK34Q8)."""
+    member = MEMBERS.get(method)
+    order = member.z_order if member is not None and member.use_z else 8
+    return f"RK{order} track"
