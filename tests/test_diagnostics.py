@@ -214,6 +214,11 @@ def test_the_quencher_track_is_named_by_its_order_and_the_estimate_by_its_name()
     assert diag.error.description == "the run's own RK12 track (the paper's yardstick)"
     assert any("RK12 track: the shadow estimate measures rounding" in n for n in diag.notes)
     assert "RK12 track |Gamma|" in diag.table()
+    # a quencher in double-double rounds some 1e-30 of its size: no such note
+    extended = member.replace(
+        options={"global_error_estimate": "shadow", "quencher_precision": "double-double"}
+    )
+    assert not any("roundoff" in n for n in diagnose(extended, reference="rk8").notes)
 
 
 def test_to_dict_is_strict_json_and_table_reads_well():

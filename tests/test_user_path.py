@@ -200,6 +200,19 @@ def test_true_error_needs_a_reference_more_accurate_than_the_tolerance():
         assert "tolerance 1.0e-08" in text
 
 
+def test_the_summary_says_how_the_quencher_ran():
+    from hamrkq.io.report import summary_rows
+
+    sol = hamrkq.solve(
+        OSC, q0=[1.0], p0=[0.0], t_span=(0, 1), method="rk78q12", z_substeps=3, atol=1e-8
+    )
+    assert dict(summary_rows(sol, None))["method"] == "rk78q12 (3 quencher steps a step)"
+    extended = sol.replace(options={**sol.options, "quencher_precision": "double-double"})
+    assert dict(summary_rows(extended, None))["method"] == (
+        "rk78q12 (3 quencher steps a step, the quencher in double-double)"
+    )
+
+
 def test_named_initial_value_not_finite_names_its_own_key(tmp_path):
     path = write(tmp_path, BY_NAME.replace('x = "sqrt(k)/2"', 'x = "1/(k - 2)"'))
     with pytest.raises(ProblemFileError) as info:

@@ -135,8 +135,10 @@ def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
     gamma_max = float(np.max(np.abs(sol.gamma)))
     track = sol.z if sol.z is not None else sol.y
     roundoff = GAMMA_ROUNDOFF_ULPS * EPS * float(np.max(np.abs(track)))
-    if gamma_max < roundoff:
-        estimate = (sol.options or {}).get("global_error_estimate", "tangent")
+    options = sol.options or {}
+    # a double-double quencher's rounding is some 1e-30 of its size, far below
+    if gamma_max < roundoff and options.get("quencher_precision") != "double-double":
+        estimate = options.get("global_error_estimate", "tangent")
         notes.append(
             f"max |Gamma| = {gamma_max:.1e} is at the roundoff level of the "
             f"{track_name(sol.method)}: the {estimate} estimate measures rounding, not "

@@ -162,10 +162,7 @@ def summary_rows(
     """The rows of the run summary: (label, text)."""
     sol, diag = solution, diagnostics
     stats = sol.stats
-    substeps = sol.options.get("z_substeps") if sol.options else None
-    method = sol.method
-    if substeps is not None and substeps > 1:
-        method += f" ({substeps} quencher steps a step)"
+    method = _method_line(sol)
     evaluations = str(stats.get("nfev", 0))
     if stats.get("njev"):
         evaluations += f" and {stats['njev']} Jacobian products"
@@ -218,6 +215,17 @@ def summary_rows(
     if math.isfinite(diag.gamma_max):
         rows.append((f"max |Gamma| ({track_name(sol.method)})", _num(diag.gamma_max)))
     return rows
+
+
+def _method_line(sol: Any) -> str:
+    """The method, and how its quencher ran where that is not the default."""
+    options = sol.options or {}
+    details = []
+    if (options.get("z_substeps") or 1) > 1:
+        details.append(f"{options['z_substeps']} quencher steps a step")
+    if options.get("quencher_precision") == "double-double":
+        details.append("the quencher in double-double")
+    return sol.method + (f" ({', '.join(details)})" if details else "")
 
 
 def _components(summary: Any) -> str:
