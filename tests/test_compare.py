@@ -186,3 +186,27 @@ def test_compare_compiles_before_it_times_a_run(monkeypatch):
     monkeypatch.setattr(comparison, "_timed", timing)
     compare(hamrkq.load_problem("kepler"), ["scipy:DOP853"], t_end=ONE_PERIOD / 4, quick=True)
     assert events[0] == "compile" and "run" in events  # (each solve asks again: cheap)
+
+
+def test_auto_and_family_members_are_compared_as_rkq():
+    # auto and the family's members bound the global error like rk34q8: they
+    # get its sweep (no extrapolated runs), and auto's rows name its member.
+    problem = hamrkq.load_problem("kepler")
+    result = compare(problem, ["auto", "rk78q12"], t_end=ONE_PERIOD / 2, quick=True)
+    auto = [r for r in result.runs if r.method == "auto"]
+    member = [r for r in result.runs if r.method == "rk78q12"]
+    assert sorted(r.factor for r in auto) == sorted(r.factor for r in member) == [0.1, 1.0, 10.0]
+    by_factor = lambda r: r.factor  # noqa: E731
+    for a, m in zip(sorted(auto, key=by_factor), sorted(member, key=by_factor), strict=True):
+        assert a.solution.method == "rk78q12" and a.nfev == m.nfev
+        assert a.max_error <= 1.05 * a.solution.atol.max()
+    assert {r.row()["method"] for r in auto} == {"auto (rk78q12)"}
+
+
+def test_a_runs_cost_counts_the_runs_auto_discarded():
+    from hamrkq.analysis.comparison_runs import Run
+
+    sol = hamrkq.solve(hamrkq.load_problem("kepler"), t_span=(0, 1), method="auto")
+    stats = {**sol.stats, "discarded_evaluations": 1234}
+    run = Run("auto", 1.0, {}, sol.replace(stats=stats), 0.0)
+    assert run.nfev == sol.nfev + 1234

@@ -51,6 +51,8 @@ from hamrkq.analysis.reference import hamiltonian_reference
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
 from hamrkq.result import Solution
+from hamrkq.rkq.auto_rules import AUTO_MEMBER
+from hamrkq.rkq.family import MEMBERS
 from hamrkq.solve import DEFAULT_MAX_STEPS, METHODS, solve
 
 __all__ = [
@@ -77,8 +79,9 @@ QUICK_OTHER_TOL_FACTORS = (1.0, 1e-2, 1e-4)
 #: evaluations a step, so matched-error steps are usually several h_ref.
 STEP_FACTORS = (16.0, 8.0, 4.0, 2.0, 1.0, 0.5)
 QUICK_STEP_FACTORS = (8.0, 2.0, 0.5)
-#: Methods whose tolerance is a bound on the global error (RKQ in either form).
-_GLOBAL_CONTROL = ("rk34q8", "scipy:RK34Q8")
+#: Methods whose tolerance is a bound on the global error besides the RKQ
+#: family's members with a quencher and ``auto`` (:func:`_global_control`).
+_GLOBAL_CONTROL = ("scipy:RK34Q8",)
 #: With match="error", a method whose sweep misses the target error gets up to
 #: this many extra runs at an extrapolated setting (see ``_extension``) ...
 EXTEND_ROUNDS = 2
@@ -92,8 +95,25 @@ MAX_NODES = 20000
 PILOT_STEPS = 20
 #: Order of the local error each adaptive method controls: estimates how the
 #: number of steps grows as the tolerance shrinks (only to choose keep_every).
-_CONTROLLED_ORDER = {"rk34q8": 3, "rk34": 3, "scipy:RK23": 2, "scipy:RK45": 4,
-                     "scipy:DOP853": 7, "scipy:RK34Q8": 3}  # fmt: skip
+_CONTROLLED_ORDER = {"scipy:RK23": 2, "scipy:RK45": 4, "scipy:DOP853": 7,
+                     "scipy:RK34Q8": 3}  # fmt: skip
+
+
+def _member(method: str):
+    """The RKQ family member a method name runs (auto's first choice), or None."""
+    return MEMBERS.get(AUTO_MEMBER if method == "auto" else method)
+
+
+def _global_control(method: str) -> bool:
+    """Whether the method's tolerance bounds the global error (RKQ)."""
+    member = _member(method)
+    return method in _GLOBAL_CONTROL or (member is not None and member.use_z)
+
+
+def _controlled_order(method: str) -> int:
+    """Order of the local error the method's step control sees."""
+    member = _member(method)
+    return member.error_order if member is not None else _CONTROLLED_ORDER.get(method, 4)
 
 
 def default_methods(problem: Any) -> list[str]:
@@ -109,7 +129,7 @@ def _keep_every(estimated_steps: float) -> int:
 
 def _timed(problem, method, t_span, settings, keep_every, backend) -> tuple[Solution, float]:
     # The backend is RKQ's (its loop compiles); solve refuses one it does not have.
-    extra: dict[str, Any] = {"backend": backend} if method in ("rk34q8", "rk34") else {}
+    extra: dict[str, Any] = {"backend": backend} if _member(method) is not None else {}
     if "step" in settings:  # solve's default step limit must not cut a fixed-step sweep short
         span = abs(t_span[1] - t_span[0])
         extra["max_steps"] = max(DEFAULT_MAX_STEPS, math.ceil(span / settings["step"]) + 2)
@@ -143,10 +163,11 @@ def _checked_methods(problem: Any, methods: Sequence[str] | None, match: str) ->
     if match not in MATCH_MODES:
         raise OptionError(f"match={match!r} is not valid; valid values: 'error', 'cost'")
     methods = list(default_methods(problem) if methods is None else methods)
-    unknown = [m for m in methods if m not in METHODS]
+    unknown = [m for m in methods if m not in METHODS and m != "auto"]
     if unknown:
         raise OptionError(
-            f"unknown method(s) {', '.join(map(repr, unknown))}; valid: {', '.join(METHODS)}"
+            f"unknown method(s) {', '.join(map(repr, unknown))}; valid: 'auto', "
+            f"{', '.join(METHODS)}"
         )
     if not problem.hamiltonian.is_separable:
         refused = [m for m in methods if m in SPLITTING_SCHEMES]
@@ -237,7 +258,7 @@ def compare(
             estimated = span / settings["step"]
         else:
             settings = _tolerances(problem, factor)
-            order = _CONTROLLED_ORDER.get(method, 4)
+            order = _controlled_order(method)
             estimated = anchor_steps * factor ** (-1.0 / (order + 1))
         sol, wall = _timed(problem, method, t_span, settings, _keep_every(estimated), backend)
         out = Run(method, factor, settings, sol, wall)
@@ -252,7 +273,7 @@ def compare(
             h_ref[method] = min(span * per_step / max(anchor.nfev, 1), span / 4)
             factors = step_factors
         else:
-            factors = own_factors if method in _GLOBAL_CONTROL else other_factors
+            factors = own_factors if _global_control(method) else other_factors
         runs += [run(method, f) for f in factors if not (method == ANCHOR and f == 1.0)]
 
     states, description, accuracy = _reference(problem, runs)
@@ -343,7 +364,7 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
     nothing to do, the error does not fall with the factor, or the run would
     cost more than ``cost_cap`` (then a note says so).
     """
-    if method in _GLOBAL_CONTROL or not target > 0:
+    if _global_control(method) or not target > 0:
         return None
     own = [r for r in runs if r.method == method and r.success
            and 0 < r.max_error < math.inf and r.nfev > 0]  # fmt: skip

@@ -45,7 +45,9 @@ class Run:
 
     @property
     def nfev(self) -> int:
-        return self.solution.nfev
+        """f evaluations, and the evaluations of the runs ``auto`` discarded
+        before running again (its cost; ``stats["discarded_evaluations"]``)."""
+        return self.solution.nfev + int(self.solution.stats.get("discarded_evaluations", 0))
 
     def describe(self) -> str:
         """The settings in a few characters: ``"atol=1e-08 rtol=0"`` or ``"h=0.0125"``."""
@@ -59,8 +61,10 @@ class Run:
     def row(self) -> dict[str, Any]:
         """One table row, plain values."""
         sol = self.solution
+        # auto's row says which member it ran
+        ran = "" if sol.method == self.method else f" ({sol.method})"
         return {
-            "method": self.method,
+            "method": self.method + ran,
             "settings": self.describe(),
             "factor": self.factor,
             "selected": self.selected,

@@ -80,8 +80,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
     p.add_argument(
         "--methods", nargs="+", metavar="M",
-        help="methods to compare (default: rk34q8 rk34 scipy:DOP853 gauss4 gauss6, and "
-        "yoshida4 for a separable H); rk34q8 is always run as the anchor",
+        help="methods to compare, auto and the RKQ family's members too (default: rk34q8 "
+        "rk34 scipy:DOP853 gauss4 gauss6, and yoshida4 for a separable H); rk34q8 is "
+        "always run as the anchor",
     )  # fmt: skip
     p.add_argument("--t-end", type=float, metavar="T", help="end of the interval")
     p.add_argument("--quick", action="store_true", help="three settings per method, not 5-6")
