@@ -3,6 +3,7 @@ energy initial conditions."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -93,6 +94,22 @@ def test_cli_poincare_writes_points_and_figure(tmp_path, capsys):
     summary = __import__("json").loads((out / "summary.json").read_text())
     assert summary["crossings"] == data["t"].size and len(summary["megno"]) == 3
     assert "crossings of q1 = 0" in capsys.readouterr().out
+
+
+def test_cli_poincare_method_auto_finds_the_same_crossings(tmp_path):
+    from hamrkq.cli import main
+
+    found = {}
+    for method in ("rk34q8", "auto"):
+        out = tmp_path / method
+        argv = ["poincare", "henon_heiles", "--energy", "1/8", "--orbits", "2", "--t-end", "60",
+                "--method", method, "--no-plots", "--out", str(out)]  # fmt: skip
+        assert main(argv) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        found[method] = (summary["method"], np.load(out / "section.npz")["y"])
+    assert found["rk34q8"][0] == ["rk34q8"] and found["auto"][0] == ["rk78q12"]
+    # over 60 time units both are within a few tolerances (1e-9) of the orbit
+    np.testing.assert_allclose(found["auto"][1], found["rk34q8"][1], atol=1e-8)
 
 
 def test_cli_poincare_rejects_hostile_energy(tmp_path):

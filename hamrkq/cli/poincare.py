@@ -50,6 +50,9 @@ def register(subparsers: Any) -> None:
         help="solve's gamma_limit (default inf: chaotic orbits run to the end; the "
         "pointwise promise is lost after a few Lyapunov times, the section is not)",
     )
+    p.add_argument(
+        "--method", metavar="M", help="integration method, 'auto' say (default: the problem's)"
+    )
     p.add_argument("--backend", default="auto", help="auto, numba or python")
     p.add_argument(
         "--megno", action="store_true", help="also compute each orbit's MEGNO <Y> at the end"
@@ -71,6 +74,8 @@ def poincare_command(args: argparse.Namespace) -> int:
     out = OutputDir(args.out or f"hamrkq-poincare/{problem.name}", force=args.force)
     q0, p0 = energy_orbits(ham, energy, args.orbits, args.section, problem.parameters)
     options = dict(atol=args.atol, gamma_limit=args.gamma_limit, backend=args.backend)
+    if args.method is not None:
+        options["method"] = args.method
     started = time.perf_counter()
     sec = poincare(problem, args.section, q0, p0, (0.0, args.t_end), **options)
     elapsed = time.perf_counter() - started
@@ -104,6 +109,8 @@ def poincare_command(args: argparse.Namespace) -> int:
                 "orbits": args.orbits,
                 "t_end": args.t_end,
                 "options": options,
+                # what ran ("auto" names its member)
+                "method": sorted({s.method for s in sec.solutions}),
                 "crossings": int(sec.t.size),
                 "status": [s.status.name for s in sec.solutions],
                 "megno": indicators,
