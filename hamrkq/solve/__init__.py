@@ -260,10 +260,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         started = time.perf_counter()
         try:
             out = spec.run(task, chosen)
-            # method="auto"'s runs that ran again with more quencher steps: (z_substeps, run)
+            # method="auto"'s runs that ran again (more quencher steps, or the
+            # quencher in double-double): (their options, run)
             discarded = []
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
-                discarded.append((task.options.z_substeps, out))
+                discarded.append((task.options, out))
                 task = rerun
                 out = spec.run(task, chosen)
         finally:

@@ -15,6 +15,7 @@ import numpy as np
 from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.options import SolveOptions
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.auto_rules import auto_retry_substeps
 from hamrkq.rkq.driver import RunOutput
@@ -226,25 +227,39 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     return text
 
 
-def rerun_note(task: Task, discarded: list[tuple[int, RunOutput]], evaluations: int) -> str:
-    """What ``method="auto"``'s discarded runs (``(z_substeps, run)``, with
-    ``evaluations`` between them) did, for the message."""
+def rerun_note(
+    task: Task, discarded: list[tuple[SolveOptions, RunOutput]], evaluations: int
+) -> str:
+    """What ``method="auto"``'s discarded runs (``(their options, run)``,
+    with ``evaluations`` between them) did, for the message."""
     notes = []
-    for substeps, run in discarded:
+    for options, run in discarded:
         if run.status == ST_ABANDONED:
             what = (
                 f"was abandoned at t = {run.t_last!r}, where the quencher's estimated error, "
                 f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
                 "at t_end"
             )
+        elif run.floor_ratio >= 0.5 * run.max_ratio:
+            what = (
+                f"stopped at t = {run.t_last!r}, where the quencher's estimated error "
+                f"reached {run.max_ratio:.3g} x the tolerance, of which its rounding "
+                f"(measured by the witness) is {run.floor_ratio:.3g}: double precision's floor"
+            )
         else:
             what = (
                 f"stopped at t = {run.t_last!r}, where the quencher's "
                 f"estimated error reached {run.max_ratio:.3g} x the tolerance"
             )
-        notes.append(f"the run with z_substeps={substeps} {what}")
+        notes.append(f"the run {_quencher_setting(options)} {what}")
     return (
-        f" method='auto' ran {task.options.method} with "
-        f"z_substeps={task.options.z_substeps}: {'; '.join(notes)} "
+        f" method='auto' ran {task.options.method} {_quencher_setting(task.options)}: "
+        f"{'; '.join(notes)} "
         f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
     )
+
+
+def _quencher_setting(options: SolveOptions) -> str:
+    """``with z_substeps=3`` (and ``, the quencher in double-double``)."""
+    extended = ", the quencher in double-double" if options.double_double else ""
+    return f"with z_substeps={options.z_substeps}{extended}"
