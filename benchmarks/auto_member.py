@@ -1,6 +1,6 @@
 """Which family member ``method="auto"`` should run: every candidate, as auto runs it.
 
-    python benchmarks/auto_member.py
+    python benchmarks/auto_member.py [--tolerances 1e-4 1e-5 ...] [--out NAME]
 
 For every catalogue problem with a long-double reference
 (``extended_reference.py``; fpu has none, so only its work is recorded) and
@@ -11,11 +11,14 @@ status, quencher steps, evaluations (f plus Jacobian products, discarded runs
 included) and largest true error over the tolerance.  The rule in
 ``hamrkq.rkq.auto_rules.auto_member`` is read from this table.
 
-Writes ``benchmarks/auto_member.json`` and ``benchmarks/auto_member.md``.
+Writes ``benchmarks/auto_member.json`` and ``benchmarks/auto_member.md``
+(``--out NAME``: ``NAME.json`` and ``NAME.md``; ``--tolerances``: others
+than those four).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import warnings
@@ -78,6 +81,10 @@ def table(rows: list[dict]) -> str:
 
 
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tolerances", type=float, nargs="+", default=TOLERANCES)
+    parser.add_argument("--out", default="auto_member", help="file name, without suffix")
+    args = parser.parse_args()
     warnings.simplefilter("ignore")
     rows = []
     for name in hamrkq.list_problems():
@@ -87,13 +94,13 @@ def main() -> int:
             truth = extended_reference.reference(problem, grid)
         except RuntimeError:  # fpu: heyoka reports a non-finite state at t = 0
             truth = None
-        for tol in TOLERANCES:
+        for tol in args.tolerances:
             for member in CANDIDATES:
                 rows.append(run(problem, grid, truth, member, tol))
                 print(json.dumps(rows[-1]), flush=True)
-    (HERE / "auto_member.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (HERE / f"{args.out}.json").write_text(json.dumps(rows, indent=1) + "\n")
     text = table(rows)
-    (HERE / "auto_member.md").write_text(text)
+    (HERE / f"{args.out}.md").write_text(text)
     print(text)
     return 0
 

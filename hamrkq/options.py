@@ -165,13 +165,14 @@ class SolveOptions:
         """The RKQ family member these options run (:mod:`hamrkq.rkq.family`)."""
         return get_member(self.method, self.z_method, self.z_substeps)
 
-    def with_auto(self, dim: int) -> SolveOptions:
+    def with_auto(self, dim: int, tolerance: float) -> SolveOptions:
         """``method="auto"`` replaced by its member for a system of ``dim``
-        state variables and its first run's quencher steps
-        (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
+        state variables at ``tolerance``
+        (:func:`~hamrkq.rkq.auto_rules.auto_tolerance`) and its first run's
+        quencher steps (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
-        name, substeps = auto_member(dim)
+        name, substeps = auto_member(dim, tolerance)
         return replace(self, method=name, z_substeps=self.z_substeps or substeps)
 
     @property

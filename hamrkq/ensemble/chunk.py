@@ -12,8 +12,9 @@ slices.  It takes one of two paths, with the same numbers:
   validated options, :func:`hamrkq.solve.prepare`; the same start and step
   loop), so its numbers are the same bits.  It applies to an RKQ-family
   method on the compiled backend, with options that are the same for every
-  member (``method="auto"`` chooses its member from the tolerance at ``y0``,
-  so with ``rtol > 0`` members may choose differently: checked per member),
+  member (``method="auto"`` chooses its member from the tolerance and the
+  state's size at ``y0``, so members may choose differently: checked per
+  member),
   and without events or dense output.  A member that fails is run again alone
   for its message.
 - :func:`solve_members`: :func:`hamrkq.solve` once per member, for
@@ -29,6 +30,7 @@ import numpy as np
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
+from hamrkq.rkq.auto_rules import auto_member, auto_tolerance
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
@@ -111,9 +113,18 @@ def run_batched(request: Request) -> ChunkResult | None:
 def _same_options(prepared, request: Request) -> bool:
     """Whether every member resolves to the task's options: whether the
     rounding witness runs depends on each component's tolerance and size at
-    ``y0`` (:func:`hamrkq.rkq.witness_rules.needs_witness`), which can
-    differ between members."""
+    ``y0`` (:func:`hamrkq.rkq.witness_rules.needs_witness`), and so does
+    ``method="auto"``'s member (:func:`hamrkq.rkq.auto_rules.auto_tolerance`),
+    which can differ between members."""
     task = prepared.task
+    if prepared.requested.method == "auto":
+        dim = request.ham.dim
+        chosen = auto_member(dim, auto_tolerance(task.atol, task.rtol, request.y0[0]))
+        if any(
+            auto_member(dim, auto_tolerance(task.atol, task.rtol, y0)) != chosen
+            for y0 in request.y0
+        ):
+            return False
     # The rounding witness runs by each member's tolerance and y0 too.
     witness = uses_witness(task)
     if task.options.gamma_name == "shadow" and any(

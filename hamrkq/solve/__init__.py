@@ -49,6 +49,7 @@ from hamrkq.options import (
     SolveOptions,
 )
 from hamrkq.result import Solution
+from hamrkq.rkq.auto_rules import auto_tolerance
 from hamrkq.solve import arguments, auto, outcome
 from hamrkq.solve.dispatch import (
     METHODS,
@@ -361,7 +362,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
     requested = options
-    options = options.with_auto(ham.dim)
+    options = options.with_auto(ham.dim, auto_tolerance(atol_v, rtol_v, y0))
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
