@@ -111,7 +111,9 @@ def markdown(rows: list[dict]) -> str:
         mark = " (reference limits)" if r["reference_limits"] else ""
         lines.append(
             f"| {r['problem']} | {r['tolerance']} | {r['status']}"
-            f"{' (floor)' if r['floor_named'] else ''} | "
+            # a stop that names the floor (a run that reached the end may name
+            # it too: auto's message on a run in double it discarded)
+            f"{' (floor)' if r['floor_named'] and r['status'] != 'SUCCESS' else ''} | "
             f"{r['t_last']:.6g} / {r['t_end']:.6g} | {'yes' if r['witness'] else 'no'} | "
             f"{r['evaluations']} | {r['seconds']:.2f} | {r['max_error_over_tol']:.3f}{mark} | "
             f"{r['reference_bound']:.1e} |"

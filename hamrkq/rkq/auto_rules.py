@@ -60,13 +60,15 @@ AUTO_LARGE_DIM = 12
 AUTO_LOOSE_TOLERANCE = 1e-7
 #: Quencher steps per step of ``method="auto"``'s first run.  Enough for a
 #: few dozen orbits at any tolerance (Kepler e = 0.6 over 10 orbits at 1e-6:
-#: the quencher's true error ends at 6.8e-9, 0.14 of the limit), and a run that
+#: the quencher's true error ends at 1.9e-9 with rk67q9 and 6.8e-9 with
+#: rk78q12, 0.04 and 0.14 of the limit), and a run that
 #: needs more learns it from its first 2 % (:func:`auto_abandon_substeps`) or
 #: from where it stops (:func:`auto_retry_substeps`) and runs again.  The
 #: pair's steps grow like tol^(1/8) and the quencher's error like h^12, so
-#: the quencher's error relative to the tolerance grows like tol^(1/2):
-#: loose tolerances and long intervals need more steps (prentice2011 over
-#: [0, 4000] in two steps a step stops at t = 530 at 1e-6 and t = 2693 at 1e-8).
+#: the quencher's error relative to the tolerance grows like tol^(1/2) for
+#: rk78q12: loose tolerances and long intervals need more steps (prentice2011
+#: over [0, 4000] with rk78q12 in two steps a step stops at t = 530 at 1e-6
+#: (rk67q9 at t = 1028) and t = 2693 at 1e-8).
 AUTO_FIRST_SUBSTEPS = 2
 
 
@@ -174,9 +176,9 @@ def auto_abandon_substeps(
     :data:`AUTO_PROJECT_SHARE` of ``gamma_limit`` at a node between :data:`AUTO_PROJECT_FROM` and
     :data:`AUTO_PROJECT_UNTIL` of the interval is abandoned there and run
     again with the quencher steps :func:`auto_retry_substeps` would choose at
-    its stop, without running to it: prentice2011 at 1e-6 in 2 steps a step
-    stops at t = 530 of 4000, and is projected at 46 times the limit from
-    t = 80.  On a chaotic orbit the error grows faster than the projection,
+    its stop, without running to it: prentice2011 at 1e-6 with rk78q12 in 2
+    steps a step stops at t = 530 of 4000, and is projected at 46 times the
+    limit from t = 80.  On a chaotic orbit the error grows faster than the projection,
     and the run stops (and runs again) later; where it grows more slowly
     (the FPU chain, like t in its first 2 %), the next run may have more
     quencher steps than it needed.

@@ -127,10 +127,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         t0`` returns the single initial node.
     method : str
         ``"rk34q8"`` (default): Prentice's RKQ.  ``"auto"``: the RKQ family's
-        member for tight tolerances and long runs, Verner's 8(7) pair with
-        Feagin's 12th-order quencher (``"rk78q12"``) below 12 state
-        variables, Verner's 7(6) with Verner's 9th-order quencher
-        (``"rk67q9"``) from 12 on, whose quencher steps per step
+        member for tight tolerances and long runs, Verner's 7(6) pair with
+        Verner's 9th-order quencher (``"rk67q9"``) at tolerances of 1e-7
+        or looser and from 12 state variables on, Verner's 8(7) with
+        Feagin's 12th-order quencher (``"rk78q12"``) for smaller systems at
+        tighter tolerances, whose quencher steps per step
         (``z_substeps``) are learned from the run: it starts with 2 and runs
         again with more when its projection or its stop says so
         (``docs/algorithm.md``, "The RKQ family and method='auto'").  Other
