@@ -234,8 +234,9 @@ def test_ctrl_c_inside_a_member_stops_the_whole_ensemble(monkeypatch):
 def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_member(monkeypatch):
     """The batch loop is what runs an RKQ ensemble on the compiled backend
     (solve_members is never called), with the bits of solve alone, also for
-    method="auto"; the interpreted backend, a baseline method and members of
-    which only some run the rounding witness run member by member."""
+    method="auto" and for members whose y0 decides an option differently
+    (they run as batched groups); the interpreted backend and a baseline
+    method run member by member."""
     from hamrkq.ensemble import chunk
 
     real, used = chunk.solve_members, []
@@ -262,18 +263,31 @@ def test_compiled_rkq_members_run_in_the_batch_loop_and_the_rest_member_by_membe
         used.clear()
         hamrkq.ensemble(system, q0=q0[:2], p0=[[0.5]], t_span=(0, 0.5), workers=1, **how)
         assert sum(used) == 2, how
-    # With rtol > 0 auto's members share the batch loop (auto's member does
-    # not depend on the tolerance) unless the rounding witness runs for some
-    # and not others: the tightest tolerance max(1e-12, 1e-9 |y|) is 2e-9 at
-    # p = 2 (no witness) and 1e-12 at p = 0 (the witness).
-    for p0, batched in (([[2.0], [1.0]], True), ([[2.0], [0.0]], False)):
+    # Where y0 decides an option, the chunk runs as groups that agree, each
+    # batched.  The rounding witness: the tightest tolerance max(1e-12,
+    # 1e-9 |y|) is 2e-9 at p = 2 (no witness) and 1e-12 at p = 0 (the
+    # witness).  auto's member: atol 2e-7 reads as 2e-7 / max(1, |y0|),
+    # loose (rk67q9) at |y0| <= 2 and tight (rk78q12) above.
+    from hamrkq.ensemble.request import build_request
+
+    cases = (
+        ({"method": "auto", "rtol": 1e-9, "atol": 1e-12}, [[2.0], [1.0], [2.0]], [3]),
+        ({"method": "auto", "rtol": 1e-9, "atol": 1e-12}, [[2.0], [0.0], [2.0]], [2, 1]),
+        ({"method": "auto", "rtol": 0.0, "atol": 2e-7}, [[1.0], [3.0], [1.5]], [2, 1]),
+    )
+    for auto, p0, sizes in cases:
         used.clear()
-        auto = {"method": "auto", "rtol": 1e-9, "atol": 1e-12}
+        request = build_request(pend, [[2.0]], p0, (0, 0.5), None, None, auto)
+        assert sorted(map(len, chunk.batch_groups(request)), reverse=True) == sizes
         ens = hamrkq.ensemble(pend, q0=[[2.0]], p0=p0, t_span=(0, 0.5), workers=1,
-                              chunk_size=2, **auto)  # fmt: skip
-        assert used == ([] if batched else [2])
-        for i in range(2):
-            _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)
+                              chunk_size=3, **auto)  # fmt: skip
+        assert used == [] and ens.all_success
+        methods = set()
+        for i in range(3):
+            sol = _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **auto)
+            methods.add(sol.method)
+        if auto["atol"] == 2e-7:  # both members of the family ran, each batched
+            assert methods == {"rk67q9", "rk78q12"}
 
 
 def test_members_with_the_rounding_witness_run_in_the_batch_loop(monkeypatch):

@@ -12,11 +12,11 @@ slices.  It takes one of two paths, with the same numbers:
   validated options, :func:`hamrkq.solve.prepare`; the same start and step
   loop), so its numbers are the same bits.  It applies to an RKQ-family
   method on the compiled backend, with options that are the same for every
-  member (``method="auto"`` chooses its member from the tolerance and the
-  state's size at ``y0``, so members may choose differently: checked per
-  member),
-  and without events or dense output.  A member that fails is run again alone
-  for its message.
+  member, and without events or dense output.  Where ``y0`` decides an
+  option (``method="auto"``'s member from the tolerance and the state's
+  size, and whether the rounding witness runs), :func:`batch_groups` splits
+  the chunk into groups that agree, each batched.  A member that fails is
+  run again alone for its message.
 - :func:`solve_members`: :func:`hamrkq.solve` once per member, for
   everything else (the baselines, the interpreted backend).
 """
@@ -37,7 +37,7 @@ from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.dispatch import integration, run_rk, uses_witness
 
-__all__ = ["BUFFER_ROWS", "run_batched", "run_chunk", "solve_members"]
+__all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
 #: Nodes buffered per member between folds when only the last state is kept.
 BUFFER_ROWS = 256
@@ -46,9 +46,72 @@ _KINDS = ("rhs", "rhs_jvp", "jac", "energy")
 
 
 def run_chunk(request: Request) -> ChunkResult:
-    """Integrate every member of ``request``; one failure never stops the others."""
+    """Integrate every member of ``request``; one failure never stops the others.
+
+    Members whose options resolve differently at their ``y0`` (``auto``'s
+    member, the rounding witness: :func:`batch_groups`) run as groups, each
+    through the batch loop where it applies.
+    """
+    groups = batch_groups(request)
+    if len(groups) > 1:
+        result = _empty_result(request)
+        for indices in groups:
+            _put(result, indices, run_chunk(request.take(indices)))
+        return result
     batched = run_batched(request)
     return batched if batched is not None else solve_members(request)
+
+
+def batch_groups(request: Request) -> list[np.ndarray]:
+    """The members' indices, grouped by what their ``y0`` decides of the
+    options (``method="auto"``'s member by
+    :func:`hamrkq.rkq.auto_rules.auto_tolerance`, and whether the rounding
+    witness runs, :func:`hamrkq.rkq.witness_rules.needs_witness`); one group
+    where the batch loop cannot be used anyway."""
+    everyone = [np.arange(request.size)]
+    if request.size < 2:
+        return everyone
+    kwargs = request.member_kwargs(0)
+    if kwargs.get("events") or kwargs.get("dense_output"):
+        return everyone
+    prepared = prepare(request.ham, **kwargs)
+    if prepared.spec.run is not run_rk or prepared.backend != "numba":
+        return everyone
+    task, dim = prepared.task, request.ham.dim
+    groups: dict[tuple, list[int]] = {}
+    for i, y0 in enumerate(request.y0):
+        auto = None
+        if prepared.requested.method == "auto":
+            auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
+        witness = None
+        if task.options.gamma_name == "shadow":
+            witness = needs_witness(task.atol, task.rtol, y0)
+        groups.setdefault((auto, witness), []).append(i)
+    return [np.array(indices) for indices in groups.values()]
+
+
+def _empty_result(request: Request) -> ChunkResult:
+    """A result for every member of ``request``, nothing run yet."""
+    m, dim = request.size, request.ham.dim
+    return ChunkResult(
+        request.start,
+        np.full((m, request.times.size, dim), np.nan),
+        np.full(m, np.nan),
+        np.zeros(m, dtype=np.int8),
+        np.full(m, np.nan),
+        np.full(m, np.nan),
+        np.full(m, np.nan),
+        np.zeros((m, len(STATS)), dtype=np.int64),
+        {},
+    )
+
+
+def _put(result: ChunkResult, indices: np.ndarray, part: ChunkResult) -> None:
+    """A group's results (``part``) into the members ``indices`` of ``result``."""
+    for name in ("y", "t_last", "status", "max_global_error", "energy0", "energy_drift", "stats"):
+        getattr(result, name)[indices] = getattr(part, name)
+    for k, message in part.messages.items():
+        result.messages[int(indices[k])] = message
 
 
 def run_batched(request: Request) -> ChunkResult | None:
@@ -140,19 +203,8 @@ def solve_members(request: Request) -> ChunkResult:
     Each member is integrated by :func:`hamrkq.solve` with the request's
     options, so that it equals the same member solved alone, bit for bit.
     """
-    m, dim = request.size, request.ham.dim
-    result = ChunkResult(
-        request.start,
-        np.full((m, request.times.size, dim), np.nan),
-        np.full(m, np.nan),
-        np.zeros(m, dtype=np.int8),
-        np.full(m, np.nan),
-        np.full(m, np.nan),
-        np.full(m, np.nan),
-        np.zeros((m, len(STATS)), dtype=np.int64),
-        {},
-    )
-    for i in range(m):
+    result = _empty_result(request)
+    for i in range(request.size):
         _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
     return result
 

@@ -105,6 +105,20 @@ class Request:
             self.start + start,
         )
 
+    def take(self, indices: np.ndarray) -> Request:
+        """The members at ``indices`` (into this request) as a request of
+        their own.  Its ``start`` is this request's: a caller puts their
+        results back by index (:func:`hamrkq.ensemble.chunk.run_chunk`)."""
+        return Request(
+            self.ham,
+            self.y0[indices],
+            self.params[indices],
+            self.t_span,
+            self.t_eval,
+            self.options,
+            self.start,
+        )
+
     def member_kwargs(self, i: int) -> dict[str, Any]:
         """The arguments of :func:`hamrkq.solve` that integrate member ``i``
         (an index into this request) on its own."""
