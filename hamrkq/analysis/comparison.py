@@ -64,8 +64,9 @@ __all__ = [
     "default_methods",
 ]
 
-#: Methods compared by default (splitting methods only for separable H).
-DEFAULT_METHODS = ("rk34q8", "rk34", "scipy:DOP853", "gauss4", "gauss6", "yoshida4")
+#: Methods compared by default (splitting methods only for separable H):
+#: the paper's RKQ, the RKQ family's choice, and the baselines.
+DEFAULT_METHODS = ("rk34q8", "auto", "rk34", "scipy:DOP853", "gauss4", "gauss6", "yoshida4")
 ANCHOR = "rk34q8"
 MATCH_MODES = ("error", "cost")
 #: Sweep factors: RKQ's tolerances are the problem's default times these ...

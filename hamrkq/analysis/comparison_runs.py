@@ -61,10 +61,9 @@ class Run:
     def row(self) -> dict[str, Any]:
         """One table row, plain values."""
         sol = self.solution
-        # auto's row says which member it ran
-        ran = "" if sol.method == self.method else f" ({sol.method})"
         return {
-            "method": self.method + ran,
+            "method": self.method,
+            "ran": sol.method,  # auto's member
             "settings": self.describe(),
             "factor": self.factor,
             "selected": self.selected,

@@ -81,7 +81,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--methods", nargs="+", metavar="M",
         help="methods to compare, auto and the RKQ family's members too (default: rk34q8 "
-        "rk34 scipy:DOP853 gauss4 gauss6, and yoshida4 for a separable H); rk34q8 is "
+        "auto rk34 scipy:DOP853 gauss4 gauss6, and yoshida4 for a separable H); rk34q8 is "
         "always run as the anchor",
     )  # fmt: skip
     p.add_argument("--t-end", type=float, metavar="T", help="end of the interval")
@@ -126,6 +126,8 @@ def _table(rows: list[dict[str, Any]]) -> list[str]:
              "|" + "---|" * len(COLUMNS)]  # fmt: skip
     for row in rows:
         cells = [_cell(row[k], f) for k, _, f in COLUMNS]
+        if row["ran"] != row["method"]:  # auto says which member it ran
+            cells[0] += f" ({row['ran']})"
         if row["status"] != "SUCCESS":  # where it stopped
             cells[-1] += f" at t = {_cell(row['t_final'], '.6g')}"
         lines.append("| " + " | ".join(cells) + " |")
