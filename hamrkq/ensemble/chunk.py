@@ -35,7 +35,7 @@ from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.dispatch import integration, run_rk, uses_witness
+from hamrkq.solve.dispatch import integration, run_rk
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
@@ -50,44 +50,67 @@ def run_chunk(request: Request) -> ChunkResult:
 
     Members whose options resolve differently at their ``y0`` (``auto``'s
     member, the rounding witness: :func:`batch_groups`) run as groups, each
-    through the batch loop where it applies.
+    through the batch loop.
     """
-    groups = batch_groups(request)
+    prepared = _batch_prepared(request)
+    if prepared is None:
+        return solve_members(request)
+    groups = batch_groups(request, prepared)
     if len(groups) > 1:
         result = _empty_result(request)
         for indices in groups:
             _put(result, indices, run_chunk(request.take(indices)))
         return result
-    batched = run_batched(request)
-    return batched if batched is not None else solve_members(request)
+    return _batch(request, prepared)
 
 
-def batch_groups(request: Request) -> list[np.ndarray]:
+def batch_groups(request: Request, prepared: Any = None) -> list[np.ndarray]:
     """The members' indices, grouped by what their ``y0`` decides of the
-    options (``method="auto"``'s member by
-    :func:`hamrkq.rkq.auto_rules.auto_tolerance`, and whether the rounding
-    witness runs, :func:`hamrkq.rkq.witness_rules.needs_witness`); one group
-    where the batch loop cannot be used anyway."""
-    everyone = [np.arange(request.size)]
-    if request.size < 2:
-        return everyone
-    kwargs = request.member_kwargs(0)
-    if kwargs.get("events") or kwargs.get("dense_output"):
-        return everyone
-    prepared = prepare(request.ham, **kwargs)
-    if prepared.spec.run is not run_rk or prepared.backend != "numba":
-        return everyone
-    task, dim = prepared.task, request.ham.dim
+    options (:func:`_decided_by_y0`); one group where the batch loop cannot
+    be used anyway.  ``prepared``: member 0's :func:`hamrkq.solve.prepare`,
+    if already made."""
+    if prepared is None:
+        prepared = _batch_prepared(request)
+    if prepared is None:
+        return [np.arange(request.size)]
     groups: dict[tuple, list[int]] = {}
     for i, y0 in enumerate(request.y0):
-        auto = None
-        if prepared.requested.method == "auto":
-            auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
-        witness = None
-        if task.options.gamma_name == "shadow":
-            witness = needs_witness(task.atol, task.rtol, y0)
-        groups.setdefault((auto, witness), []).append(i)
+        groups.setdefault(_decided_by_y0(prepared, request.ham.dim, y0), []).append(i)
     return [np.array(indices) for indices in groups.values()]
+
+
+def _decided_by_y0(prepared: Any, dim: int, y0: np.ndarray) -> tuple:
+    """What a member's ``y0`` decides of options that are otherwise the
+    same: ``method="auto"``'s member (from the tolerance over the state's
+    size, :func:`hamrkq.rkq.auto_rules.auto_tolerance`) and whether the
+    rounding witness runs (each component's tolerance against its size,
+    :func:`hamrkq.rkq.witness_rules.needs_witness`)."""
+    task = prepared.task
+    auto = None
+    if prepared.requested.method == "auto":
+        auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
+    witness = None
+    if task.options.gamma_name == "shadow":
+        witness = needs_witness(task.atol, task.rtol, y0)
+    return auto, witness
+
+
+def _batch_prepared(request: Request) -> Any:
+    """Member 0's :func:`hamrkq.solve.prepare` where the batch loop applies
+    to the request (an RKQ-family method, compiled, in double, without
+    events or dense output), else None."""
+    if request.size == 0:
+        return None
+    kwargs = request.member_kwargs(0)
+    if kwargs.get("events") or kwargs.get("dense_output"):
+        return None
+    prepared = prepare(request.ham, **kwargs)
+    task = prepared.task
+    if prepared.spec.run is not run_rk or prepared.backend != "numba" or task.stop:
+        return None
+    if task.options.double_double:  # the batch loop passes rhs_jvp, not rhs_dd
+        return None
+    return prepared
 
 
 def _empty_result(request: Request) -> ChunkResult:
@@ -114,22 +137,22 @@ def _put(result: ChunkResult, indices: np.ndarray, part: ChunkResult) -> None:
         result.messages[int(indices[k])] = message
 
 
-def run_batched(request: Request) -> ChunkResult | None:
+def run_batched(request: Request, prepared: Any = None) -> ChunkResult | None:
     """The members of ``request`` through the batch loop, or None where it
-    does not apply (see the module docstring)."""
-    if request.size == 0:
+    does not apply (see the module docstring) or the members' options differ
+    (:func:`batch_groups`).  ``prepared``: member 0's
+    :func:`hamrkq.solve.prepare`, if already made."""
+    if prepared is None:
+        prepared = _batch_prepared(request)
+    if prepared is None or len(batch_groups(request, prepared)) > 1:
         return None
-    kwargs = request.member_kwargs(0)
-    if kwargs.get("events") or kwargs.get("dense_output"):
-        return None
-    prepared = prepare(request.ham, **kwargs)
+    return _batch(request, prepared)
+
+
+def _batch(request: Request, prepared: Any) -> ChunkResult:
+    """Every member of ``request`` through the batch loop, with member 0's
+    ``prepared`` options (the same for every member: :func:`batch_groups`)."""
     task = prepared.task
-    if prepared.spec.run is not run_rk or prepared.backend != "numba" or task.stop:
-        return None
-    if task.options.double_double:  # the batch loop passes rhs_jvp, not rhs_dd
-        return None
-    if not _same_options(prepared, request):
-        return None
     from hamrkq.backends import compiled, extras
 
     run = integration(task, "numba")
@@ -171,30 +194,6 @@ def run_batched(request: Request) -> ChunkResult | None:
     for i in np.flatnonzero(batch.status != Status.SUCCESS.code).tolist():
         _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
     return result
-
-
-def _same_options(prepared, request: Request) -> bool:
-    """Whether every member resolves to the task's options: whether the
-    rounding witness runs depends on each component's tolerance and size at
-    ``y0`` (:func:`hamrkq.rkq.witness_rules.needs_witness`), and so does
-    ``method="auto"``'s member (:func:`hamrkq.rkq.auto_rules.auto_tolerance`),
-    which can differ between members."""
-    task = prepared.task
-    if prepared.requested.method == "auto":
-        dim = request.ham.dim
-        chosen = auto_member(dim, auto_tolerance(task.atol, task.rtol, request.y0[0]))
-        if any(
-            auto_member(dim, auto_tolerance(task.atol, task.rtol, y0)) != chosen
-            for y0 in request.y0
-        ):
-            return False
-    # The rounding witness runs by each member's tolerance and y0 too.
-    witness = uses_witness(task)
-    if task.options.gamma_name == "shadow" and any(
-        needs_witness(task.atol, task.rtol, y0) != witness for y0 in request.y0
-    ):
-        return False
-    return True
 
 
 def solve_members(request: Request) -> ChunkResult:

@@ -411,7 +411,7 @@ def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> F
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize="small")
     if title:
-        fig.suptitle(f"{title}: {track.split()[0]} error estimate")
+        fig.suptitle(f"{title}: error estimate of the {track}")
     return fig
 
 

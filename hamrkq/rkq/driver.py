@@ -124,6 +124,12 @@ class RunOutput:
     stats: dict
     projected: float = 0.0  # |Gamma| / delta projected to t_end (status ST_ABANDONED)
 
+    @property
+    def at_rounding_floor(self) -> bool:
+        """Whether rounding ended the run: the witness's part is at least half
+        the ratio that stopped it (double precision's floor for the orbit)."""
+        return self.floor_ratio >= 0.5 * self.max_ratio
+
 
 def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)

@@ -71,7 +71,7 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         0.5 * task.options.gamma_limit
     ):
         return None  # the stored values' own rounding: more substeps cannot help
-    if out.floor_ratio >= 0.5 * out.max_ratio:
+    if out.at_rounding_floor:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.
         return _in_double_double(requested, task)

@@ -123,7 +123,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 f" The tolerance is at double precision's floor for this state (the rounding "
                 f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
             )
-    if out.floor_ratio >= 0.5 * out.max_ratio:
+    if out.at_rounding_floor:
         text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
             f"quencher run again with its sums in the opposite order), is "
@@ -240,7 +240,7 @@ def rerun_note(
                 f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
                 "at t_end"
             )
-        elif run.floor_ratio >= 0.5 * run.max_ratio:
+        elif run.at_rounding_floor:
             what = (
                 f"stopped at t = {run.t_last!r}, where the quencher's estimated error "
                 f"reached {run.max_ratio:.3g} x the tolerance, of which its rounding "
