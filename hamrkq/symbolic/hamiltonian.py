@@ -10,7 +10,6 @@ symbols (parameter and initial values) by :mod:`~hamrkq.symbolic.values`.
 
 from __future__ import annotations
 
-import numbers
 import warnings
 from collections.abc import Mapping, Sequence
 from functools import cached_property
@@ -23,8 +22,6 @@ from hamrkq.errors import (
     CodegenError,
     HamiltonianError,
     HamrkqWarning,
-    InputError,
-    InputTypeError,
     UndeclaredSymbolError,
 )
 from hamrkq.symbolic.declaration import (
@@ -39,7 +36,7 @@ from hamrkq.symbolic.declaration import (
     undeclared_hints,
 )
 from hamrkq.symbolic.supported import check_supported
-from hamrkq.symbolic.values import as_number, assumption_conflict, show_value
+from hamrkq.symbolic.values import bind_parameters, bind_state
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
 
@@ -355,21 +352,7 @@ class Hamiltonian:
             An unknown parameter, a value that is not a finite real number, or a
             parameter with neither a default nor a given value.
         """
-        chosen = dict(self._defaults)
-        by_name = {s.name: s for s in self._params}
-        for key, value in (values or {}).items():
-            symbol = by_name.get(key) if isinstance(key, str) else key
-            if symbol not in self._params:
-                known = ", ".join(by_name) or "none"
-                raise InputError(f"unknown parameter {key!s} (parameters: {known})")
-            chosen[symbol] = as_number(value, f"parameter {symbol}")
-            conflict = assumption_conflict(symbol, chosen[symbol])
-            if conflict is not None:
-                raise InputError(f"parameter {conflict}")
-        missing = [s.name for s in self._params if s not in chosen]
-        if missing:
-            raise InputError(f"no value for parameter(s): {', '.join(missing)}")
-        return np.array([chosen[s] for s in self._params], dtype=float)
+        return bind_parameters(self._params, self._defaults, values)
 
     def state_values(self, q0: Any, p0: Any) -> np.ndarray:
         """Initial values as one float array ``(q0..., p0...)``, validated.
@@ -387,70 +370,7 @@ class Hamiltonian:
         InputError
             A wrong count; in a mapping, a missing, unknown or twice-bound name.
         """
-        parts = []
-        for label, values, symbols in (("q0", q0, self._q), ("p0", p0, self._p)):
-            if isinstance(values, Mapping):
-                parts.extend(self._bind_by_name(label, values, symbols))
-                continue
-            if isinstance(values, str | bytes):
-                raise InputTypeError(f"{label} must be a sequence of numbers, not a string")
-            if isinstance(values, numbers.Number | sp.Basic) and not isinstance(
-                values, sp.MatrixBase
-            ):
-                values = [values]
-            try:
-                seq = list(np.asarray(values, dtype=object).ravel())
-            except (TypeError, ValueError):
-                raise InputTypeError(f"{label} must be a sequence of numbers") from None
-            if len(seq) != self.n:
-                raise InputError(
-                    f"{label} has {len(seq)} values but the system has {self.n} "
-                    f"degree{'s' if self.n != 1 else ''} of freedom"
-                )
-            parts.extend(as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
-        for symbol, value, label in zip(
-            self.state,
-            parts,
-            [f"q0[{i}]" for i in range(self.n)] + [f"p0[{i}]" for i in range(self.n)],
-            strict=True,
-        ):
-            conflict = assumption_conflict(symbol, value)
-            if conflict is not None:
-                raise InputError(f"{label}: {conflict}")
-        return np.array(parts, dtype=float)
-
-    def _bind_by_name(
-        self, label: str, values: Mapping[Any, Any], symbols: tuple[sp.Symbol, ...]
-    ) -> list[float]:
-        """The values of ``symbols`` from a mapping keyed by name or symbol."""
-        role = "coordinate" if label == "q0" else "momentum"
-        other = self._p if label == "q0" else self._q
-        by_name = {s.name: s for s in symbols}
-        bound: dict[sp.Symbol, Any] = {}
-        for key, value in values.items():
-            symbol = by_name.get(key) if isinstance(key, str) else key
-            if symbol not in symbols:
-                shown = key if isinstance(key, str) else str(key)
-                if any(shown == s.name for s in other):
-                    where = "p0" if label == "q0" else "q0"
-                    raise InputError(
-                        f"{label}: {shown!r} is not a {role} (it belongs in {where}); "
-                        f"{label} binds {', '.join(by_name)}"
-                    )
-                raise InputError(
-                    f"{label}: unknown {role} {shown!r} = {show_value(value)}; the "
-                    f"{'coordinates' if label == 'q0' else 'momenta'} are {', '.join(by_name)}"
-                )
-            if symbol in bound:
-                raise InputError(
-                    f"{label}: {symbol.name} is bound twice (by name and by symbol): "
-                    f"{show_value(bound[symbol])} and {show_value(value)}"
-                )
-            bound[symbol] = value
-        missing = [s.name for s in symbols if s not in bound]
-        if missing:
-            raise InputError(f"{label}: no value for {', '.join(missing)}")
-        return [as_number(bound[s], f"{label}[{s.name!r}]") for s in symbols]
+        return bind_state(self._q, self._p, q0, p0)
 
 
 def _unpickle(H, q, p, parameters, t, name) -> Hamiltonian:

@@ -1,5 +1,9 @@
 """Numbers given for a Hamiltonian's symbols: parameter and initial values.
 
+:func:`bind_parameters` and :func:`bind_state` bind them to the symbols, by
+position or by name (the homes of :meth:`hamrkq.Hamiltonian.parameter_values`
+and :meth:`~hamrkq.Hamiltonian.state_values`).
+
 :func:`as_number` makes a finite float of a number or of a SymPy expression
 without free symbols; :func:`assumption_conflict` says why a value breaks an
 assumption declared on its symbol (SymPy has already simplified H under it).
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -16,7 +21,14 @@ import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError
 
-__all__ = ["CHECKED_ASSUMPTIONS", "as_number", "assumption_conflict", "show_value"]
+__all__ = [
+    "CHECKED_ASSUMPTIONS",
+    "as_number",
+    "assumption_conflict",
+    "bind_parameters",
+    "bind_state",
+    "show_value",
+]
 
 
 def as_number(value: Any, what: str) -> float:
@@ -94,3 +106,99 @@ def assumption_conflict(symbol: Any, value: float) -> str | None:
 def show_value(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def bind_parameters(
+    parameters: tuple[sp.Symbol, ...],
+    defaults: Mapping[sp.Symbol, float],
+    values: Mapping[Any, Any] | None,
+) -> np.ndarray:
+    """Parameter values as a float array ordered like ``parameters``: the
+    ``defaults`` overridden by ``values`` (keyed by symbol or by name); see
+    :meth:`hamrkq.Hamiltonian.parameter_values`."""
+    chosen = dict(defaults)
+    by_name = {s.name: s for s in parameters}
+    for key, value in (values or {}).items():
+        symbol = by_name.get(key) if isinstance(key, str) else key
+        if symbol not in parameters:
+            known = ", ".join(by_name) or "none"
+            raise InputError(f"unknown parameter {key!s} (parameters: {known})")
+        chosen[symbol] = as_number(value, f"parameter {symbol}")
+        conflict = assumption_conflict(symbol, chosen[symbol])
+        if conflict is not None:
+            raise InputError(f"parameter {conflict}")
+    missing = [s.name for s in parameters if s not in chosen]
+    if missing:
+        raise InputError(f"no value for parameter(s): {', '.join(missing)}")
+    return np.array([chosen[s] for s in parameters], dtype=float)
+
+
+def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: Any) -> np.ndarray:
+    """Initial values as one float array ``(q0..., p0...)``, each a
+    sequence in the order of ``q`` (``p``) or a mapping by name or symbol;
+    see :meth:`hamrkq.Hamiltonian.state_values`."""
+    n = len(q)
+    parts: list[float] = []
+    for label, values, symbols in (("q0", q0, q), ("p0", p0, p)):
+        if isinstance(values, Mapping):
+            other = p if label == "q0" else q
+            parts.extend(_bind_by_name(label, values, symbols, other))
+            continue
+        if isinstance(values, str | bytes):
+            raise InputTypeError(f"{label} must be a sequence of numbers, not a string")
+        if isinstance(values, numbers.Number | sp.Basic) and not isinstance(values, sp.MatrixBase):
+            values = [values]
+        try:
+            seq = list(np.asarray(values, dtype=object).ravel())
+        except (TypeError, ValueError):
+            raise InputTypeError(f"{label} must be a sequence of numbers") from None
+        if len(seq) != n:
+            raise InputError(
+                f"{label} has {len(seq)} values but the system has {n} "
+                f"degree{'s' if n != 1 else ''} of freedom"
+            )
+        parts.extend(as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
+    labels = [f"q0[{i}]" for i in range(n)] + [f"p0[{i}]" for i in range(n)]
+    for symbol, value, label in zip((*q, *p), parts, labels, strict=True):
+        conflict = assumption_conflict(symbol, value)
+        if conflict is not None:
+            raise InputError(f"{label}: {conflict}")
+    return np.array(parts, dtype=float)
+
+
+def _bind_by_name(
+    label: str,
+    values: Mapping[Any, Any],
+    symbols: tuple[sp.Symbol, ...],
+    other: tuple[sp.Symbol, ...],
+) -> list[float]:
+    """The values of ``symbols`` from a mapping keyed by name or symbol
+    (``other``: the other half's symbols, named in the message when a key
+    belongs there)."""
+    role = "coordinate" if label == "q0" else "momentum"
+    by_name = {s.name: s for s in symbols}
+    bound: dict[sp.Symbol, Any] = {}
+    for key, value in values.items():
+        symbol = by_name.get(key) if isinstance(key, str) else key
+        if symbol not in symbols:
+            shown = key if isinstance(key, str) else str(key)
+            if any(shown == s.name for s in other):
+                where = "p0" if label == "q0" else "q0"
+                raise InputError(
+                    f"{label}: {shown!r} is not a {role} (it belongs in {where}); "
+                    f"{label} binds {', '.join(by_name)}"
+                )
+            raise InputError(
+                f"{label}: unknown {role} {shown!r} = {show_value(value)}; the "
+                f"{'coordinates' if label == 'q0' else 'momenta'} are {', '.join(by_name)}"
+            )
+        if symbol in bound:
+            raise InputError(
+                f"{label}: {symbol.name} is bound twice (by name and by symbol): "
+                f"{show_value(bound[symbol])} and {show_value(value)}"
+            )
+        bound[symbol] = value
+    missing = [s.name for s in symbols if s not in bound]
+    if missing:
+        raise InputError(f"{label}: no value for {', '.join(missing)}")
+    return [as_number(bound[s], f"{label}[{s.name!r}]") for s in symbols]
