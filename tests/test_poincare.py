@@ -112,6 +112,27 @@ def test_cli_poincare_method_auto_finds_the_same_crossings(tmp_path):
     np.testing.assert_allclose(found["auto"][1], found["rk34q8"][1], atol=1e-8)
 
 
+def test_cli_poincare_energy_defaults_to_the_problems_initial_energy(tmp_path):
+    from hamrkq.catalogue.problems import load_problem
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    argv = ["poincare", "henon_heiles", "--orbits", "2", "--t-end", "30", "--no-plots",
+            "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    problem = load_problem("henon_heiles")
+    (q1, q2), (p1, p2) = problem.q0, problem.p0
+    by_hand = (p1**2 + p2**2 + q1**2 + q2**2) / 2 + q1**2 * q2 - q2**3 / 3
+    assert summary["energy"] == pytest.approx(by_hand, rel=1e-14)
+    # every orbit starts on the section at that energy
+    data = np.load(out / "section.npz")
+    for q, p in zip(data["q0"], data["p0"], strict=True):
+        assert q[0] == 0.0
+        energy = (p @ p + q @ q) / 2 + q[0] ** 2 * q[1] - q[1] ** 3 / 3
+        assert energy == pytest.approx(by_hand, rel=1e-12)
+
+
 def test_cli_poincare_rejects_hostile_energy(tmp_path):
     from hamrkq.cli import main
 

@@ -18,6 +18,8 @@ import sympy as sp
 
 from hamrkq.analysis.chaos import megno
 from hamrkq.analysis.poincare import energy_orbits, poincare
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.catalogue.problem import Problem
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, jsonable
@@ -39,7 +41,10 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
     p.add_argument("--section", default="q1 = 0", help="the surface, 'q_k = c' (default q1 = 0)")
-    p.add_argument("--energy", required=True, help="the energy E (a number or '1/8')")
+    p.add_argument(
+        "--energy",
+        help="the energy E (a number or '1/8'; default: H at the problem's initial values)",
+    )
     p.add_argument("--orbits", type=int, default=20, help="number of orbits (default 20)")
     p.add_argument("--t-end", type=float, default=1000.0, help="length of each run (1000)")
     p.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (1e-9)")
@@ -64,11 +69,22 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=poincare_command)
 
 
+def initial_energy(problem: Problem) -> float:
+    """H at the problem's initial values and parameters (``--energy``'s default)."""
+    values = problem.parameter_array
+    return float(numeric_of(problem.hamiltonian).energy(problem.t_span[0], problem.y0, values))
+
+
 def poincare_command(args: argparse.Namespace) -> int:
     """Run the ``poincare`` subcommand; returns the exit status."""
     problem = load_problem(args.problem)
     ham = problem.hamiltonian
-    energy = float(sp.N(parse_expression(args.energy, {}, key="--energy")))
+    if args.energy is None:
+        energy = initial_energy(problem)
+        energy_text = f"{energy:.6g}"
+    else:
+        energy = float(sp.N(parse_expression(args.energy, {}, key="--energy")))
+        energy_text = args.energy
     if args.orbits < 1:
         raise InputError(f"--orbits must be at least 1, got {args.orbits}")
     out = OutputDir(args.out or f"hamrkq-poincare/{problem.name}", force=args.force)
@@ -96,7 +112,7 @@ def poincare_command(args: argparse.Namespace) -> int:
     if not args.no_plots:
         from hamrkq.plotting.sections import section_figure
 
-        title = f"{problem.name}: {args.section}, E = {args.energy}, {args.orbits} orbits"
+        title = f"{problem.name}: {args.section}, E = {energy_text}, {args.orbits} orbits"
         out.figure("section.png", section_figure(sec, x, y, title=title), dpi=args.dpi)
     out.json(
         "summary.json",
