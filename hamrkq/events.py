@@ -181,6 +181,7 @@ def dense_output(
     params = np.require(params, np.float64, ("C", "W"))
     t = np.array(t, dtype=np.float64)
     y = np.array(y, dtype=np.float64)
+    recipe = (dense_output, (ham, member, backend, params))
     if backend == "numba":
         from hamrkq.backends import compiled, extras
 
@@ -188,13 +189,13 @@ def dense_output(
         work = prepare_work(y.shape[1], tab)
         args = (rhs, tab, params, t, y, np.zeros(1, np.int64), np.zeros(1))
         fast = extras.compiled_helper(evaluate, ("rhs",), *args, work, np.zeros((1, y.shape[1])))
-        return DenseOutput(t, y, rhs, tab, params, compiled=fast)
+        return DenseOutput(t, y, rhs, tab, params, compiled=fast, recipe=recipe)
     numeric = numeric_of(ham)
 
     def rhs(t, y, params, out):
         out[:] = numeric.rhs(t, y, params)
 
-    return DenseOutput(t, y, rhs, tab, params)
+    return DenseOutput(t, y, rhs, tab, params, recipe=recipe)
 
 
 def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]:

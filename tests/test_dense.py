@@ -100,3 +100,34 @@ def test_dense_output_refused_where_nodes_are_thinned():
         hamrkq.solve(problem, keep_every=3, dense_output=True)
     with pytest.raises(hamrkq.errors.InputError, match="RKQ-family"):
         hamrkq.solve(problem, method="scipy:RK45", dense_output=True)
+
+
+@pytest.mark.parametrize("backend", ["numba", "python"])
+def test_dense_output_pickles_and_evaluates_in_another_process(backend, tmp_path):
+    """PRODUCT.md: solutions pickle.  Before, a compiled dense output unpickled
+    but ``sol.sol(t)`` raised numba's TypeError (the compiled evaluation and
+    rhs come back as new, uncompiled dispatchers), and the interpreted one did
+    not pickle at all (a closure); now the copy is rebuilt from the
+    Hamiltonian and the method."""
+    import pickle
+    import subprocess
+    import sys
+
+    problem = load_problem("kepler", e=0.6)
+    sol = hamrkq.solve(problem, method="auto", t_span=(0, 5), atol=1e-10,
+                       dense_output=True, backend=backend)  # fmt: skip
+    times = np.linspace(0.0, 5.0, 11)
+    expected = sol.sol(times)
+    assert np.array_equal(pickle.loads(pickle.dumps(sol)).sol(times), expected)
+    (tmp_path / "sol.pkl").write_bytes(pickle.dumps(sol))
+    np.save(tmp_path / "expected.npy", expected)
+    code = (
+        "import pickle, sys, numpy as np; from pathlib import Path; d = Path(sys.argv[1]);"
+        "sol = pickle.loads((d / 'sol.pkl').read_bytes());"
+        "sys.exit(0 if np.array_equal(sol.sol(np.linspace(0.0, 5.0, 11)),"
+        " np.load(d / 'expected.npy')) else 3)"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    # and the values are the orbit's: within the tolerance of the exact solution
+    assert np.abs(expected.T - problem.exact(times)).max() < 1.05e-10

@@ -111,6 +111,12 @@ class DenseOutput:
     compiled : callable, optional
         :func:`evaluate` compiled for these argument types (by
         :func:`hamrkq.backends.extras.compiled_helper`); interpreted without.
+    recipe : tuple, optional
+        ``(build, args)`` with ``build(*args, t, y)`` returning this dense
+        output: how a pickled copy is rebuilt (compiled functions and the
+        interpreted backend's closures do not pickle; the recipe's
+        Hamiltonian and method do).  Without it the copy is rebuilt from
+        ``rhs``, interpreted.
     """
 
     def __init__(
@@ -121,6 +127,7 @@ class DenseOutput:
         tableaus: Tableaus,
         params: np.ndarray,
         compiled: Callable | None = None,
+        recipe: tuple[Callable, tuple] | None = None,
     ):
         self.t = np.array(t, dtype=np.float64, order="C")
         self.y = np.array(y, dtype=np.float64, order="C")
@@ -133,11 +140,18 @@ class DenseOutput:
         self._compiled = compiled
         self._evaluate = compiled if compiled is not None else evaluate
         self._work = prepare_work(self.y.shape[1], tableaus)
+        self._recipe = recipe
         self.nfev = 0
 
     def through(self, t: np.ndarray, y: np.ndarray) -> DenseOutput:
         """The same continuous extension through other nodes (a truncated run)."""
-        return DenseOutput(t, y, self._rhs, self._tab, self._params, self._compiled)
+        return DenseOutput(t, y, self._rhs, self._tab, self._params, self._compiled, self._recipe)
+
+    def __reduce__(self):
+        if self._recipe is not None:
+            build, args = self._recipe
+            return (build, (*args, self.t, self.y))
+        return (DenseOutput, (self.t, self.y, self._rhs, self._tab, self._params))
 
     def values(self, t) -> np.ndarray:
         """Time-major values: shape ``(m, 2n)`` for ``m`` times."""
