@@ -68,7 +68,16 @@ def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
     bad = ~np.isfinite(array) | ((array <= 0) if positive else (array < 0))
     if np.any(bad):
         need = "positive" if positive else "zero or positive"
-        raise InputError(f"{name} must be finite and {need}, got {show(value)}")
+        why = ""
+        if positive and np.all(np.isfinite(array)) and np.all(array >= 0):
+            # SciPy takes atol=0 for a purely relative tolerance; RKQ's
+            # promise needs a tolerance above zero where a component is zero.
+            why = (
+                f" (a zero {name} leaves no tolerance where a component passes "
+                "through zero; for a relative tolerance give rtol with a tiny "
+                f"{name}, 1e-20 say)"
+            )
+        raise InputError(f"{name} must be finite and {need}, got {show(value)}{why}")
     return np.broadcast_to(array, (dim,)).copy()
 
 

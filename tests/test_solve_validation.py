@@ -31,6 +31,7 @@ def call(**changes):
         ({"t_span": (0, np.inf)}, InputError, "t_span must be finite"),
         ({"t_span": ("0", 1)}, InputTypeError, "t_span\\[0\\].*string"),
         ({"atol": 0.0}, InputError, "atol must be finite and positive, got 0.0"),
+        ({"atol": 0.0, "rtol": 1e-8}, InputError, "give rtol with a tiny atol, 1e-20 say"),
         ({"atol": -1e-6}, InputError, "atol.*-1e-06"),
         ({"atol": [1e-6, 1e-6, 1e-6]}, InputError, "atol must be a scalar or have 2 entries"),
         ({"atol": np.nan}, InputError, "atol must be finite"),
