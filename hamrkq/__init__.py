@@ -84,8 +84,13 @@ def __getattr__(name: str) -> Any:
     return value
 
 
+#: This module's own imports, which are not hamrkq's names (kept out of ``dir``,
+#: so that tab completion offers what the package offers).
+_IMPORTS = frozenset({"Any", "TYPE_CHECKING", "annotations", "importlib", "sys", "types"})
+
+
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_HOMES})
+    return sorted({*globals(), *_HOMES} - _IMPORTS)
 
 
 class _Package(types.ModuleType):

@@ -51,6 +51,14 @@ def test_public_names_resolve_and_solve_stays_the_function():
     assert out == "[] [] []"
 
 
+def test_dir_offers_the_public_names_not_the_modules_own_imports():
+    import hamrkq
+
+    names = dir(hamrkq)
+    assert set(hamrkq.__all__) <= set(names)
+    assert not {"Any", "TYPE_CHECKING", "annotations", "importlib", "sys", "types"} & set(names)
+
+
 def test_an_unknown_name_is_an_attribute_error():
     import hamrkq
 
