@@ -188,6 +188,28 @@ def test_compare_compiles_before_it_times_a_run(monkeypatch):
     assert events[0] == "compile" and "run" in events  # (each solve asks again: cheap)
 
 
+def test_each_method_runs_once_untimed_before_its_sweep(monkeypatch):
+    # What a method's first call pays once (SciPy's numerical functions,
+    # the kernel's first signature) must not land in its first timed run.
+    from hamrkq.analysis import comparison
+
+    spans, timed = [], comparison._timed
+
+    def timing(problem, method, t_span, *rest):
+        spans.append((method, t_span[1] - t_span[0]))
+        return timed(problem, method, t_span, *rest)
+
+    monkeypatch.setattr(comparison, "_timed", timing)
+    end = ONE_PERIOD / 4
+    result = compare(hamrkq.load_problem("kepler"), ["scipy:DOP853", "gauss4"], t_end=end,
+                     quick=True)  # fmt: skip
+    for method in ("rk34q8", "scipy:DOP853", "gauss4"):
+        first = next(length for m, length in spans if m == method)
+        assert first == pytest.approx(end * 1e-3)  # the untimed warm-up
+    # ... and the timed runs are the whole interval
+    assert all(r.solution.t[-1] == pytest.approx(end) for r in result.runs)
+
+
 def test_auto_and_family_members_are_compared_as_rkq():
     # auto and the family's members bound the global error like rk34q8: they
     # get its sweep (no extrapolated runs), and auto's rows name its member.
