@@ -32,6 +32,22 @@ def test_harmonic_zero_crossings_at_exact_times():
     np.testing.assert_allclose(sol.event_bound[0], 1e-13)
 
 
+def test_events_survive_save_and_load(tmp_path):
+    """Before, Solution.load returned t_events = None: the file kept no events."""
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-10, events=["q", "p - 2"])
+    again = hamrkq.Solution.load(sol.save(tmp_path / "s.npz"))
+    assert again.event_labels == sol.event_labels == ("q", "p - 2")
+    for name in ("t_events", "y_events", "event_bound"):
+        mine, theirs = getattr(sol, name), getattr(again, name)
+        assert len(theirs) == len(mine) == 2
+        for a, b in zip(mine, theirs, strict=True):
+            assert np.array_equal(a, b) and a.shape == b.shape and not b.flags.writeable
+    assert again.t_events[1].size == 0  # p never reaches 2: an empty list of roots
+    assert again.sol is None  # the dense output is not saved (docstring of save)
+    plain = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0))
+    assert hamrkq.Solution.load(plain.save(tmp_path / "p.npz")).t_events is None
+
+
 def test_direction_filters_crossings_like_scipy():
     def g(t, y):
         return y[0]
