@@ -133,6 +133,36 @@ def test_events_from_a_problem_file(tmp_path):
     assert sol.event_labels == ("p",)
 
 
+def test_a_problem_files_events_do_not_stop_other_methods(tmp_path, capsys):
+    """Before, a file with [[events]] could not be run with SciPy's or the
+    symplectic methods, nor compared: solve raised InputError for events
+    nobody had passed to it.  The file's events are a default: left out,
+    with a warning, where they cannot be located; given to solve, refused."""
+    from hamrkq.analysis.comparison import compare
+    from hamrkq.cli import main
+    from hamrkq.errors import HamrkqWarning
+
+    path = _copy_harmonic(tmp_path, '\n[[events]]\nexpression = "q"\n')
+    problem = load_problem(path)
+    with pytest.warns(HamrkqWarning, match=r"events of problem 'harmonic' \('q'\) are not"):
+        sol = hamrkq.solve(problem, method="scipy:DOP853", t_span=(0, 5), atol=1e-10)
+    assert sol.success and sol.t_events is None
+    exact = problem.exact(sol.t)
+    assert np.abs(sol.y - exact).max() < 1e-8  # it really ran, to the end
+    with pytest.raises(InputError, match=r"run rk34q8, auto or another family member"):
+        hamrkq.solve(problem, method="gauss4", step=0.01, t_span=(0, 1), events=["q"])
+    # RKQ with every node kept still finds them: q = sin t vanishes at pi
+    assert hamrkq.solve(problem, t_span=(0, 4), atol=1e-12).t_events[0] == pytest.approx(
+        [math.pi], abs=1e-11
+    )
+    code = main(["run", str(path), "--method", "scipy:DOP853", "--t-end", "2", "--no-plots",
+                 "--out", str(tmp_path / "run")])  # fmt: skip
+    assert code == 0
+    assert "hamrkq: warning: the events of problem 'harmonic'" in capsys.readouterr().err
+    result = compare(problem, ["scipy:DOP853", "gauss4"], t_end=2.0, quick=True)
+    assert all(run.success for run in result.runs)
+
+
 @pytest.mark.parametrize(
     "text",
     ["__import__('os').system('true')", "q.__class__", "lambda: 0", "open('x')", "q; p"],

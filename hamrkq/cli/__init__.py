@@ -20,6 +20,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Iterator, Sequence
 from typing import NoReturn
 
@@ -82,6 +83,29 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _warnings_as_messages() -> Iterator[None]:
+    """hamrkq's own warnings printed as ``hamrkq: warning: ...`` on stderr,
+    like its errors (Python's default names the console script's file and
+    line, which mean nothing to a user of the command line); other
+    warnings as Python shows them."""
+    from hamrkq.errors import HamrkqWarning
+
+    previous = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HamrkqWarning):
+            print(f"hamrkq: warning: {message}", file=sys.stderr)
+            return
+        previous(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
+
+
 #: Modules providing further subcommands: each has ``register(subparsers)``
 #: which adds its parser and sets ``func`` (args -> exit status).
 COMMAND_MODULES: tuple[str, ...] = (
@@ -139,7 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv : sequence of str, optional
         The arguments, without the program name (default: ``sys.argv[1:]``).
     """
-    with _sigterm_as_interrupt():
+    with _sigterm_as_interrupt(), _warnings_as_messages():
         try:
             parser = build_parser()
             try:

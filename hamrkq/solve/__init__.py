@@ -36,7 +36,7 @@ from hamrkq._progress import ProgressBar
 from hamrkq._validate import span as _span
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
-from hamrkq.errors import InputError, OptionError
+from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.options import (
     BACKENDS,
     DEFAULT_GAMMA_LIMIT,
@@ -370,16 +370,15 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
             "chooses the nodes that are kept"
         )
-    if events is None and isinstance(system_or_problem, Problem):
-        events = list(system_or_problem.events) or None
-    event_list = _events.event_specs(events, ham, params)
-    if (dense_output or event_list) and (
-        spec.run is not run_rk or options.keep_every != 1 or t_eval_v is not None
-    ):
+    located = spec.run is run_rk and options.keep_every == 1 and t_eval_v is None
+    event_list = _event_list(events, system_or_problem, ham, params, located)
+    if (dense_output or event_list) and not located:
         raise InputError(
             "dense_output and events need an RKQ-family method with every node kept "
             f"(method={options.method!r}, keep_every={options.keep_every!r}, "
-            f"t_eval {'given' if t_eval_v is not None else 'not given'})"
+            f"t_eval {'given' if t_eval_v is not None else 'not given'}): they are "
+            "found on the dense output between consecutive nodes; run rk34q8, auto "
+            "or another family member, and thin the nodes afterwards (sol.t[::k])"
         )
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
@@ -400,6 +399,27 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     )
     task = replace(task, project=auto.projects(requested, task))
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
+
+
+def _event_list(events, system_or_problem, ham, params, located: bool) -> list:
+    """The event specifications of ``events=``, or else of the problem
+    file's ``[[events]]``.  The file's events are a default: where the run
+    cannot locate events (a method outside the RKQ family, thinned nodes)
+    they are left out with a warning, so that the problem still runs with
+    every method (``hamrkq compare``, SciPy's and the symplectic
+    baselines); events given to ``solve`` are never left out."""
+    if events is not None or not isinstance(system_or_problem, Problem):
+        return _events.event_specs(events, ham, params)
+    specs = _events.event_specs(list(system_or_problem.events) or None, ham, params)
+    if specs and not located:
+        labels = ", ".join(repr(spec.label) for spec in specs)
+        warn(
+            f"the events of problem {system_or_problem.name!r} ({labels}) are not "
+            "located in this run: events need an RKQ-family method with every node "
+            "kept (solve(..., events=[]) runs without them, and without this warning)"
+        )
+        return []
+    return specs
 
 
 def _require_double_double(ham) -> None:
