@@ -259,6 +259,15 @@ def test_unsupported_expressions_are_named(make, fragment):
         codegen.check_supported([make(q, p)], {q, p})
 
 
+def test_the_hamiltonians_refusal_says_what_is_supported():
+    q, p = sp.symbols("q p", real=True)
+    with pytest.raises(hamrkq.errors.HamiltonianError) as caught:
+        hamrkq.Hamiltonian(p**2 / 2 + sp.besselj(0, q), q=[q], p=[p])
+    message = str(caught.value)
+    assert "cannot turn into numerical code: besselj (besselj(0, q))" in message
+    assert "(it takes numbers, pi, E, the declared symbols, + * ** and sin, cos," in message
+
+
 def test_abs_of_a_non_real_symbol_is_refused():
     # For complex symbols d|q|/dq involves re, im and Derivative: not scalar code.
     # The Hamiltonian refuses it first, saying how to fix it (issue 16).

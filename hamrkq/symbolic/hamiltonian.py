@@ -35,7 +35,7 @@ from hamrkq.symbolic.declaration import (
     time_symbol,
     undeclared_hints,
 )
-from hamrkq.symbolic.supported import check_supported
+from hamrkq.symbolic.supported import check_supported, what_is_supported
 from hamrkq.symbolic.values import bind_parameters, bind_state
 
 __all__ = ["TIME", "Hamiltonian", "is_zero"]
@@ -155,7 +155,11 @@ class Hamiltonian:
             try:
                 check_supported([H], set(declared))
             except CodegenError as exc:
-                problems.append(str(exc).replace("cannot generate scalar code for", "H uses"))
+                unsupported = str(exc).replace("cannot generate scalar code for: ", "")
+                problems.append(
+                    f"H uses what hamrkq cannot turn into numerical code: {unsupported} "
+                    f"(it takes {what_is_supported()})"
+                )
         if problems:
             raise HamiltonianError(problems)
         if H.has(sp.Abs, sp.sign):

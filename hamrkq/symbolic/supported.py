@@ -13,7 +13,7 @@ import sympy as sp
 
 from hamrkq.errors import CodegenError
 
-__all__ = ["CONSTANTS", "FUNCTIONS", "check_supported"]
+__all__ = ["CONSTANTS", "FUNCTIONS", "check_supported", "what_is_supported"]
 
 # Functions that may appear in an expression, and what they print to.  The
 # problem-file grammar allows sin cos tan asin acos atan atan2 sinh cosh tanh
@@ -27,6 +27,12 @@ FUNCTIONS = (
 ATOMS = (sp.Integer, sp.Rational, sp.Float, sp.Symbol)
 OPERATIONS = (sp.Add, sp.Mul, sp.Pow)
 CONSTANTS = (type(sp.pi), type(sp.E))
+
+
+def what_is_supported() -> str:
+    """One line naming what an expression may contain (for messages)."""
+    names = ", ".join(function.__name__ for function in FUNCTIONS)
+    return f"numbers, pi, E, the declared symbols, + * ** and {names}"
 
 
 def check_supported(exprs: Sequence[sp.Expr], allowed: set[sp.Symbol]) -> None:
