@@ -311,7 +311,8 @@ def apply(
         changes.update(
             status=Status.TERMINAL_EVENT,
             message=(
-                f"stopped by terminal event {stop_by} ({specs[stop_by].label}) at t = {t_stop!r}"
+                f"stopped by terminal event {stop_by} ({specs[stop_by].label}) "
+                f"at t = {float(t_stop)!r}"
             ),
         )
         if keep_dense:

@@ -251,3 +251,23 @@ def test_partial_results_round_trip_marked_partial(tmp_path, call, status):
     assert back.message == sol.message
     np.testing.assert_array_equal(back.t, sol.t)
     np.testing.assert_array_equal(back.y, sol.y)
+
+
+@pytest.mark.parametrize(
+    ("method", "extra", "status"),
+    [
+        ("scipy:DOP853", {"atol": 1e-8}, Status.EXTERNAL_FAILURE),
+        ("scipy:DOP853", {"atol": 1e-8, "max_steps": 5}, Status.MAX_STEPS),
+        ("rk34q8", {"atol": 1e-8, "max_steps": 5}, Status.MAX_STEPS),
+        ("verlet", {"step": 1e-3, "max_steps": 5}, Status.MAX_STEPS),
+    ],
+)
+def test_messages_name_the_time_as_a_plain_number(method, extra, status):
+    """NumPy 2 prints a float64 as 'np.float64(1.31)': SciPy's failure said
+    'failed at t = np.float64(1.311028777285017)'."""
+    q, p = sp.symbols("q p")
+    blowup = hamrkq.Hamiltonian(p**2 / 2 - q**4 / 4, q=[q], p=[p])  # escapes at t ~ 1.31
+    sol = hamrkq.solve(blowup, q0=[1.0], p0=[1.0], t_span=(0, 10), method=method, **extra)
+    assert sol.status is status
+    assert "np.float64" not in sol.message
+    assert f"t = {float(sol.t[-1])!r}" in sol.message or f"t={float(sol.t[-1])!r}" in sol.message

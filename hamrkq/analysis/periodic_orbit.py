@@ -76,7 +76,7 @@ def find_return(fun, t0, y0, shift, max_period, atol) -> tuple[float, np.ndarray
         t_old = solver.t
         message = solver.step()
         if solver.status == "failed":
-            raise IntegrationError(f"period search failed at t={solver.t!r}: {message}")
+            raise IntegrationError(f"period search failed at t={float(solver.t)!r}: {message}")
         extent = max(extent, float(np.max(np.abs(solver.y - y0))))
         peak = np.maximum(peak, np.abs(solver.y))
         g_new = float(normal @ (solver.y - target))

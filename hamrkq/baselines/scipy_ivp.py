@@ -199,7 +199,7 @@ def solve_scipy(
         if isinstance(solver, RK34Q8):
             rejected = solver.stats["rejected"]
     if status is Status.SUCCESS:
-        message = f"scipy:{method} reached t = {t_end!r} in {steps} steps."
+        message = f"scipy:{method} reached t = {float(t_end)!r} in {steps} steps."
     elif len(nodes.t):
         message += f" The {len(nodes.t)} nodes computed so far are kept."
     t = np.array(nodes.t)
@@ -268,17 +268,20 @@ def _drive(solver, nodes, times, keep_every, max_steps, progress, t0, t_end):
         while solver.status == "running":
             if max_steps is not None and steps >= max_steps:
                 status = Status.MAX_STEPS
-                message = f"The step limit max_steps = {max_steps} was reached at t = {good[0]!r}."
+                message = (
+                    f"The step limit max_steps = {max_steps} was reached at "
+                    f"t = {float(good[0])!r}."
+                )
                 break
             before = solver.nfev
             text = solver.step()
             if solver.status == "failed":
                 status = Status.EXTERNAL_FAILURE
-                message = f"SciPy's solver failed at t = {solver.t!r}: {text}"
+                message = f"SciPy's solver failed at t = {float(solver.t)!r}: {text}"
                 break
             if not np.all(np.isfinite(solver.y)):
                 status = Status.NON_FINITE
-                message = f"The state became non-finite (inf or nan) at t = {solver.t!r}."
+                message = f"The state became non-finite (inf or nan) at t = {float(solver.t)!r}."
                 break
             steps += 1
             good = (solver.t, solver.y)
@@ -295,7 +298,7 @@ def _drive(solver, nodes, times, keep_every, max_steps, progress, t0, t_end):
                 progress(float((solver.t - t0) / (t_end - t0)), float(solver.t))
     except KeyboardInterrupt:
         status = Status.INTERRUPTED
-        message = f"Interrupted (KeyboardInterrupt) near t = {good[0]!r}."
+        message = f"Interrupted (KeyboardInterrupt) near t = {float(good[0])!r}."
     if since_kept:
         # A run that stopped early keeps its last accepted node whatever keep_every says.
         nodes.add(good[0], good[1], track)

@@ -404,7 +404,9 @@ def gauss_integrate(
             lu, piv, info = lapack.dgetrf(eye - h * kron.reshape(s * dim, s * dim))
             if info != 0:
                 out.failure = "newton"
-                out.reason = f"Newton failed at t={t!r} (step {h!r}): singular Newton matrix"
+                out.reason = (
+                    f"Newton failed at t={float(t)!r} (step {float(h)!r}): singular Newton matrix"
+                )
                 break
             if h_old:
                 z = tab.extrapolation(h / h_old) @ z
@@ -416,14 +418,14 @@ def gauss_integrate(
                 f, why = _newton(rhs, params, t, y, h, tab, lu, piv, z, max_newton_iter, out)
             if f is None:
                 out.failure = "newton"
-                out.reason = f"Newton failed at t={t!r} (step {h!r}): {why}"
+                out.reason = f"Newton failed at t={float(t)!r} (step {float(h)!r}): {why}"
                 break
             increment = h * (tab.b @ f) + comp
             y_new = y + increment
             comp = increment - (y_new - y)
             if not np.all(np.isfinite(y_new)):
                 out.failure = "non_finite"
-                out.reason = f"the state became non-finite at t={mesh.time(i + 1)!r}"
+                out.reason = f"the state became non-finite at t={float(mesh.time(i + 1))!r}"
                 break
             y = y_new
             h_old = h
@@ -433,5 +435,5 @@ def gauss_integrate(
                 stored += 1
     except KeyboardInterrupt:
         out.failure = "interrupted"
-        out.reason = f"interrupted at t={mesh.time(reached)!r}"
+        out.reason = f"interrupted at t={float(mesh.time(reached))!r}"
     return mesh.stored_rows(ys, stored, reached, y), reached, out

@@ -123,7 +123,7 @@ def splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, param
             out.nfev += 2 * nsub
             if not np.isfinite(y).all():
                 out.failure = "non_finite"
-                out.reason = f"the state became non-finite at t={mesh.time(i + 1)!r}"
+                out.reason = f"the state became non-finite at t={float(mesh.time(i + 1))!r}"
                 break
             last[:] = y
             reached = i + 1
@@ -132,5 +132,5 @@ def splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, param
                 stored += 1
     except KeyboardInterrupt:
         out.failure = "interrupted"
-        out.reason = f"interrupted at t={mesh.time(reached)!r}"
+        out.reason = f"interrupted at t={float(mesh.time(reached))!r}"
     return mesh.stored_rows(ys, stored, reached, last), reached, out

@@ -238,7 +238,7 @@ def integrate_fixed(
     elif mesh.stop < mesh.steps:
         status = Status.MAX_STEPS
         message = (
-            f"{method}: max_steps={mesh.stop} reached at t={mesh.time(reached)!r} "
+            f"{method}: max_steps={mesh.stop} reached at t={float(mesh.time(reached))!r} "
             f"({mesh.steps} steps needed to reach t1={t1!r})"
         )
     else:

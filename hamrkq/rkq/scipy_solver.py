@@ -361,15 +361,15 @@ class RK34Q8(OdeSolver):
         if status is Status.STEP_SIZE_UNDERFLOW:
             return (
                 f"RK34Q8: the step size {abs(s['failed_h']):.3g} fell below the "
-                f"roundoff floor at t = {t!r}."
+                f"roundoff floor at t = {float(t)!r}."
             )
         if status is Status.TOLERANCE_UNATTAINABLE:
             return (
-                f"RK34Q8: at t = {t!r} the RK8 track's estimated error plus rounding would "
+                f"RK34Q8: at t = {float(t)!r} the RK8 track's estimated error plus rounding would "
                 f"reach {s['max_ratio']:.3g} x the tolerance (gamma_limit); a smaller "
                 "max_step or a shorter interval is what helps."
             )
-        return f"RK34Q8: {status.description} (t = {t!r})"
+        return f"RK34Q8: {status.description} (t = {float(t)!r})"
 
     def _dense_output_impl(self) -> HermiteDenseOutput:
         return HermiteDenseOutput(self.t_old, self.t, self._y_old, self.y, self._f_old, self._f)

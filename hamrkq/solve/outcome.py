@@ -111,7 +111,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     t = out.t_last
     text = (
-        f"At t = {t!r} the quencher's estimated global error plus its rounding would reach "
+        f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would reach "
         f"{out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so the "
         "tolerance can no longer be certified; the run ends at the last node where it held."
     )
@@ -194,26 +194,29 @@ def _remedies(out: RunOutput, task: Task) -> list[str]:
 def _message(status: Status, out: RunOutput, task: Task) -> str:
     t = out.t_last
     if status is Status.SUCCESS:
-        text = f"The integration reached the end of the interval (t = {t!r})."
+        text = f"The integration reached the end of the interval (t = {float(t)!r})."
     elif status is Status.STEP_SIZE_UNDERFLOW:
         text = (
             f"The step size {abs(out.h_fail):.3g} fell below the roundoff floor "
-            f"(10 eps |t|) at t = {t!r}."
+            f"(10 eps |t|) at t = {float(t)!r}."
         )
     elif status is Status.NON_FINITE:
         text = (
-            f"The state or the right-hand side became non-finite (inf or nan) at t = {t!r}: "
+            "The state or the right-hand side became non-finite (inf or nan) at "
+            f"t = {float(t)!r}: "
             f"{_component(task, out.bad_component)} could not be evaluated to a finite value "
             "there (a singularity, or H outside its domain)."
         )
     elif status is Status.MAX_STEPS:
-        text = f"The step limit max_steps = {task.options.max_steps} was reached at t = {t!r}."
+        text = (
+            f"The step limit max_steps = {task.options.max_steps} was reached at t = {float(t)!r}."
+        )
     elif status is Status.INTERRUPTED:
-        text = f"Interrupted (KeyboardInterrupt) near t = {t!r}."
+        text = f"Interrupted (KeyboardInterrupt) near t = {float(t)!r}."
     elif status is Status.TOLERANCE_UNATTAINABLE:
         text = _unattainable(out, task)
     else:  # pragma: no cover - other statuses come from other methods
-        text = f"{status.description} (t = {t!r})"
+        text = f"{status.description} (t = {float(t)!r})"
     if not status.success:
         text += f" The {out.t.size} nodes computed so far are kept."
     steps = out.stats.get("steps", 0)
