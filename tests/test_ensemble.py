@@ -171,12 +171,28 @@ def test_names_bind_q0_and_p0_by_name_and_the_rest_comes_from_the_problem():
         ({"scheduler": "gpu"}, OptionError, "scheduler='gpu'"),
         ({"chunk_size": 0}, OptionError, "chunk_size"),
         ({"progress": "yes"}, InputTypeError, "progress"),
+        ({"dense_output": True}, OptionError, "a continuous solution would be thrown away"),
+        ({"events": ["q"]}, OptionError, "events 'q' do not end their member"),
     ],
 )
 def test_bad_requests_fail_before_any_member_runs(kwargs, error, match):
     base = {"q0": [[0.1], [0.2]], "p0": [0.0], "t_span": (0, 1), "workers": 1}
     with pytest.raises(error, match=match):
         hamrkq.ensemble(hamrkq.load_problem("pendulum"), **{**base, **kwargs})
+
+
+def test_a_terminal_event_ends_each_member_where_solve_alone_ends_it():
+    # q = q0 cos t: q + 0.05 falls through zero (down) a little after t = pi/2.
+    event = {"expression": "q + 0.05", "terminal": True, "direction": -1}
+    starts = [0.1, 0.2, 0.3]
+    ens = hamrkq.ensemble(OSCILLATOR, q0=[[x] for x in starts], p0=[0.0], t_span=(0, 10),
+                          atol=1e-12, events=[event], workers=1)  # fmt: skip
+    for i, x in enumerate(starts):
+        alone = hamrkq.solve(OSCILLATOR, q0=[x], p0=[0.0], t_span=(0, 10), atol=1e-12,
+                             events=[event])  # fmt: skip
+        assert ens.member_status(i) is Status.TERMINAL_EVENT is alone.status
+        assert ens.t_last[i] == alone.t[-1] and np.array_equal(ens.y[i, -1], alone.y[-1])
+        assert ens.t_last[i] == pytest.approx(np.arccos(-0.05 / x), abs=1e-10)
 
 
 def test_a_hamiltonian_needs_initial_values_and_span():

@@ -80,7 +80,10 @@ def ensemble(  # noqa: PLR0913 - the contract's keywords (PRODUCT.md) plus where
     **solve_options
         Any keyword option of :func:`hamrkq.solve` (``method``, ``atol``,
         ``rtol``, ``max_steps``, ...), applied to every member.  ``keep_every``
-        and ``progress`` are the ensemble's own business and are refused.
+        and ``progress`` are the ensemble's own business and are refused, as
+        are ``dense_output`` and events that are not terminal (their results
+        would be thrown away: the ensemble keeps states, not event times); a
+        terminal event ends its member.
 
     Returns
     -------

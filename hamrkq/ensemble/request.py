@@ -225,9 +225,37 @@ def build_request(
         raise InputError(
             f"initial value {ham.names[k]} of member {member} is not finite ({y0[member, k]!r})"
         )
+    _check_kept(ham, params[0], options)
     request = Request(ham, y0, params, (t0, t_end), _t_eval(t_eval, t0, t_end), dict(options))
     _probe(request)
     return request
+
+
+def _check_kept(ham: Hamiltonian, params: np.ndarray, options: Mapping[str, Any]) -> None:
+    """Refuse what a member would compute and the ensemble throw away: an
+    :class:`EnsembleSolution` keeps states at ``t_eval`` (or the last node),
+    so a dense output, or the roots of an event that does not end its member,
+    would be computed for nothing.  A terminal event does end its member
+    (``t_last``, status ``TERMINAL_EVENT``) and is allowed."""
+    if options.get("dense_output"):
+        raise OptionError(
+            "dense_output= is not an option of ensemble: it keeps each member's states at "
+            "t_eval (or its last node), and a continuous solution would be thrown away"
+        )
+    if options.get("events") is None:
+        return
+    from hamrkq.events import event_specs
+
+    kept = [
+        spec.label for spec in event_specs(options["events"], ham, params) if not spec.terminal
+    ]
+    if kept:
+        raise OptionError(
+            f"events {', '.join(map(repr, kept))} do not end their member (terminal=False): "
+            "an ensemble keeps states, not event times, so they would be located and "
+            "thrown away; in an ensemble events can only end members (terminal=True); "
+            "for event times solve each member (hamrkq.solve(..., events=...))"
+        )
 
 
 def _probe(request: Request) -> None:
