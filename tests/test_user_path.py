@@ -200,6 +200,28 @@ def test_true_error_needs_a_reference_more_accurate_than_the_tolerance():
         assert "tolerance 1.0e-08" in text
 
 
+def test_no_true_error_figures_where_the_true_error_is_not_measured(tmp_path):
+    """Before, hamrkq run pleiades drew figure2_global_error_true.png ("numerical
+    minus reference") while its summary said the true error was not measured
+    (the reference accurate only to 2.1e-8 against a tolerance of 1e-8)."""
+    from hamrkq.analysis.diagnostics import diagnose
+    from hamrkq.analysis.reference import Reference
+    from hamrkq.cli.run import write_figures
+    from hamrkq.io.report import OutputDir
+
+    sol = hamrkq.solve(OSC, q0=[1.0], p0=[0.0], t_span=(0, 3), atol=1e-8)
+    exact = np.column_stack([np.cos(2 * sol.t), -2 * np.sin(2 * sol.t)])
+    for accuracy, drawn in ((1e-15, True), (1e-6, False)):
+        diag = diagnose(sol, OSC, reference=Reference(sol.t, exact, accuracy, "a run"))
+        out = OutputDir(tmp_path / f"acc{accuracy:g}")
+        notes = write_figures(out, sol, diag, title="osc", dpi=40)
+        true_figures = {"figure2_global_error_true.png", "figure3_trajectory_error_true.png"}
+        assert true_figures <= set(out.written) if drawn else not true_figures & set(out.written)
+        assert "figure2_global_error.png" in out.written  # the estimated error, always
+        assert any("not drawn: the true error is not measured" in n for n in notes) != drawn
+        out.close()
+
+
 def test_the_summary_says_how_the_quencher_ran():
     from hamrkq.io.report import summary_rows
 

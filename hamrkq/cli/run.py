@@ -262,6 +262,14 @@ def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) 
     if len(sol) < 2:
         return ["fewer than two nodes: no figures"]
     true_ref = diag is not None and diag.error is not None and diag.error.source != "rk8"
+    notes = []
+    if true_ref and not diag.error_measured:
+        # The summary says the true error was not measured (the reference is
+        # not accurate enough); a figure of it would say the opposite.
+        true_ref = False
+        if sol.global_error is not None:
+            names = f"{FIGURES['figure2_true']}, {FIGURES['figure3_true']}"
+            notes.append(f"{names} not drawn: the true error is {diag.error_note}")
     jobs: list[tuple[str, Any]] = [("figure1", lambda: plotting.figure1(sol, title=title))]
     for number, draw in (("2", plotting.figure2), ("3", plotting.figure3)):
         jobs.append((f"figure{number}", lambda d=draw: d(sol, diagnostics=diag, title=title)))
@@ -274,7 +282,6 @@ def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) 
             )
     if sol.gamma is not None:
         jobs.append(("figure4", lambda: plotting.figure4(sol, title=title)))
-    notes = []
     for key, draw in jobs:
         try:
             fig = draw()
