@@ -225,7 +225,8 @@ def build_request(
         raise InputError(
             f"initial value {ham.names[k]} of member {member} is not finite ({y0[member, k]!r})"
         )
-    _check_kept(ham, params[0], options)
+    # (terminality does not depend on the values: any row, or zeros for none)
+    _check_kept(ham, params[0] if size else np.zeros(params.shape[1]), options)
     request = Request(ham, y0, params, (t0, t_end), _t_eval(t_eval, t0, t_end), dict(options))
     _probe(request)
     return request
