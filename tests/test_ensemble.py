@@ -157,7 +157,11 @@ def test_names_bind_q0_and_p0_by_name_and_the_rest_comes_from_the_problem():
     ("kwargs", "error", "match"),
     [
         ({"q0": np.zeros((3, 1)), "p0": np.zeros((4, 1))}, InputError, "q: 3, p: 4"),
-        ({"q0": [[0.0], [np.nan]]}, InputError, "initial value q of member 1"),
+        (
+            {"q0": [[0.0], [np.nan]]},
+            InputError,
+            r"initial value q of member 1 is not finite \(nan\)",
+        ),
         ({"q0": np.zeros((2, 2))}, InputError, r"shape \(1,\) or \(M, 1\)"),
         ({"q0": "0.5"}, InputTypeError, "string"),
         ({"parameters": {"zeta": [1.0]}}, InputError, "unknown parameter zeta"),

@@ -223,7 +223,8 @@ def build_request(
     if bad.any():
         member, k = map(int, np.argwhere(bad)[0])
         raise InputError(
-            f"initial value {ham.names[k]} of member {member} is not finite ({y0[member, k]!r})"
+            f"initial value {ham.names[k]} of member {member} is not finite "
+            f"({float(y0[member, k])!r})"
         )
     # (terminality does not depend on the values: any row, or zeros for none)
     _check_kept(ham, params[0] if size else np.zeros(params.shape[1]), options)
@@ -368,7 +369,7 @@ def _parameter_rows(
         member, j = map(int, np.argwhere(bad)[0])
         raise InputError(
             f"parameter {ham.parameters[j].name} of member {member} is not finite "
-            f"({params[member, j]!r})"
+            f"({float(params[member, j])!r})"
         )
     return params
 

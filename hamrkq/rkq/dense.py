@@ -84,9 +84,10 @@ def node_index(t_nodes: np.ndarray, tq: np.ndarray, nearest: bool = True) -> np.
     x = tq if forward else -tq
     bad = (x < s[0]) | (x > s[-1]) | ~np.isfinite(x)
     if np.any(bad):
-        first = tq[np.argmax(bad)]
+        first = float(tq[np.argmax(bad)])
         raise ValueError(
-            f"t={first!r} is outside the integrated interval [{t_nodes[0]!r}, {t_nodes[-1]!r}]"
+            f"t={first!r} is outside the integrated interval "
+            f"[{float(t_nodes[0])!r}, {float(t_nodes[-1])!r}]"
         )
     index = np.clip(np.searchsorted(s, x, side="right") - 1, 0, t_nodes.size - 1)
     if nearest:
@@ -178,4 +179,4 @@ class DenseOutput:
         return values.T.reshape((self.y.shape[1], *np.shape(t)))
 
     def __repr__(self) -> str:
-        return f"DenseOutput(nodes={self.t.size}, t=[{self.t[0]!r}, {self.t[-1]!r}])"
+        return f"DenseOutput(nodes={self.t.size}, t=[{float(self.t[0])!r}, {float(self.t[-1])!r}])"
