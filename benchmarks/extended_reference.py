@@ -21,55 +21,30 @@ import numpy as np
 
 def available() -> bool:
     """Whether heyoka is installed and numpy's longdouble is wider than double."""
-    try:
-        import heyoka  # noqa: F401
-    except ImportError:
-        return False
-    return np.finfo(np.longdouble).eps < 1e-18
+    from hamrkq.analysis.extended_reference import available as package_available
+
+    return package_available()
 
 
 def reference(problem, t_nodes, tol: float = 1e-19, fold_parameters: bool = False) -> np.ndarray:
     """States of ``problem`` (its y0 and parameters, as doubles, with exact
     arithmetic on them) at ``t_nodes`` (increasing, starting at or after
-    t0 = 0), rounded to double.  ``fold_parameters`` substitutes them as
-    SymPy Floats instead, whose sums SymPy rounds to 53 bits (how the
-    references were made before; ``constant_offsets.py`` compares the two)."""
-    import heyoka as hy
+    t0 = 0), rounded to double: :func:`hamrkq.analysis.extended_reference.extended_states`.
+    ``fold_parameters`` substitutes them as SymPy Floats instead, whose sums
+    SymPy rounds to 53 bits (how the references were made before;
+    ``constant_offsets.py`` compares the two)."""
     import sympy as sp
 
-    ham = problem.hamiltonian
-    state = list(ham.state)
-    rhs = list(ham.rhs)
-    symbols = {s: hy.expression(str(s)) for s in state}
-    # The parameters' doubles enter as extended-precision constants, so that
-    # sums of them (1 - mu) are exact: substituted into SymPy as Floats, they
-    # would be folded to 53 bits, a different problem (on the Arenstorf orbit
-    # the two end 3.5e-11 apart, benchmarks/constant_offsets.txt).
-    for symbol, value in zip(ham.parameters, problem.parameter_array, strict=True):
-        if fold_parameters:
-            rhs = [e.subs(symbol, float(value)) for e in rhs]
-            continue
-        placeholder = sp.Dummy()
-        symbols[placeholder] = hy.expression(np.longdouble(value))
-        rhs = [e.xreplace({symbol: placeholder}) for e in rhs]
-    # heyoka takes only dyadic rationals; others (1/6) become constants in
-    # extended precision, through placeholders.
-    for rational in set().union(*(e.atoms(sp.Rational) for e in rhs)):
-        if rational.q & (rational.q - 1):
-            placeholder = sp.Dummy()
-            value = np.longdouble(rational.p) / np.longdouble(rational.q)
-            symbols[placeholder] = hy.expression(value)
-            rhs = [e.xreplace({rational: placeholder}) for e in rhs]
-    heyoka_vars = [symbols[s] for s in state]
-    equations = [(v, hy.from_sympy(e, symbols)) for v, e in zip(heyoka_vars, rhs, strict=True)]
-    y0 = np.array(problem.y0, dtype=np.longdouble)
-    ta = hy.taylor_adaptive(equations, y0, fp_type=np.longdouble, tol=np.longdouble(tol))
-    grid = np.asarray(t_nodes, dtype=np.longdouble)
-    start = 0 if grid[0] == 0 else 1  # propagate_grid starts at the current time
-    out = ta.propagate_grid(np.concatenate([np.zeros(start, np.longdouble), grid]))
-    if out[-1].shape[0] != grid.size + start:
-        raise RuntimeError(f"heyoka stopped early ({out[0]}) on {problem.name}")
-    return np.asarray(out[-1][start:], dtype=np.float64)
+    from hamrkq import Hamiltonian
+    from hamrkq.analysis.extended_reference import extended_states
+
+    ham, params = problem.hamiltonian, problem.parameter_array
+    if fold_parameters:
+        values = {s: sp.Float(float(v)) for s, v in zip(ham.parameters, params, strict=True)}
+        ham = Hamiltonian(ham.H.subs(values), q=list(ham.q), p=list(ham.p), t=ham.t)
+        params = np.zeros(0)
+    states = extended_states(ham, params, problem.y0, t_nodes, t0=0.0, tol=tol)
+    return np.asarray(states, dtype=np.float64)
 
 
 def error_bound(problem, t_nodes) -> float:

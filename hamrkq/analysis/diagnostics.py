@@ -53,7 +53,7 @@ __all__ = [
     "trajectory_error",
 ]
 
-REFERENCE_KINDS = ("auto", "exact", "independent", "rk8", "none")
+REFERENCE_KINDS = ("auto", "exact", "independent", "extended", "rk8", "none")
 #: Gamma below this many ulps of the RK8 track is rounding, not truncation.
 GAMMA_ROUNDOFF_ULPS = 100
 
@@ -124,6 +124,13 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
             raise InputError("reference='independent' needs a problem or a Hamiltonian")
         ref = hamiltonian_reference(ham, sol.y[0], sol.t, params=params, periodic=periodic)
         return ref.y, "independent", ref.method, ref.estimated_error
+    if kind == "extended":
+        if ham is None:
+            raise InputError("reference='extended' needs a problem or a Hamiltonian")
+        from hamrkq.analysis.extended_reference import extended_reference
+
+        ref = extended_reference(ham, params, sol.y[0], sol.t)
+        return ref.y, "extended", ref.method, ref.estimated_error
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
 
 
@@ -171,11 +178,14 @@ def diagnose(
     problem : Problem or Hamiltonian, optional
         Supplies the gradient of H, the invariants, the exact solution and the
         right-hand side for an independent reference.
-    reference : {"auto", "exact", "independent", "rk8", "none"} or Reference
+    reference : {"auto", "exact", "independent", "extended", "rk8", "none"} or Reference
         What the true error is measured against.  ``"auto"``: the exact
         solution if there is one, else the run's RK8 track, else nothing (an
         independent reference costs a tight integration, so it is never
-        chosen silently).  A :class:`~hamrkq.analysis.reference.Reference` computed at
+        chosen silently).  ``"extended"``: heyoka's Taylor integrator in
+        extended precision (:mod:`hamrkq.analysis.extended_reference`; the
+        ``bench`` extra), for tolerances below what ``"independent"`` reaches.
+        A :class:`~hamrkq.analysis.reference.Reference` computed at
         ``solution.t`` can be passed directly (to share it between runs).
     params : array_like or mapping, optional
         Parameter values; default the problem's (or the Hamiltonian's defaults).

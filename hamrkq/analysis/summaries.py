@@ -91,8 +91,8 @@ class ErrorSummary:
     Attributes
     ----------
     source : str
-        ``"rk8"`` (the run's own RK8 track, the paper's yardstick), ``"exact"``
-        or ``"independent"``.
+        ``"rk8"`` (the run's own RK8 track, the paper's yardstick), ``"exact"``,
+        ``"independent"`` or ``"extended"`` (heyoka in extended precision).
     description : str
         How the reference was obtained.
     reference_accuracy : float
@@ -171,10 +171,13 @@ NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accu
 def unmeasured_error(summary: ErrorSummary, delta: np.ndarray) -> str:
     """Why a true error is not shown: its reference is no more accurate than the
     tolerance, so the difference would be mostly the reference's own error."""
-    return (
+    text = (
         f"not measured: the reference ({summary.description}) is accurate only to "
         f"~{summary.reference_accuracy:.1e}, not below the tolerance {float(np.min(delta)):.1e}"
     )
+    if summary.source == "independent":
+        text += "; reference='extended' (--reference extended, with heyoka) reaches further"
+    return text
 
 
 def _plain(value: Any) -> Any:

@@ -47,8 +47,9 @@ from hamrkq.solve import BACKENDS, METHODS, solve
 __all__ = ["REFERENCE_CHOICES", "register", "run_command"]
 
 #: ``--reference`` values.  ``auto``: the exact solution where the catalogue
-#: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference).
-REFERENCE_CHOICES = ("auto", "exact", "independent", "rk8", "none")
+#: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference);
+#: ``extended``: heyoka in extended precision (hamrkq.analysis.extended_reference).
+REFERENCE_CHOICES = ("auto", "exact", "independent", "extended", "rk8", "none")
 DEFAULT_ROOT = Path("hamrkq-run")
 
 #: File names of the figures; the ``_true`` variants are against the
@@ -113,7 +114,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--reference", choices=REFERENCE_CHOICES, default="auto",
         help="what the true error is measured against; auto: the exact solution if "
-        "the problem has one, else an independent high-accuracy integration",
+        "the problem has one, else an independent high-accuracy integration; "
+        "extended: heyoka in extended precision (pip install 'hamrkq[bench]'), for "
+        "tolerances below what the independent one reaches",
     )  # fmt: skip
     p.add_argument("--out", metavar="DIR", help="output directory (default: hamrkq-run/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
@@ -206,6 +209,12 @@ def resolve_reference(kind: str, problem: Any, method: str) -> str:
             f"--reference exact: problem {problem.name!r} has no exact solution; "
             "use --reference independent"
         )
+    if kind == "extended":
+        from hamrkq.analysis.extended_reference import unavailable_reason
+
+        reason = unavailable_reason()
+        if reason:
+            raise OptionError(f"--reference extended is not available: {reason}")
     spec = METHODS.get(method)
     if kind == "rk8" and spec is not None and not spec.rk8:
         raise OptionError(f"--reference rk8: method {method!r} has no quencher track")

@@ -1,0 +1,190 @@
+"""A reference in extended precision, from an independent Taylor integrator.
+
+The independent reference (:func:`hamrkq.analysis.reference.hamiltonian_reference`,
+SciPy's DOP853 in double) is good to about 1e-11 over a long run, and to
+2e-8 on the Pleiades' close encounters: too coarse to measure a true error at
+the tolerances RKQ certifies (a run at atol 1e-12, or the Pleiades at their
+default 1e-8).  With heyoka installed (the ``bench`` extra, also part of
+``test``), :func:`extended_reference` integrates Hamilton's equations by
+heyoka's Taylor method in x86 extended precision (``numpy.longdouble``, a
+64-bit mantissa, eps = 1.1e-19) at a tolerance of 1e-19.  The equations are
+hamrkq's own symbolic right-hand side, translated by ``heyoka.from_sympy``
+(heyoka's code, not hamrkq's generated code, evaluates them), with the
+parameters, the initial state and the rational constants as extended-precision
+numbers, so that the problem integrated is the mathematical one, not its
+rounding to double.  Its own error is estimated by the same run at a
+tolerance of 1e-17 (the difference measures that looser run's error, so it
+overstates this one's).
+
+Limits: x86 extended precision only (on a platform whose ``longdouble`` is
+double, :func:`available` is false and asking for it is an error that says
+so); heyoka compiles each system with LLVM, about a second for the
+catalogue's problems; functions heyoka cannot translate (``Abs``, ``sign``) make the
+reference unavailable, with heyoka's reason.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from hamrkq.analysis.reference import Reference
+from hamrkq.errors import InputError, IntegrationError
+
+__all__ = [
+    "EXTENDED_TOLERANCE",
+    "available",
+    "extended_reference",
+    "extended_states",
+    "unavailable_reason",
+]
+
+#: heyoka's tolerance for the reference run; the check run uses 100 times it.
+EXTENDED_TOLERANCE = 1e-19
+#: The check run's tolerance, over the reference run's.
+CHECK_FACTOR = 100.0
+
+
+def unavailable_reason() -> str:
+    """Why the extended reference cannot be had here, or ``""`` if it can."""
+    try:
+        import heyoka  # noqa: F401
+    except ImportError:
+        return "it needs heyoka: pip install 'hamrkq[bench]'"
+    if np.finfo(np.longdouble).eps >= 1e-18:
+        return "numpy.longdouble is no wider than double on this platform"
+    return ""
+
+
+def available() -> bool:
+    """Whether :func:`extended_reference` can run here (heyoka, x86 extended precision)."""
+    return not unavailable_reason()
+
+
+def _constant(value: Any):
+    import heyoka as hy
+
+    return hy.expression(np.longdouble(value))
+
+
+def _equations(ham: Any, params: np.ndarray) -> list:
+    """Hamilton's equations as heyoka (variable, expression) pairs."""
+    import heyoka as hy
+
+    rhs = list(ham.rhs)
+    symbols: dict[sp.Basic, Any] = {s: hy.expression(f"y{k}") for k, s in enumerate(ham.state)}
+    symbols[ham.t] = hy.time
+    # Parameters and non-dyadic rationals (1/6) as extended-precision
+    # constants, through placeholders: heyoka takes only dyadic rationals,
+    # and SymPy would fold a sum of parameter Floats (1 - mu) to 53 bits.
+    replacements: dict[sp.Basic, sp.Basic] = {}
+    for symbol, value in zip(ham.parameters, np.asarray(params, dtype=float), strict=True):
+        placeholder = sp.Dummy()
+        symbols[placeholder] = _constant(value)
+        replacements[symbol] = placeholder
+    rhs = [e.xreplace(replacements) for e in rhs]
+    rationals = set().union(*(e.atoms(sp.Rational) for e in rhs))
+    replacements = {}
+    for rational in rationals:
+        if rational.q & (rational.q - 1):  # the denominator is not a power of two
+            placeholder = sp.Dummy()
+            symbols[placeholder] = hy.expression(
+                np.longdouble(rational.p) / np.longdouble(rational.q)
+            )
+            replacements[rational] = placeholder
+    rhs = [e.xreplace(replacements) for e in rhs]
+    variables = [symbols[s] for s in ham.state]
+    try:
+        return [(v, hy.from_sympy(e, symbols)) for v, e in zip(variables, rhs, strict=True)]
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"the extended reference cannot translate H for heyoka: {exc}") from exc
+
+
+def _propagate(equations, y0, t0: float, t: np.ndarray, tol: float) -> np.ndarray:
+    import heyoka as hy
+
+    ta = hy.taylor_adaptive(
+        equations,
+        np.asarray(y0, dtype=np.longdouble),
+        time=np.longdouble(t0),
+        fp_type=np.longdouble,
+        tol=np.longdouble(tol),
+    )
+    grid = np.asarray(t, dtype=np.longdouble)
+    lead = 0 if grid.size and grid[0] == np.longdouble(t0) else 1
+    grid = np.concatenate([np.full(lead, np.longdouble(t0)), grid])
+    outcome = ta.propagate_grid(grid)
+    states = outcome[-1]
+    if states.shape[0] != grid.size:
+        raise IntegrationError(
+            f"the extended reference stopped early ({outcome[0]}) at t = {float(ta.time)!r}"
+        )
+    return np.asarray(states[lead:], dtype=np.longdouble)
+
+
+def extended_states(
+    ham: Any,
+    params: Any,
+    y0: Any,
+    t_nodes: Any,
+    *,
+    t0: float | None = None,
+    tol: float = EXTENDED_TOLERANCE,
+) -> np.ndarray:
+    """The states of ``ham`` at ``t_nodes`` in extended precision, unrounded
+    (``numpy.longdouble``, shape (N, 2n)): one heyoka run at ``tol``.  The
+    arguments are :func:`extended_reference`'s; raises its errors."""
+    reason = unavailable_reason()
+    if reason:
+        raise InputError(f"reference='extended' is not available: {reason}")
+    t = np.asarray(t_nodes, dtype=float).ravel()
+    t0 = float(t[0]) if t0 is None and t.size else float(t0 or 0.0)
+    equations = _equations(ham, np.asarray(params, dtype=float).ravel())
+    return _propagate(equations, np.asarray(y0, dtype=float).ravel(), t0, t, tol)
+
+
+def extended_reference(
+    ham: Any, params: Any, y0: Any, t_nodes: Any, *, t0: float | None = None
+) -> Reference:
+    """Reference states of ``ham`` at ``t_nodes`` in extended precision (heyoka).
+
+    Parameters
+    ----------
+    ham : Hamiltonian
+    params : array_like
+        Parameter values, ordered like ``ham.parameters``.
+    y0 : array_like, shape (2n,)
+        State at ``t0``.
+    t_nodes : array_like, shape (N,)
+        Times wanted, monotonic, on one side of ``t0`` (a solution's ``t``).
+    t0 : float, optional
+        Time of ``y0``; default ``t_nodes[0]``.
+
+    Returns
+    -------
+    Reference
+        States rounded to double; ``estimated_error`` the largest difference
+        from the same integration at 100 times the tolerance (at least the
+        rounding of the states to double).
+
+    Raises
+    ------
+    InputError
+        heyoka is missing, ``longdouble`` is double here, or H has a function
+        heyoka cannot translate; the message says which.
+    """
+    t = np.asarray(t_nodes, dtype=float).ravel()
+    t0 = float(t[0]) if t0 is None and t.size else float(t0 or 0.0)
+    y = extended_states(ham, params, y0, t, t0=t0)
+    check = extended_states(ham, params, y0, t, t0=t0, tol=CHECK_FACTOR * EXTENDED_TOLERANCE)
+    states = y.astype(np.float64)
+    rounding = float(np.max(np.abs(states))) * np.finfo(np.float64).eps / 2 if t.size else 0.0
+    error = max(float(np.max(np.abs(check - y))) if t.size else 0.0, rounding)
+    method = (
+        f"heyoka Taylor in extended precision (tol {EXTENDED_TOLERANCE:g}) "
+        f"over [{t0:g}, {float(t[-1]) if t.size else t0:g}]"
+    )
+    details = {"tol": EXTENDED_TOLERANCE, "check_tol": CHECK_FACTOR * EXTENDED_TOLERANCE}
+    return Reference(t=t, y=states, estimated_error=error, method=method, details=details)
