@@ -93,6 +93,29 @@ def test_the_command_line_reports_against_it(tmp_path, capsys):
     assert "max true error (extended)" in capsys.readouterr().out
 
 
+@needs_longdouble
+def test_the_default_run_falls_back_to_it_where_the_independent_one_falls_short(
+    tmp_path, monkeypatch
+):
+    # hamrkq run pleiades: DOP853's reference is accurate to 2.1e-8, above the
+    # file's atol 1e-8, so the run could not report a true error at all.
+    from hamrkq.cli import main
+
+    summaries = {}
+    for label, have in (("with", True), ("without", False)):
+        monkeypatch.setattr(ext, "available", lambda have=have: have)
+        out = tmp_path / label
+        argv = ["run", "pleiades", "--method", "auto", "--no-plots", "--out", str(out)]
+        assert main(argv) == 0
+        summaries[label] = json.loads((out / "summary.json").read_text())
+    found = summaries["with"]
+    assert found["settings"]["reference"] == "extended"
+    assert found["diagnostics"]["true_error_measured"] is True
+    assert any("measured against the extended one" in note for note in found["notes"])
+    assert summaries["without"]["settings"]["reference"] == "independent"
+    assert summaries["without"]["diagnostics"]["true_error_measured"] is False
+
+
 def test_refusals_say_what_is_missing(monkeypatch, tmp_path):
     from hamrkq.cli import main
 
