@@ -200,6 +200,25 @@ def test_true_error_needs_a_reference_more_accurate_than_the_tolerance():
         assert "tolerance 1.0e-08" in text
 
 
+def test_a_fixed_step_run_without_a_tolerance_reports_its_true_error():
+    """Before, every fixed-step run said 'not measured ... not below the
+    tolerance nan': the comparison with its nan tolerance was always false."""
+    from hamrkq.analysis.diagnostics import diagnose
+    from hamrkq.analysis.reference import Reference
+
+    sol = hamrkq.solve(OSC, q0=[1.0], p0=[0.0], t_span=(0, 3), method="gauss4", step=0.1)
+    assert np.all(np.isnan(sol.atol))
+    exact = np.column_stack([np.cos(2 * sol.t), -2 * np.sin(2 * sol.t)])
+    good = diagnose(sol, OSC, reference=Reference(sol.t, exact, 1e-15, "exact cosine"))
+    error = np.abs(sol.y - exact).max()
+    assert good.error_measured and max(good.error.max_abs) == error
+    assert 1e-9 < error < 1e-4  # Gauss4 at h = 0.1 (h^4 ~ 1e-4 times a small constant)
+    # a reference not ten times more accurate than the error it would measure
+    poor = diagnose(sol, OSC, reference=Reference(sol.t, exact, error, "a loose run"))
+    assert not poor.error_measured
+    assert "not below a tenth of the error it measures," in poor.error_note
+
+
 def test_no_true_error_figures_where_the_true_error_is_not_measured(tmp_path):
     """Before, hamrkq run pleiades drew figure2_global_error_true.png ("numerical
     minus reference") while its summary said the true error was not measured

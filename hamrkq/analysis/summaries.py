@@ -168,12 +168,14 @@ def error_summary(
 NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accuracy)"
 
 
-def unmeasured_error(summary: ErrorSummary, delta: np.ndarray) -> str:
-    """Why a true error is not shown: its reference is no more accurate than the
-    tolerance, so the difference would be mostly the reference's own error."""
+def unmeasured_error(summary: ErrorSummary, scale: float, what: str = "the tolerance") -> str:
+    """Why a true error is not shown: its reference is no more accurate than
+    ``scale``, ``what`` it must beat (the tolerance, or a tenth of the error
+    for a run without one), so the difference would be mostly the
+    reference's own error."""
     text = (
         f"not measured: the reference ({summary.description}) is accurate only to "
-        f"~{summary.reference_accuracy:.1e}, not below the tolerance {float(np.min(delta)):.1e}"
+        f"~{summary.reference_accuracy:.1e}, not below {what} {scale:.1e}"
     )
     if summary.source == "independent":
         text += "; reference='extended' (--reference extended, with heyoka) reaches further"
@@ -262,7 +264,18 @@ class Diagnostics:
         if self.error is None or self.error is self.estimated:
             return False
         accuracy = self.error.reference_accuracy
-        return bool(np.isfinite(accuracy) and accuracy < float(np.min(self.series["delta"])))
+        return bool(np.isfinite(accuracy) and accuracy < self._error_scale())
+
+    def _error_scale(self) -> float:
+        """What the reference must be more accurate than: the smallest
+        tolerance, or for a run without one (a fixed-step method) a tenth of
+        the largest error it measures (before, no fixed-step run ever
+        reported a true error: every comparison with a nan tolerance is
+        false)."""
+        delta = np.asarray(self.series["delta"], dtype=float)
+        if np.any(np.isfinite(delta)):
+            return float(np.nanmin(delta))
+        return 0.1 * max(self.error.max_abs, default=0.0)
 
     @property
     def energy_note(self) -> str | None:
@@ -274,7 +287,9 @@ class Diagnostics:
         """Why the true error is not shown (its reference is too inaccurate), or None."""
         if self.error is None or self.error is self.estimated or self.error_measured:
             return None
-        return unmeasured_error(self.error, self.series["delta"])
+        has_tolerance = bool(np.any(np.isfinite(np.asarray(self.series["delta"], dtype=float))))
+        what = "the tolerance" if has_tolerance else "a tenth of the error it measures,"
+        return unmeasured_error(self.error, self._error_scale(), what)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain numbers and strings for ``summary.json`` (nan and inf become None)."""
