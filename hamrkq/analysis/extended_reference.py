@@ -69,6 +69,21 @@ def _constant(value: Any):
     return hy.expression(np.longdouble(value))
 
 
+def _products(expr: sp.Basic) -> sp.Basic:
+    """``expr`` with every integer power ``x**n`` (n >= 2) written as the
+    product ``x*x*...*x``, unevaluated: heyoka differentiates ``x**3.0`` by
+    a recurrence that divides by ``x``, so a coordinate starting at zero
+    (the FPU chain's) made the reference NaN at once."""
+    if expr.is_Atom:
+        return expr
+    args = [_products(arg) for arg in expr.args]
+    if expr.is_Pow and expr.exp.is_Integer and int(expr.exp) >= 2:
+        return sp.Mul(*([args[0]] * int(expr.exp)), evaluate=False)
+    if expr.is_Add or expr.is_Mul or expr.is_Pow:
+        return expr.func(*args, evaluate=False)
+    return expr.func(*args)
+
+
 def _equations(ham: Any, params: np.ndarray) -> list:
     """Hamilton's equations as heyoka (variable, expression) pairs."""
     import heyoka as hy
@@ -94,7 +109,7 @@ def _equations(ham: Any, params: np.ndarray) -> list:
                 np.longdouble(rational.p) / np.longdouble(rational.q)
             )
             replacements[rational] = placeholder
-    rhs = [e.xreplace(replacements) for e in rhs]
+    rhs = [_products(e.xreplace(replacements)) for e in rhs]
     variables = [symbols[s] for s in ham.state]
     try:
         return [(v, hy.from_sympy(e, symbols)) for v, e in zip(variables, rhs, strict=True)]

@@ -268,22 +268,38 @@ def extend_if_unmeasured(
     sol: Any, problem: Any, diag: Any, reference: str, notes: list[str]
 ) -> tuple[Any, str]:
     """With ``--reference auto``: where the independent reference is not
-    accurate enough to measure the true error (the Pleiades at 1e-8: 2.1e-8)
-    and the extended one can be had (heyoka), measure against that instead,
-    and say so; otherwise ``(diag, reference)`` unchanged."""
+    accurate enough to measure the true error (the Pleiades at 1e-8: 2.1e-8),
+    or not far below the tolerance (within a hundredth of it: fpu, arenstorf),
+    and the extended one can be had (heyoka) and is more accurate, measure
+    against that instead, and say so; otherwise ``(diag, reference)``
+    unchanged."""
     from hamrkq.analysis.extended_reference import available
 
-    if reference != "independent" or diag is None or diag.error_measured or not available():
+    if reference != "independent" or diag is None or diag.error is None or not available():
+        return diag, reference
+    accuracy = diag.error.reference_accuracy
+    delta = np.asarray(diag.series["delta"], dtype=float)
+    close = bool(np.any(np.isfinite(delta))) and accuracy > 0.01 * float(np.nanmin(delta))
+    if diag.error_measured and not close:
         return diag, reference
     try:
         extended = diagnose(sol, problem, reference="extended")
     except HamrkqError as exc:
         notes.append(f"reference 'extended' unavailable ({exc})")
         return diag, reference
+    better = extended.error.reference_accuracy
+    if not better < accuracy:
+        return diag, reference
+    outcome = (
+        "the true error is measured against the extended one (heyoka in extended "
+        f"precision, accurate to ~{better:.1e})"
+        if extended.error_measured
+        else f"the extended one (heyoka, accurate to ~{better:.1e}) is reported; it is "
+        "not accurate enough either"
+    )
     notes.append(
-        f"the independent reference is accurate only to "
-        f"~{diag.error.reference_accuracy:.1e}, not below the tolerance: the true error "
-        "is measured against the extended one (heyoka in extended precision)"
+        f"the independent reference is accurate only to ~{accuracy:.1e}, "
+        f"{'not far below' if diag.error_measured else 'not below'} the tolerance: {outcome}"
     )
     return extended, "extended"
 
