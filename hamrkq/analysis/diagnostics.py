@@ -31,6 +31,7 @@ from hamrkq.analysis.summaries import (
     ErrorSummary,
     drift_summary,
     error_summary,
+    reference_is_close,
 )
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError, OptionError
@@ -282,7 +283,7 @@ def diagnose(
                 reference_accuracy=accuracy,
                 names=names,
             )
-        if accuracy > 0.01 * float(np.min(delta)):
+        if reference_is_close(accuracy, delta):
             notes.append(
                 f"the reference ({source}) is accurate only to ~{accuracy:.1e}, not "
                 "far below the tolerance: the true error is uncertain by that much"

@@ -19,12 +19,14 @@ from hamrkq.analysis.bounds import bound_ratio, trajectory_bound, trajectory_err
 from hamrkq.rkq.family import track_name
 
 __all__ = [
+    "CLOSE_REFERENCE",
     "NOT_CONSERVED",
     "Diagnostics",
     "DriftSummary",
     "ErrorSummary",
     "drift_summary",
     "error_summary",
+    "reference_is_close",
     "unmeasured_error",
 ]
 
@@ -168,6 +170,20 @@ def error_summary(
 NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accuracy)"
 
 
+#: A reference less accurate than this fraction of the tolerance leaves the
+#: true error uncertain by a visible amount: the reports add a note.
+CLOSE_REFERENCE = 0.01
+
+
+def reference_is_close(accuracy: float, delta: Any) -> bool:
+    """Whether a reference's ``accuracy`` is above :data:`CLOSE_REFERENCE` times
+    the smallest tolerance in ``delta`` (never, for a run without one)."""
+    delta = np.asarray(delta, dtype=float)
+    return bool(np.any(np.isfinite(delta))) and accuracy > CLOSE_REFERENCE * float(
+        np.nanmin(delta)
+    )
+
+
 def unmeasured_error(summary: ErrorSummary, scale: float, what: str = "the tolerance") -> str:
     """Why a true error is not shown: its reference is no more accurate than
     ``scale``, ``what`` it must beat (the tolerance, or a tenth of the error
@@ -264,18 +280,27 @@ class Diagnostics:
         if self.error is None or self.error is self.estimated:
             return False
         accuracy = self.error.reference_accuracy
-        return bool(np.isfinite(accuracy) and accuracy < self._error_scale())
+        return bool(np.isfinite(accuracy) and accuracy < self._error_scale()[0])
 
-    def _error_scale(self) -> float:
-        """What the reference must be more accurate than: the smallest
-        tolerance, or for a run without one (a fixed-step method) a tenth of
-        the largest error it measures (before, no fixed-step run ever
-        reported a true error: every comparison with a nan tolerance is
+    @property
+    def reference_close(self) -> bool:
+        """Whether the true error's reference, though good enough to measure
+        it, is within :data:`CLOSE_REFERENCE` of the tolerance (the true error
+        is then uncertain by that much; the reports say so)."""
+        if self.error is None or self.error is self.estimated:
+            return False
+        return reference_is_close(self.error.reference_accuracy, self.series["delta"])
+
+    def _error_scale(self) -> tuple[float, str]:
+        """What the reference must be more accurate than, and its name: the
+        smallest tolerance, or for a run without one (a fixed-step method) a
+        tenth of the largest error it measures (before, no fixed-step run
+        ever reported a true error: every comparison with a nan tolerance is
         false)."""
         delta = np.asarray(self.series["delta"], dtype=float)
         if np.any(np.isfinite(delta)):
-            return float(np.nanmin(delta))
-        return 0.1 * max(self.error.max_abs, default=0.0)
+            return float(np.nanmin(delta)), "the tolerance"
+        return 0.1 * max(self.error.max_abs, default=0.0), "a tenth of the error it measures,"
 
     @property
     def energy_note(self) -> str | None:
@@ -287,9 +312,7 @@ class Diagnostics:
         """Why the true error is not shown (its reference is too inaccurate), or None."""
         if self.error is None or self.error is self.estimated or self.error_measured:
             return None
-        has_tolerance = bool(np.any(np.isfinite(np.asarray(self.series["delta"], dtype=float))))
-        what = "the tolerance" if has_tolerance else "a tenth of the error it measures,"
-        return unmeasured_error(self.error, self._error_scale(), what)
+        return unmeasured_error(self.error, *self._error_scale())
 
     def to_dict(self) -> dict[str, Any]:
         """Plain numbers and strings for ``summary.json`` (nan and inf become None)."""

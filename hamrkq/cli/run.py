@@ -277,11 +277,9 @@ def extend_if_unmeasured(
 
     if reference != "independent" or diag is None or diag.error is None or not available():
         return diag, reference
-    accuracy = diag.error.reference_accuracy
-    delta = np.asarray(diag.series["delta"], dtype=float)
-    close = bool(np.any(np.isfinite(delta))) and accuracy > 0.01 * float(np.nanmin(delta))
-    if diag.error_measured and not close:
+    if diag.error_measured and not diag.reference_close:
         return diag, reference
+    accuracy = diag.error.reference_accuracy
     try:
         extended = diagnose(sol, problem, reference="extended")
     except HamrkqError as exc:

@@ -26,6 +26,7 @@ from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
 from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.events import event_specs
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -246,8 +247,6 @@ def _check_kept(ham: Hamiltonian, params: np.ndarray, options: Mapping[str, Any]
         )
     if options.get("events") is None:
         return
-    from hamrkq.events import event_specs
-
     kept = [
         spec.label for spec in event_specs(options["events"], ham, params) if not spec.terminal
     ]
