@@ -21,7 +21,9 @@ markers in ``docs/performance.md`` with tables built from
 - ``benchmarks/first_use.json`` (``benchmarks/first_use.py``): ``first_use``, and
   ``benchmarks/first_use_helpers.json`` (its ``--helpers``): ``first_use_helpers``;
 - ``benchmarks/cli_warm.json`` (``benchmarks/cli_warm.py``, checkouts side by
-  side): ``cli``.
+  side): ``cli``;
+- ``benchmarks/kernel_compile.json`` (``benchmarks/kernel_compile.py``):
+  ``kernel_compile``.
 
 No number in those blocks is typed by hand.
 """
@@ -204,22 +206,29 @@ def cli_block() -> str:
     return f"{cli_warm.table(results)} {m['cpu']}, {m['cores']} cores."
 
 
-def first_use_block() -> str:
-    results = _load("first_use.json")
-    if results is None:
-        return "(run `python benchmarks/first_use.py`)"
-    import first_use
+def _tabled(json_name: str, module_name: str, table: str, command: str):
+    """A block: ``module_name.table`` of ``json_name``, or how to make it."""
 
-    return first_use.table(results)
+    def block() -> str:
+        results = _load(json_name)
+        if results is None:
+            return f"(run `{command}`)"
+        module = __import__(module_name)
+        return getattr(module, table)(results)
+
+    return block
 
 
-def first_use_helpers_block() -> str:
-    results = _load("first_use_helpers.json")
-    if results is None:
-        return "(run `python benchmarks/first_use.py --helpers`)"
-    import first_use
-
-    return first_use.helpers_table(results)
+first_use_block = _tabled("first_use.json", "first_use", "table", "python benchmarks/first_use.py")
+first_use_helpers_block = _tabled(
+    "first_use_helpers.json",
+    "first_use",
+    "helpers_table",
+    "python benchmarks/first_use.py --helpers",
+)
+kernel_compile_block = _tabled(
+    "kernel_compile.json", "kernel_compile", "table", "python benchmarks/kernel_compile.py"
+)
 
 
 def main() -> int:
@@ -227,7 +236,8 @@ def main() -> int:
     for name, block in (("peers", peers_block), ("startup", startup_block),
                         ("memory", memory_block), ("nbody", nbody_block),
                         ("cli", cli_block), ("first_use", first_use_block),
-                        ("first_use_helpers", first_use_helpers_block)):  # fmt: skip
+                        ("first_use_helpers", first_use_helpers_block),
+                        ("kernel_compile", kernel_compile_block)):  # fmt: skip
         pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)

@@ -93,7 +93,8 @@ def compile_in_cache(function: Callable, arg_types: tuple):
     numba = numba_module()
     folder = kernel_cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    return jit(function, numba.types.int64(*arg_types), cache_dir=str(folder))
+    signature = numba.types.int64(*arg_types)
+    return jit(function, signature, cache_dir=str(folder), callees_once=True)
 
 
 # -- calling it -------------------------------------------------------------------

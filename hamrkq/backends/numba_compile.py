@@ -13,6 +13,7 @@ function types.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import threading
@@ -21,6 +22,7 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+from hamrkq.backends.numba_linking import callees_optimised_once
 from hamrkq.errors import HamrkqError
 
 __all__ = [
@@ -115,10 +117,17 @@ def _account(dispatcher, started: float) -> None:
     _STATS["compile_seconds" if misses else "load_seconds"] += elapsed
 
 
-def jit(function: Callable, signature, cache_dir: str | None = None):
+def jit(
+    function: Callable,
+    signature,
+    cache_dir: str | None = None,
+    callees_once: bool = False,
+):
     """``function`` compiled by numba for ``signature`` (or loaded from its
     disk cache: in ``cache_dir`` when given, else beside the function's
-    source file), counted."""
+    source file), counted; with ``callees_once``, its ``register_jitable``
+    callees are optimised once, inside it
+    (:func:`~hamrkq.backends.numba_linking.callees_optimised_once`)."""
     numba = numba_module()
     flags = {"cache": True, "nogil": True, "error_model": "numpy"}
     previous = numba.config.CACHE_DIR
@@ -131,7 +140,9 @@ def jit(function: Callable, signature, cache_dir: str | None = None):
             # counters and BackendUnavailable carry that information instead.
             warnings.simplefilter("ignore", numba.NumbaWarning)
             started = time.perf_counter()
-            dispatcher = numba.njit(signature, **flags)(function)
+            linking = callees_optimised_once() if callees_once else contextlib.nullcontext()
+            with linking:
+                dispatcher = numba.njit(signature, **flags)(function)
             _account(dispatcher, started)
     finally:
         numba.config.CACHE_DIR = previous
