@@ -80,3 +80,67 @@ def test_page_reruns_to_the_committed_output(name, tmp_path):
             rgb = imread(tmp_path / "quickstart" / f"{figure}.png")[..., :3]
             assert 0.01 < np.any(rgb < 0.9, axis=-1).mean() < 0.9, figure
         assert (tmp_path / "runs" / "coupled" / "figure1_solution.png").is_file()
+
+
+#: The pages whose code blocks docs/generate.py does not run (it fills the
+#: outputs of gen.PAGES): their Python must run too, page by page in one
+#: process (a later block uses the names of an earlier one), except blocks
+#: marked <!-- skip --> (a Dask scheduler) and the shell blocks (commands
+#: tested by the CLI tests).
+OTHER_PAGES = sorted(
+    path.name
+    for path in (ROOT / "docs").glob("*.md")
+    if path.name not in gen.PAGES
+    and any(b["kind"] == "python" for b in gen.runnable(gen.blocks(path.read_text())))
+)
+
+
+def test_the_other_pages_with_python_are_found():
+    assert {"comparison.md", "baselines.md", "events.md", "ensembles.md"} <= set(OTHER_PAGES)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", OTHER_PAGES)
+def test_the_python_of_every_other_page_runs(name, tmp_path):
+    import subprocess
+    import sys
+
+    page = gen.blocks((ROOT / "docs" / name).read_text())
+    code = "\n".join(b["body"] for b in gen.runnable(page) if b["kind"] == "python")
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env=gen._environment(),
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, f"{name}: {result.stderr[-3000:]}"
+
+
+def _dotted_names() -> set[tuple[str, str]]:
+    import re
+
+    pattern = re.compile(r"`(hamrkq(?:\.[A-Za-z_]\w*)+)")
+    pages = [*(ROOT / "docs").glob("*.md"), ROOT / "README.md"]
+    return {(m.group(1), p.name) for p in pages for m in pattern.finditer(p.read_text())}
+
+
+def test_every_hamrkq_name_the_docs_quote_exists():
+    # `hamrkq.a.b.c` in the docs: the longest importable module, then attributes.
+    import importlib
+
+    missing = []
+    for dotted, page in sorted(_dotted_names()):
+        parts = dotted.split(".")
+        for cut in range(len(parts), 0, -1):
+            try:
+                found = importlib.import_module(".".join(parts[:cut]))
+            except ImportError:
+                continue
+            break
+        for attribute in parts[cut:]:
+            found = getattr(found, attribute, None)
+        if found is None:
+            missing.append(f"{page}: {dotted}")
+    assert len(_dotted_names()) > 50
+    assert missing == []
