@@ -136,6 +136,18 @@ def test_diagnose_against_exact_known_error():
     assert diag.estimated.max_abs[0] == pytest.approx(4e-7 - 1e-10, rel=1e-3)
 
 
+def test_repr_is_one_line_of_the_maxima_and_str_is_the_report():
+    sol, _, _ = synthetic_run(2001)
+    diag = diagnose(sol, reference="exact", exact=harmonic_exact, gradient=lambda t, Y: Y.copy())
+    text = repr(diag)
+    # before: the generated repr printed every per-node array of ``series``
+    assert "\n" not in text and len(text) < 300
+    assert f"true_error_max={max(diag.error.max_abs):.3e}" in text
+    assert f"estimated_max={max(diag.estimated.max_abs):.3e}" in text
+    assert f"energy_max_abs={diag.energy.max_abs:.3e}" in text
+    assert str(diag) == diag.table()
+
+
 def test_diagnose_rk8_and_none_and_auto():
     sol, _, _ = synthetic_run(201)
     rk8 = diagnose(sol, reference="rk8")

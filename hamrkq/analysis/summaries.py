@@ -266,6 +266,25 @@ class Diagnostics:
     series: Mapping[str, np.ndarray]
     time_dependent: bool = False
 
+    def __repr__(self) -> str:
+        # The generated repr printed every per-node array of ``series``
+        # (pages for a long run); the report is ``str(d)`` (:meth:`table`).
+        parts = [f"method={self.method!r}", f"status={self.status!r}", f"nodes={self.nodes}"]
+        if self.energy is not None and self.energy_conserved:
+            parts.append(f"energy_max_abs={self.energy.max_abs:.3e}")
+        if self.estimated is not None:
+            parts.append(f"estimated_max={max(self.estimated.max_abs, default=0.0):.3e}")
+        if self.error_measured:
+            parts.append(f"true_error_max={max(self.error.max_abs, default=0.0):.3e}")
+        elif self.error is not None and self.error is not self.estimated:
+            parts.append("true_error='not measured'")
+        if np.isfinite(self.gamma_max):
+            parts.append(f"gamma_max={self.gamma_max:.3e}")
+        return f"Diagnostics({', '.join(parts)})"
+
+    def __str__(self) -> str:
+        return self.table()
+
     @property
     def energy_conserved(self) -> bool:
         """False when H depends on t: its change along the run measures nothing."""
