@@ -33,6 +33,9 @@ def test_harmonic_lyapunov_decays_like_one_over_t_and_megno_to_zero():
     y = megno(OSC, [1.0], [0.0], (0.0, 400.0), atol=1e-10)
     # <Y> of a bounded log|v| decays like 1/t to 0.
     assert abs(y.value[-1]) < 0.02
+    assert repr(y) == (
+        f"ChaosIndicator(t=400.0, value={y.value[-1]:.6g}, nodes={len(y.t)}, status=SUCCESS)"
+    )
 
 
 def test_megno_regular_henon_heiles_orbit_tends_to_two():

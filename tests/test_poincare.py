@@ -51,6 +51,7 @@ def test_many_orbits_and_n_crossings():
     assert all(s.status is hamrkq.Status.TERMINAL_EVENT for s in sec.solutions)
     assert np.all(sec.column("p1") < 0)  # direction -1: q1 decreasing
     assert sec.success
+    assert repr(sec) == "PoincareSection(section='q1 = 0', crossings=12, orbits=3, success=True)"
 
 
 def test_henon_heiles_energy_orbits_lie_on_the_energy_surface():

@@ -60,6 +60,13 @@ class ChaosIndicator:
     message: str
     solution: Solution
 
+    def __repr__(self) -> str:
+        # One line, like Solution's (the generated one printed both arrays).
+        end = ""
+        if len(self.t):
+            end = f"t={float(self.t[-1])!r}, value={float(self.value[-1]):.6g}, "
+        return f"ChaosIndicator({end}nodes={len(self.t)}, status={self.status.name})"
+
     @property
     def success(self) -> bool:
         return self.status.success

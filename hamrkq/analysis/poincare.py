@@ -56,6 +56,13 @@ class PoincareSection:
     names: tuple[str, ...]
     solutions: list[Solution] = field(repr=False)
 
+    def __repr__(self) -> str:
+        # One line, like Solution's (the generated one printed every crossing).
+        return (
+            f"PoincareSection(section={self.section!r}, crossings={len(self.t)}, "
+            f"orbits={len(self.solutions)}, success={self.success})"
+        )
+
     @property
     def success(self) -> bool:
         """True when every orbit's run ended as asked."""
