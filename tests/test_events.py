@@ -205,3 +205,22 @@ def test_a_terminal_event_ends_the_integration_itself_not_only_the_output():
     assert sol.status is hamrkq.Status.TERMINAL_EVENT
     assert abs(sol.t[-1] - np.pi / 2) < 1e-9
     assert sol.stats["steps"] < 0.01 * full.stats["steps"]
+
+
+def test_the_run_summary_lists_each_event_functions_roots(tmp_path, capsys):
+    # Before, `hamrkq run` wrote the events to summary.json and solution.npz
+    # but its table said nothing of them.
+    from hamrkq.cli import main
+
+    path = _copy_harmonic(tmp_path, '\n[[events]]\nexpression = "q"\n')
+    out = tmp_path / "run"
+    code = main(["run", str(path), "--t-end", "20", "--atol", "1e-10", "--no-plots",
+                 "--reference", "none", "--out", str(out)])  # fmt: skip
+    assert code == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("event q"))
+    # q = sin t vanishes at k pi: six roots in (0, 20]; the first four shown
+    count, times = line.split(None, 2)[2].split(" at t = ")
+    assert count == "6"
+    shown = [float(x) for x in times.removesuffix(", ...").split(", ")]
+    assert shown == pytest.approx([math.pi * k for k in range(1, 5)], rel=5e-6)  # 6 digits
+    assert times.endswith(", ...")

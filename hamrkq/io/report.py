@@ -185,6 +185,7 @@ def summary_rows(
                 text += f", {stats['interpreted_steps']} steps interpreted"
             text += ")"
         rows.append(("wall time (solve)", text))
+    rows += _event_rows(sol)
     if diag is None:
         return rows
     if diag.estimated is not None:
@@ -214,6 +215,24 @@ def summary_rows(
         rows.append((f"max |{inv.name} - {inv.name}(0)|", _num(inv.max_abs)))
     if math.isfinite(diag.gamma_max):
         rows.append((f"max |Gamma| ({track_name(sol.method)})", _num(diag.gamma_max)))
+    return rows
+
+
+#: How many event times the summary shows per event function (all are in
+#: summary.json and solution.npz).
+EVENT_TIMES_SHOWN = 4
+
+
+def _event_rows(sol: Any) -> list[tuple[str, str]]:
+    """One row per event function: how many roots, and the first few times."""
+    if getattr(sol, "t_events", None) is None:
+        return []
+    rows = []
+    for label, times in zip(sol.event_labels, sol.t_events, strict=True):
+        shown = ", ".join(_num(float(t), ".6g") for t in times[:EVENT_TIMES_SHOWN])
+        more = ", ..." if len(times) > EVENT_TIMES_SHOWN else ""
+        text = f"{len(times)}" + (f" at t = {shown}{more}" if len(times) else "")
+        rows.append((f"event {label}", text))
     return rows
 
 
