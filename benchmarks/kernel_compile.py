@@ -22,11 +22,9 @@ Writes ``benchmarks/kernel_compile.json`` and ``benchmarks/kernel_compile.md``.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -83,14 +81,8 @@ print(json.dumps({**llvm, "hamrkq": os.path.dirname(hamrkq.__file__)}))
 def run(rounds: int) -> dict:
     root = HERE.parent
     startup.compile_bytecode(root)
-    results = {
-        "machine": measure.machine(),
-        "started": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
-        "rounds": rounds,
-        "runs": {mode: [] for mode in MODES},
-        "llvm": {},
-        "bit_identical": True,
-    }
+    runs = {mode: [] for mode in MODES}
+    results = measure.begin_record(rounds, runs=runs, llvm={}, bit_identical=True)
     with tempfile.TemporaryDirectory(prefix="hamrkq-kernel-compile-") as tmp:
         for mode, extra in MODES.items():
             code = "import os\nos.environ.update(" + repr(extra) + ")\n" + PROFILED
@@ -112,9 +104,7 @@ def run(rounds: int) -> dict:
                 np.array_equal(states["once"], states["plain"])
             )
             results["bit_identical"] = results["bit_identical"] and same
-    results["finished"] = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
-    results["load_average_end"] = measure.machine()["load_average"]
-    return results
+    return measure.end_record(results)
 
 
 def table(results: dict) -> str:
@@ -155,10 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
     results = run(args.rounds)
-    (HERE / "kernel_compile.json").write_text(json.dumps(results, indent=1) + "\n")
-    text = table(results)
-    (HERE / "kernel_compile.md").write_text(text + "\n")
-    print(text)
+    measure.save_record(HERE, "kernel_compile", results, table)
     return 0 if results["bit_identical"] else 1
 
 

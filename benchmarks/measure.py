@@ -171,6 +171,36 @@ print(json.dumps({"peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_max
 """
 
 
+# -- a benchmark's record ---------------------------------------------------------------
+
+
+def stamp() -> str:
+    """The current time, as the records write it."""
+    return time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
+
+
+def begin_record(rounds: int, **fields: Any) -> dict[str, Any]:
+    """A benchmark's record: the machine, when it started, the rounds, ``fields``."""
+    return {"machine": machine(), "started": stamp(), "rounds": rounds, **fields}
+
+
+def end_record(results: dict[str, Any]) -> dict[str, Any]:
+    """``results`` with when it finished and the load average then."""
+    results["finished"] = stamp()
+    results["load_average_end"] = machine()["load_average"]
+    return results
+
+
+def save_record(folder: Path, name: str, results: dict[str, Any], table: Callable) -> str:
+    """Write ``name.json`` and ``name.md`` (``table(results)``) in ``folder``;
+    print and return the table."""
+    (folder / f"{name}.json").write_text(json.dumps(results, indent=1) + "\n")
+    text = table(results)
+    (folder / f"{name}.md").write_text(text + "\n")
+    print(text)
+    return text
+
+
 # -- matching SciPy's true error to hamrkq's -----------------------------------------
 
 

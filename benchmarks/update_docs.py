@@ -23,7 +23,9 @@ markers in ``docs/performance.md`` with tables built from
 - ``benchmarks/cli_warm.json`` (``benchmarks/cli_warm.py``, checkouts side by
   side): ``cli``;
 - ``benchmarks/kernel_compile.json`` (``benchmarks/kernel_compile.py``):
-  ``kernel_compile``.
+  ``kernel_compile``;
+- ``benchmarks/lazy_functions.json`` (``benchmarks/lazy_functions.py``):
+  ``lazy_functions``.
 
 No number in those blocks is typed by hand.
 """
@@ -229,6 +231,9 @@ first_use_helpers_block = _tabled(
 kernel_compile_block = _tabled(
     "kernel_compile.json", "kernel_compile", "table", "python benchmarks/kernel_compile.py"
 )
+lazy_functions_block = _tabled(
+    "lazy_functions.json", "lazy_functions", "table", "python benchmarks/lazy_functions.py"
+)
 
 
 def main() -> int:
@@ -237,7 +242,8 @@ def main() -> int:
                         ("memory", memory_block), ("nbody", nbody_block),
                         ("cli", cli_block), ("first_use", first_use_block),
                         ("first_use_helpers", first_use_helpers_block),
-                        ("kernel_compile", kernel_compile_block)):  # fmt: skip
+                        ("kernel_compile", kernel_compile_block),
+                        ("lazy_functions", lazy_functions_block)):  # fmt: skip
         pattern = re.compile(rf"(<!-- {name}:begin -->).*?(<!-- {name}:end -->)", re.S)
         if not pattern.search(text):
             print(f"no <!-- {name}:begin/end --> markers in {DOC}", file=sys.stderr)

@@ -174,9 +174,9 @@ def test_compare_compiles_before_it_times_a_run(monkeypatch):
 
     events, resolve, timed = [], compiled.resolve_backend, comparison._timed
 
-    def resolving(backend, ham=None):
+    def resolving(backend, ham=None, gamma="tangent"):
         events.append("compile")
-        return resolve(backend, ham)
+        return resolve(backend, ham, gamma)
 
     def timing(*args):
         events.append("run")

@@ -84,8 +84,18 @@ def _interpreted(problem, t0, t_end, method, **options):
     return _run(python_functions(module.rhs, module.jac), problem, t0, t_end, method, **options)
 
 
+#: The estimate of Gamma by its kernel code (what of the system the kernel calls).
+_GAMMA_NAMES = {
+    layout.GAMMA_TANGENT: "tangent",
+    layout.GAMMA_PAPER: "paper",
+    layout.GAMMA_SHADOW: "shadow",
+    layout.GAMMA_OFF: "off",
+}
+
+
 def _compiled(problem, t0, t_end, method, **options):
-    functions = compiled.kernel_functions(problem.hamiltonian)
+    gamma = _GAMMA_NAMES[options.get("gamma", _CODES["gamma"])]
+    functions = compiled.kernel_functions(problem.hamiltonian, gamma)
     return _run(functions, problem, t0, t_end, method, **options)
 
 
@@ -158,6 +168,47 @@ def test_the_compiled_kernel_is_the_interpreted_function_itself():
     assert dispatchers and all(d.py_func is loop.advance for d in dispatchers)
     # Its machine code is cached under a folder named by the kernel's hash.
     assert compiled.kernel_cache_dir().name.startswith("kernel-")
+
+
+# -- what is compiled for whom -----------------------------------------------------
+
+
+def test_jac_and_rhs_jvp_are_compiled_only_for_the_runs_that_call_them():
+    # 14 state variables: above the fused dimension, rhs_jvp calls jac.  Before,
+    # both were compiled for every system (about half of the outer solar
+    # system's compile), though only rk34q8's tangent estimate calls rhs_jvp
+    # and only the paper's estimate calls jac.
+    q, p = sp.symbols("x0:7", real=True), sp.symbols("u0:7", real=True)
+    H = sum(u**2 / 2 for u in p) + sum(x**4 / 4 for x in q)
+    H += sum((q[i] - q[i + 1]) ** 2 / 2 for i in range(6))
+    ham = hamrkq.Hamiltonian(H, q=list(q), p=list(p))
+    q0, p0 = [0.1 * (k + 1) for k in range(7)], [0.0] * 7
+
+    def both_backends(**options):
+        runs = [hamrkq.solve(ham, q0, p0, (0.0, 1.0), backend=b, **options)
+                for b in ("numba", "python")]  # fmt: skip
+        for name in ("t", "y", "z", "gamma"):
+            np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
+        return runs[0]
+
+    auto = both_backends(method="auto", atol=1e-9)
+    system = compiled.compile_system(ham)
+    assert auto.success and not system.compiled_for("tangent")
+    assert not system.compiled_for("paper")
+    tangent = both_backends(method="rk34q8", atol=1e-8)
+    assert tangent.success and np.all(np.isfinite(tangent.gamma))
+    assert system.compiled_for("tangent") and system.compiled_for("paper")  # rhs_jvp calls jac
+    paper = both_backends(method="rk34q8", atol=1e-8, global_error_estimate="paper")
+    assert paper.success and np.all(np.isfinite(paper.gamma))
+
+
+def test_the_stand_ins_fill_their_outputs_with_nan():
+    dim = 3
+    out, dout, JM = np.zeros(dim), np.zeros(dim), np.zeros((dim, dim))
+    y, params = np.ones(dim), np.empty(0)
+    kernel.unused_function("jac")(0.0, y, params, JM)
+    kernel.unused_function("rhs_jvp")(0.0, y, params, y, out, dout, JM)
+    assert np.isnan(JM).all() and np.isnan(out).all() and np.isnan(dout).all()
 
 
 # -- parameters, cache, counters ---------------------------------------------------
@@ -270,9 +321,11 @@ def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
     assert kernel.HELPER_MIN_DIM <= 12
     result = _fresh_process(tmp_path, CHAIN_SCRIPT)
     assert result["status"] == "SUCCESS"
-    # rhs, jac, rhs_jvp, energy and energy_rows compiled here; the kernel loaded
-    assert result["compiled"] == 5
-    assert result["stats"]["loaded"] == 1
+    # rhs, rhs_jvp, energy and energy_rows compiled here (not jac: rk34q8's
+    # tangent estimate does not call it); the kernel and the stand-ins of
+    # rhs_jvp and jac, which the helper compiled beside it, loaded
+    assert result["compiled"] == 4
+    assert result["stats"]["loaded"] == 3
     assert any(tmp_path.glob("kernel-*/**/*.nbi"))
 
 

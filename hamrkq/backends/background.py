@@ -107,17 +107,18 @@ class BackgroundCompile:
         """Whether a helper is still compiling."""
         return any(process.poll() is None for process in self.processes)
 
-    def functions(self) -> KernelFunctions | None:
+    def functions(self, gamma: str = "tangent") -> KernelFunctions | None:
         """The compiled :class:`~hamrkq.rkq.driver.KernelFunctions` once the
         helper has finished (loaded from the cache, or compiled here if the
         helper failed); None while it compiles, or if the compiled backend
-        cannot be used (warned once)."""
+        cannot be used (warned once).  ``gamma``: the run's estimate of Gamma
+        (:func:`hamrkq.backends.compiled.kernel_functions`)."""
         if self.failed or self.running:
             return None
         try:
             # Loads what the helper cached; compiles here only if it failed.
-            compiled.warm_up(self.ham, announce=False)
-            functions = compiled.kernel_functions(self.ham)
+            compiled.warm_up(self.ham, announce=False, gamma=gamma)
+            functions = compiled.kernel_functions(self.ham, gamma)
         except BackendUnavailable as exc:
             self.failed = True
             compiled.warn_interpreted(str(exc))
@@ -191,7 +192,9 @@ def build(key: str, parts: str = "system kernel") -> None:
     and/or the kernel (``parts``; the helper process of :func:`start`)."""
     if "system" in parts.split():
         module = load_source(key, _missing_source)
-        compiled.mark_compiled(compiled.CompiledSystem(module).path)
+        system = compiled.CompiledSystem(module)
+        system.compile_all()  # whatever estimate of Gamma the run has
+        compiled.mark_compiled(system.path)
     if "kernel" in parts.split():
         # With a stand-in system: a probe of the real one may end before its
         # first step (a state of 0.5s can be singular), and the kernel's

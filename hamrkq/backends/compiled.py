@@ -104,7 +104,7 @@ def __getattr__(name: str) -> Any:
 # -- which backend -----------------------------------------------------------------
 
 
-def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
+def resolve_backend(backend: str, ham: Hamiltonian | None = None, gamma: str = "tangent") -> str:
     """The backend to run: ``"python"`` or ``"numba"``.
 
     Parameters
@@ -115,6 +115,9 @@ def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
     ham : Hamiltonian, optional
         With ``"auto"``, the system is generated and compiled here, so that a
         system numba cannot compile also falls back with the warning.
+    gamma : str
+        The run's estimate of Gamma: what of the system it compiles
+        (:func:`kernel_functions`).
 
     Raises
     ------
@@ -128,7 +131,7 @@ def resolve_backend(backend: str, ham: Hamiltonian | None = None) -> str:
     ok, reason = available()
     if ok and ham is not None:
         try:
-            warm_up(ham)
+            warm_up(ham, gamma=gamma)
         except BackendUnavailable as exc:
             ok, reason = False, str(exc)
     if ok:
@@ -160,6 +163,14 @@ class CompiledSystem:
     loop's tangent propagation),
     ``energy(t, y, params) -> float`` and ``energy_rows(t, Y, params, out)``
     (``out[i] = H(t[i], Y[i])``).  ``path`` is the generated source file.
+
+    ``jac`` and ``rhs_jvp`` are compiled on their first use: a run calls
+    ``rhs_jvp`` only with the tangent estimate of Gamma (``rk34q8``'s) and
+    ``jac`` only with the paper's (and inside ``rhs_jvp`` above
+    :data:`~hamrkq.backends.scalar_printer.MAX_FUSED_DIM` state variables),
+    while for a large system they are most of the compile (about half of the
+    outer solar system's, ``benchmarks/lazy_functions.md``).  The kernel gets
+    stand-ins for the ones a run does not call (:meth:`kernel_arguments`).
     """
 
     def __init__(self, module: types.ModuleType):
@@ -167,19 +178,71 @@ class CompiledSystem:
         self.dim = module.DIM
         # A fresh namespace, so the module keeps its plain-Python functions;
         # the code objects (and so numba's cache files) stay the module's.
-        namespace: dict[str, Any] = {"math": math, "__name__": module.__name__}
-        sig = signatures()
-        # energy first: energy_rows calls it through the namespace.
-        for name in ("rhs", "jac", "rhs_jvp", "energy", "energy_rows"):
-            plain = types.FunctionType(getattr(module, name).__code__, namespace, name)
-            namespace[name] = jit(plain, sig[name])
-        self.rhs = namespace["rhs"]
-        self.jac = namespace["jac"]
-        self.rhs_jvp = namespace["rhs_jvp"]
-        self.energy = namespace["energy"]
-        self.energy_rows = namespace["energy_rows"]
+        self._namespace: dict[str, Any] = {"math": math, "__name__": module.__name__}
         self._module = module
         self._rhs_dd = None
+        # energy before energy_rows, which calls it through the namespace.
+        self.rhs = self._compile("rhs")
+        self.energy = self._compile("energy")
+        self.energy_rows = self._compile("energy_rows")
+
+    def _compile(self, name: str):
+        """The module's ``name`` compiled (or loaded) into the namespace, once;
+        what it calls by name first (``rhs_jvp`` calls ``rhs`` and ``jac``
+        above the fused dimension)."""
+        with LOCK:
+            compiled = self._namespace.get(name)
+            if compiled is None:
+                code = getattr(self._module, name).__code__
+                for callee in ("rhs", "jac", "energy"):
+                    if callee != name and callee in code.co_names:
+                        self._compile(callee)
+                plain = types.FunctionType(code, self._namespace, name)
+                compiled = self._namespace[name] = jit(plain, signatures()[name])
+            return compiled
+
+    @property
+    def jac(self):
+        """The compiled Jacobian, compiled (or loaded) on first use."""
+        return self._compile("jac")
+
+    @property
+    def rhs_jvp(self):
+        """The compiled f and Jacobian-vector product, compiled (or loaded) on first use."""
+        return self._compile("rhs_jvp")
+
+    def compile_all(self) -> None:
+        """Compile (or load) every function now (``hamrkq compile``)."""
+        for name in ("jac", "rhs_jvp"):
+            self._compile(name)
+
+    def compiled_for(self, gamma: str) -> bool:
+        """Whether what a run with this estimate of Gamma calls is compiled."""
+        return all(name in self._namespace for name in _CALLED.get(gamma, ()))
+
+    def prepare(self, gamma: str) -> None:
+        """Compile (or load) what a run with this estimate of Gamma calls;
+        raises BackendUnavailable if numba cannot."""
+        try:
+            for name in _CALLED.get(gamma, ()):
+                self._compile(name)
+        except Exception as exc:  # numba's TypingError/LoweringError and relatives
+            raise BackendUnavailable(
+                f"numba failed to compile the system ({type(exc).__name__}: "
+                f"{str(exc).splitlines()[0] if str(exc) else ''})"
+            ) from exc
+
+    def kernel_arguments(self, gamma: str) -> tuple:
+        """``(rhs, tangent, jac)`` for the kernel in a run with this estimate
+        of Gamma: ``rhs_jvp`` and ``jac`` where it calls them, else stand-ins
+        of their signatures (:func:`~hamrkq.backends.kernel.unused_function`), so that nothing is
+        compiled for them."""
+        called = _CALLED.get(gamma, ())
+        return (
+            self.rhs,
+            self.rhs_jvp if "rhs_jvp" in called else kernel_module.unused_function("rhs_jvp"),
+            self.jac if "jac" in called else kernel_module.unused_function("jac"),
+        )
 
     def rhs_dd(self):
         """``rhs_dd(t, y, params, ylo, out, outlo, JM)``, f in double-double
@@ -192,8 +255,15 @@ class CompiledSystem:
             namespace: dict[str, Any] = {"math": math, "__name__": self._module.__name__}
             namespace.update({name: getattr(ddarith, name) for name in DD_FUNCTIONS})
             plain = types.FunctionType(self._module.rhs_dd.__code__, namespace, "rhs_dd")
-            self._rhs_dd = jit(plain, signatures()["rhs_jvp"])
+            # its ddarith callees optimised once, inside it (numba_linking)
+            self._rhs_dd = jit(plain, signatures()["rhs_jvp"], callees_once=True)
         return self._rhs_dd
+
+
+#: What the kernel calls besides ``rhs``, by estimate of Gamma
+#: (``global_error_estimate``): the tangent propagation takes f and J v in
+#: one call, the paper's (I + h J) propagation the Jacobian.
+_CALLED = {"tangent": ("rhs_jvp",), "paper": ("jac",)}
 
 
 def compile_system(ham: Hamiltonian) -> CompiledSystem:
@@ -270,23 +340,26 @@ def is_compiled(ham: Hamiltonian) -> bool:
 # -- the kernel's functions and the first use ------------------------------------
 
 
-def kernel_functions(ham: Hamiltonian):
-    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of ``ham`` on this backend.
+def kernel_functions(ham: Hamiltonian, gamma: str = "tangent"):
+    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of ``ham`` on this
+    backend, for a run whose estimate of Gamma is ``gamma`` (its
+    ``global_error_estimate``): ``rhs_jvp`` for ``"tangent"``, ``jac`` for
+    ``"paper"``, stand-ins otherwise (:meth:`CompiledSystem.kernel_arguments`).
 
     Raises
     ------
     BackendUnavailable
         See :func:`compile_system`.
     """
-    return system_functions(compile_system(ham))
+    return system_functions(compile_system(ham), gamma)
 
 
-def system_functions(system: CompiledSystem):
+def system_functions(system: CompiledSystem, gamma: str = "tangent"):
     """The :class:`~hamrkq.rkq.driver.KernelFunctions` of a compiled system
-    with the compiled kernel."""
+    with the compiled kernel (``gamma``: see :func:`kernel_functions`)."""
     from hamrkq.rkq.driver import KernelFunctions
 
-    return KernelFunctions(system.rhs, system.rhs_jvp, system.jac, kernel_module.kernel())
+    return KernelFunctions(*system.kernel_arguments(gamma), kernel_module.kernel())
 
 
 #: Seconds of preparing a system before the first use is announced: loading
@@ -306,30 +379,42 @@ def first_use_text(ham: Hamiltonian) -> str:
     )
 
 
-def warm_up(ham: Hamiltonian, stream: TextIO | None = None, announce: bool | None = None) -> None:
+def warm_up(
+    ham: Hamiltonian,
+    stream: TextIO | None = None,
+    announce: bool | None = None,
+    gamma: str = "tangent",
+) -> None:
     """Compile (or load) the system and the kernel for the signatures a run
-    uses, by integrating one step of ``ham``, once per system and process;
-    raises BackendUnavailable with what failed.  A first use that takes
-    long is announced on ``stream`` (stderr; when it is a terminal, or
-    ``announce``)."""
+    uses, by integrating one step of ``ham``, once per system and process,
+    and what a run with the estimate of Gamma ``gamma`` calls
+    (:func:`kernel_functions`); raises BackendUnavailable with what failed.
+    A first use that takes long is announced on ``stream`` (stderr; when it
+    is a terminal, or ``announce``)."""
     key = codegen.cache_key(ham)
-    if key in _WARM:
+    system = _SYSTEMS.get(key)
+    if key in _WARM and system is not None and system.compiled_for(gamma):
         return
 
     def begin() -> str:
         return first_use_text(ham) + " ..."
 
     with WaitNotice(begin, "compiled", ANNOUNCE_AFTER, stream=stream, enabled=announce):
-        _warm_up(ham)
-    _WARM.add(key)
+        if key not in _WARM:
+            _warm_up(ham)
+            _WARM.add(key)
+        compile_system(ham).prepare(gamma)
 
 
 def _warm_up(ham: Hamiltonian) -> None:
     helper = kernel_module.start_helper(ham.dim)
     try:
-        functions = kernel_functions(ham)  # the system, meanwhile
+        compile_system(ham)  # meanwhile
     finally:
         kernel_module.join_helper(helper)
+    # With the stand-ins of rhs_jvp and jac (the helper compiled them beside
+    # the kernel): the probe's kernel signature is every run's.
+    functions = kernel_functions(ham, "off")
     run = kernel_module.probe(functions, ham.dim, len(ham.parameters))
     try:
         with np.errstate(all="ignore"):

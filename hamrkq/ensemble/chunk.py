@@ -164,8 +164,9 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
     batch = allocate_batch(request.y0, params, task.t0, times.size, out)
     args = (
         system.rhs,
-        system.rhs_jvp,
-        system.jac,
+        # rhs_jvp and jac where the run's estimate of Gamma calls them, else stand-ins
+        run.functions.tangent,
+        run.functions.jac,
         system.energy,
         run.inputs,
         run.tableaus,

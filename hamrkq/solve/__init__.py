@@ -386,7 +386,11 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         _require_double_double(ham)
         background = False  # the helper compiles the double functions only
     compiling = start_background(options.backend, ham, spec) if background else None
-    chosen = "numba" if compiling is not None else resolve_backend(options.backend, ham, spec)
+    chosen = (
+        "numba"
+        if compiling is not None
+        else resolve_backend(options.backend, ham, spec, options.gamma_name)
+    )
     compile_s = time.perf_counter() - started
     if chosen not in spec.backends:
         raise OptionError(

@@ -10,6 +10,7 @@ baselines of :mod:`hamrkq.fixed_step` and the SciPy baselines of
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -109,7 +110,8 @@ def _double_double_functions(task: Task, backend: str):
         from hamrkq.backends import compiled
 
         system = compiled.compile_system(task.ham)
-        return compiled.system_functions(system)._replace(tangent=system.rhs_dd())
+        # the shadow's Gamma: rhs_dd where the tangent goes, no jac
+        return compiled.system_functions(system, "shadow")._replace(tangent=system.rhs_dd())
     numeric = numeric_of(task.ham)
     functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
     return functions._replace(tangent=codegen.load_module(task.ham).rhs_dd)
@@ -134,17 +136,20 @@ def integration(task: Task, backend: str) -> Integration:
         double_double=o.double_double,
     )
     functions, upgrade = None, None
+    # The compiled rhs_jvp and jac only where the estimate of Gamma calls them.
+    gamma = o.gamma_name
     if o.double_double:
         functions = _double_double_functions(task, backend)
     elif backend == "numba" and task.compiling is None:
         from hamrkq.backends import compiled
 
-        functions = compiled.kernel_functions(task.ham)
+        functions = compiled.kernel_functions(task.ham, gamma)
     elif backend == "numba":
         # The helper's compiled code if it is ready; else start interpreted
         # and ask again between chunks.
-        functions = task.compiling.functions()
-        upgrade = task.compiling.functions if functions is None else None
+        functions = task.compiling.functions(gamma)
+        if functions is None:
+            upgrade = functools.partial(task.compiling.functions, gamma)
     if functions is None:
         numeric = numeric_of(task.ham)
         functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
@@ -189,15 +194,18 @@ def _inplace(fun: Callable, matrix: bool) -> Callable:
     return wrapped
 
 
-def resolve_backend(backend: str, ham: Hamiltonian, spec: MethodSpec) -> str:
+def resolve_backend(
+    backend: str, ham: Hamiltonian, spec: MethodSpec, gamma: str = "tangent"
+) -> str:
     """``"auto"`` -> ``"numba"`` when the method has a compiled runner and
     numba can be used (else ``"python"``, with one HamrkqWarning when numba
-    was expected but cannot be used)."""
+    was expected but cannot be used); compiles what a run with the estimate
+    of Gamma ``gamma`` calls (:func:`hamrkq.backends.compiled.kernel_functions`)."""
     if backend == "python" or "numba" not in spec.backends:
         return "python" if backend == "auto" else backend
     from hamrkq.backends import compiled
 
-    return compiled.resolve_backend(backend, ham)
+    return compiled.resolve_backend(backend, ham, gamma)
 
 
 def start_background(backend: str, ham: Hamiltonian, spec: MethodSpec) -> BackgroundCompile | None:
