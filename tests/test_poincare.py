@@ -78,6 +78,21 @@ def test_bad_sections_are_rejected():
         poincare(TWO, "q1 = 0", [0.1, 0.1], [0.1, 0.1], (0, 1), n_crossings=0)
 
 
+def test_cli_poincare_explains_what_it_needs_of_another_number_of_degrees_of_freedom(
+    tmp_path, capsys
+):
+    # Before: "energy_orbits needs two degrees of freedom, got n = 1" (a
+    # function the user never called), and nothing on what to do instead.
+    from hamrkq.cli import main
+
+    out = tmp_path / "pendulum"
+    assert main(["poincare", "pendulum", "--section", "q = 0", "--out", str(out)]) == 2
+    message = capsys.readouterr().err
+    assert "two degrees of freedom" in message and "pendulum has 1" in message
+    assert "hamrkq.poincare(" in message
+    assert not out.exists()
+
+
 def test_cli_poincare_writes_points_and_figure(tmp_path, capsys):
     from hamrkq.cli import main
 

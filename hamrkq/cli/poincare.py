@@ -79,6 +79,13 @@ def poincare_command(args: argparse.Namespace) -> int:
     """Run the ``poincare`` subcommand; returns the exit status."""
     problem = load_problem(args.problem)
     ham = problem.hamiltonian
+    if ham.n != 2:
+        raise InputError(
+            f"hamrkq poincare starts its orbits on the energy surface of a system with two "
+            f"degrees of freedom (the section is then the plane of the other coordinate "
+            f"and momentum); {problem.name} has {ham.n}. For other systems, call "
+            "hamrkq.poincare(problem, section, q0, p0, t_span) with initial values of your own"
+        )
     if args.energy is None:
         energy = initial_energy(problem)
         energy_text = f"{energy:.6g}"
