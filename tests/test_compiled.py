@@ -202,6 +202,19 @@ def test_jac_and_rhs_jvp_are_compiled_only_for_the_runs_that_call_them():
     assert paper.success and np.all(np.isfinite(paper.gamma))
 
 
+def test_the_kernel_counts_as_cached_by_its_own_index_only(tmp_path, monkeypatch):
+    # The kernel's folder also holds the stand-ins and the extras: their
+    # indexes alone must not spare a first use the kernel's helper.
+    monkeypatch.setattr(kernel, "_KERNEL", {})
+    monkeypatch.setattr(kernel, "kernel_cache_dir", lambda: tmp_path)
+    (tmp_path / "backends_0").mkdir()
+    (tmp_path / "backends_0" / "kernel._unused_jac-1.py311.nbi").write_bytes(b"")
+    assert not kernel.kernel_cached()
+    (tmp_path / "rkq_0").mkdir()
+    (tmp_path / "rkq_0" / "loop.advance-2.py311.nbi").write_bytes(b"")
+    assert kernel.kernel_cached()
+
+
 def test_the_stand_ins_fill_their_outputs_with_nan():
     dim = 3
     out, dout, JM = np.zeros(dim), np.zeros(dim), np.zeros((dim, dim))

@@ -295,7 +295,9 @@ def kernel_cached() -> bool:
     current = _KERNEL.get("kernel")
     if current is not None and current.dispatchers:
         return True
-    return any(kernel_cache_dir().rglob("*.nbi"))
+    # The step kernel's own index (numba names it after the function): the
+    # folder also holds the extras and the stand-ins (unused_function).
+    return any(kernel_cache_dir().rglob("loop.advance-*.nbi"))
 
 
 def start_helper(dim: int) -> subprocess.Popen | None:
