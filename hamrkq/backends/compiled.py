@@ -227,10 +227,7 @@ class CompiledSystem:
             for name in _CALLED.get(gamma, ()):
                 self._compile(name)
         except Exception as exc:  # numba's TypingError/LoweringError and relatives
-            raise BackendUnavailable(
-                f"numba failed to compile the system ({type(exc).__name__}: "
-                f"{str(exc).splitlines()[0] if str(exc) else ''})"
-            ) from exc
+            raise _numba_failure("the system", exc) from exc
 
     def kernel_arguments(self, gamma: str) -> tuple:
         """``(rhs, tangent, jac)`` for the kernel in a run with this estimate
@@ -258,6 +255,13 @@ class CompiledSystem:
             # its ddarith callees optimised once, inside it (numba_linking)
             self._rhs_dd = jit(plain, signatures()["rhs_jvp"], callees_once=True)
         return self._rhs_dd
+
+
+def _numba_failure(what: str, exc: Exception) -> BackendUnavailable:
+    """The error for numba failing to compile ``what`` (its TypingError,
+    LoweringError and relatives), with the first line of numba's message."""
+    first = str(exc).splitlines()[0] if str(exc) else ""
+    return BackendUnavailable(f"numba failed to compile {what} ({type(exc).__name__}: {first})")
 
 
 #: What the kernel calls besides ``rhs``, by estimate of Gamma
@@ -295,10 +299,7 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
                 f"set {codegen.CACHE_ENV} to a writable directory"
             ) from exc
         except Exception as exc:  # numba's TypingError/LoweringError and relatives
-            raise BackendUnavailable(
-                f"numba failed to compile the system ({type(exc).__name__}: "
-                f"{str(exc).splitlines()[0] if str(exc) else ''})"
-            ) from exc
+            raise _numba_failure("the system", exc) from exc
         _SYSTEMS[key] = system
         mark_compiled(system.path)
         return system
@@ -420,10 +421,7 @@ def _warm_up(ham: Hamiltonian) -> None:
         with np.errstate(all="ignore"):
             run.run()
     except Exception as exc:  # numba's TypingError/LoweringError and relatives
-        raise BackendUnavailable(
-            f"numba failed to compile the RKQ kernel ({type(exc).__name__}: "
-            f"{str(exc).splitlines()[0] if str(exc) else ''})"
-        ) from exc
+        raise _numba_failure("the RKQ kernel", exc) from exc
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
