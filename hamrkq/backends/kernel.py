@@ -17,6 +17,11 @@ overhead of a tiny problem went from 0.367 ms to 0.291 ms, then (with the
 identity-keyed memo and the entry point) from 0.299 ms to 0.240 ms, each
 measured side by side (``docs/performance.md``).
 
+Runs whose estimate of Gamma calls neither ``rhs_jvp`` nor ``jac`` get
+stand-ins of their signatures (:func:`unused_function`), compiled here once
+and cached beside the kernel, so that a system's own are compiled only when
+a run calls them (:class:`hamrkq.backends.compiled.CompiledSystem`).
+
 On a first use of a large system (:data:`HELPER_MIN_DIM` state variables or
 more) with no kernel in the cache, a helper process compiles the kernel into
 the cache (:func:`build_kernel`) while the calling process prepares the
