@@ -194,7 +194,8 @@ FIRST_USE = textwrap.dedent(
     from hamrkq.backends import background, compiled
     problem = hamrkq.load_problem(sys.argv[1])
     t0 = problem.t_span[0]
-    sol = hamrkq.solve(problem, t_span=(t0, t0 + float(sys.argv[2])))
+    options = json.loads(sys.argv[3])
+    sol = hamrkq.solve(problem, t_span=(t0, t0 + float(sys.argv[2])), **options)
     helpers = list(background._HELPERS.values())
     finished = all(h.wait(timeout=600) for h in helpers)
     print(json.dumps({
@@ -202,19 +203,19 @@ FIRST_USE = textwrap.dedent(
         "processes": [len(h.processes) for h in helpers],
         "returncodes": [p.returncode for h in helpers for p in h.processes],
         "finished": finished, "numba": compiled.stats(),
-        "y": sol.y.tolist(), "t": sol.t.tolist(),
+        "y": sol.y.tolist(), "t": sol.t.tolist(), "options": dict(sol.options),
     }))
     """
 )
 
 
-def _fresh(tmp_path, name, span, mode="background"):
+def _fresh(tmp_path, name, span, mode="background", **options):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env["HAMRKQ_CACHE_DIR"] = str(tmp_path / "hamrkq")
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")
     env[background.COMPILE_ENV] = mode
     done = subprocess.run(
-        [sys.executable, "-c", FIRST_USE, name, str(span)],
+        [sys.executable, "-c", FIRST_USE, name, str(span), json.dumps(options)],
         env=env,
         capture_output=True,
         text=True,
@@ -222,6 +223,24 @@ def _fresh(tmp_path, name, span, mode="background"):
         check=True,
     )
     return json.loads(done.stdout.splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_autos_rerun_in_double_double_loads_what_the_helpers_compile(tmp_path):
+    # prentice2011 at 1e-12: auto's first run (interpreted, the helpers
+    # compiling) stops at double precision's floor near t = 38, and auto runs
+    # again with the quencher in double-double.  Before, that rerun compiled
+    # the kernel and the system again in this process, beside the helpers,
+    # and then reported the compiled rerun as interpreted (backend "python",
+    # 0 interpreted steps).
+    run = _fresh(tmp_path, "prentice2011", 50.0, method="auto", atol=1e-12)
+    assert run["options"]["quencher_precision"] == "double-double"
+    assert run["stats"]["discarded_evaluations"] > 0
+    assert run["backend"] == "numba" and run["stats"]["interpreted_steps"] == 0
+    # compiled here: rhs_dd alone (the helpers compiled the rest)
+    assert run["numba"]["compiled"] == 1
+    wait = _fresh(tmp_path / "wait", "prentice2011", 50.0, "wait", method="auto", atol=1e-12)
+    assert wait["y"] == run["y"] and wait["t"] == run["t"]
 
 
 @pytest.mark.slow

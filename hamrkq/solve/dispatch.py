@@ -106,6 +106,14 @@ def _double_double_functions(task: Task, backend: str):
     :mod:`hamrkq.backends.dd_printer`) where the tangent goes."""
     from hamrkq.backends import codegen
 
+    if backend == "numba" and task.compiling is not None:
+        # auto's rerun in double-double after a first run that started
+        # interpreted: wait for the helpers and load what they compiled, rather
+        # than compile the kernel and the system again beside them (and then
+        # report the compiled rerun as interpreted).
+        task.compiling.wait()
+        if task.compiling.functions("shadow") is None:  # unusable: warned once
+            backend = "python"
     if backend == "numba":
         from hamrkq.backends import compiled
 
