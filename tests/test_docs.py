@@ -127,10 +127,19 @@ def _dotted_names() -> set[tuple[str, str]]:
 
 def test_every_hamrkq_name_the_docs_quote_exists():
     # `hamrkq.a.b.c` in the docs: the longest importable module, then attributes.
+    # Packages installed from another folder of the checkout (the catalogue's
+    # problems/ as hamrkq.problems) are importable only once installed: the
+    # suite may import hamrkq from the checkout.
     import importlib
+    import tomllib
 
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    mapped = set(config["tool"]["setuptools"]["package-dir"]) - {"hamrkq"}
+    assert "hamrkq.problems" in mapped
     missing = []
     for dotted, page in sorted(_dotted_names()):
+        if dotted in mapped:
+            continue
         parts = dotted.split(".")
         for cut in range(len(parts), 0, -1):
             try:
