@@ -143,9 +143,12 @@ def table(results: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--name", default="kernel_compile", help="the record's file name (another numba release)"
+    )
     args = parser.parse_args(argv)
     results = run(args.rounds)
-    measure.save_record(HERE, "kernel_compile", results, table)
+    measure.save_record(HERE, args.name, results, table)
     return 0 if results["bit_identical"] else 1
 
 
