@@ -192,6 +192,28 @@ def test_interrupt_writes_partial_results_and_exits_1(tmp_path, monkeypatch, cap
     assert 1 < len(saved) < 6000 and saved.t[-1] < 400
 
 
+def test_a_closed_standard_output_ends_quietly_with_the_files_written(tmp_path, monkeypatch):
+    # `hamrkq run ... | head`: before, "hamrkq: error: cannot write output:
+    # [Errno 32] Broken pipe" and status 3, as if the results were lost.
+    import io
+    import sys
+
+    from hamrkq.cli import EXIT_BROKEN_PIPE, main
+
+    class ClosedPipe(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    errors = io.StringIO()
+    monkeypatch.setattr(sys, "stdout", ClosedPipe())
+    monkeypatch.setattr(sys, "stderr", errors)
+    out = tmp_path / "run"
+    code = main(["run", "harmonic", "--t-end", "1", "--no-plots", "--out", str(out)])
+    assert code == EXIT_BROKEN_PIPE == 141
+    assert errors.getvalue() == ""
+    assert (out / "summary.json").is_file() and (out / "solution.npz").is_file()
+
+
 def test_existing_output_directory_needs_force(tmp_path, capsys):
     out = tmp_path / "busy"
     out.mkdir()

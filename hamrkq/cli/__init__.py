@@ -29,6 +29,7 @@ from hamrkq.errors import HamrkqError
 
 __all__ = [
     "EXIT_BAD_INPUT",
+    "EXIT_BROKEN_PIPE",
     "EXIT_FAILED",
     "EXIT_OK",
     "EXIT_WRITE_FAILED",
@@ -44,6 +45,9 @@ EXIT_BAD_INPUT = 2
 #: The results could not be written (disk full, permissions changed mid-run):
 #: not "the integration failed", which is 1.
 EXIT_WRITE_FAILED = 3
+#: Standard output was closed by its reader (``hamrkq run ... | head``): the
+#: shell's status for a process ended by SIGPIPE (128 + 13).
+EXIT_BROKEN_PIPE = 141
 
 
 class Terminated(KeyboardInterrupt):
@@ -180,12 +184,28 @@ def main(argv: Sequence[str] | None = None) -> int:
             what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
             print(f"hamrkq: {what}", file=sys.stderr)
             return EXIT_FAILED
+        except BrokenPipeError:
+            # The reader of standard output went away (a pipe into head): not
+            # a failure to write the results, which are written before the
+            # table.  Quietly, as other command-line tools, and with stdout
+            # pointed at /dev/null so that the interpreter's last flush does
+            # not complain.
+            _silence_stdout()
+            return EXIT_BROKEN_PIPE
         except OSError as exc:
             # Writing results failed (disk full, permissions changed mid-run).
             print(f"hamrkq: error: cannot write output: {exc}", file=sys.stderr)
             return EXIT_WRITE_FAILED
         finally:
             _release_outputs()
+
+
+def _silence_stdout() -> None:
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # no file descriptor (a test's captured stream)
+        pass
 
 
 def entry_point() -> NoReturn:
