@@ -41,9 +41,10 @@ from collections.abc import Iterator
 __all__ = ["CHECKED_NUMBA", "DISABLE_ENV", "applicable", "callees_optimised_once"]
 
 #: numba releases (major, minor) on which the change was checked against the
-#: plain compile, bit for bit (``benchmarks/kernel_compile.py``; 0.67:
-#: ``benchmarks/kernel_compile_numba067.md``, with its tests).
-CHECKED_NUMBA = ((0, 67), (0, 68))
+#: plain compile, bit for bit (``benchmarks/kernel_compile.py``; 0.66 and
+#: 0.67: ``benchmarks/kernel_compile_numba066.md`` and ``..._numba067.md``,
+#: with its tests).
+CHECKED_NUMBA = ((0, 66), (0, 67), (0, 68))
 
 #: Environment variable: set to 1 (or true/yes/on) to compile the plain way.
 DISABLE_ENV = "HAMRKQ_PLAIN_NUMBA_LINKING"
