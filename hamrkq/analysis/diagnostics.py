@@ -34,7 +34,7 @@ from hamrkq.analysis.summaries import (
     reference_is_close,
 )
 from hamrkq.backends.numeric import numeric_of
-from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.errors import HamrkqError, InputError, InputTypeError, OptionError
 from hamrkq.result import Solution
 from hamrkq.rkq.family import track_name
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -46,6 +46,7 @@ __all__ = [
     "ErrorSummary",
     "bound_ratio",
     "diagnose",
+    "diagnose_for_report",
     "drift_summary",
     "energy_bound",
     "error_summary",
@@ -312,3 +313,74 @@ def diagnose(
         series=dict(series),
         time_dependent=bool(ham is not None and ham.time_dependent),
     )
+
+
+# -- what a report measures against ------------------------------------------------
+
+
+def diagnose_for_report(
+    sol: Any, problem: Any, reference: str, *, extend: bool = False
+) -> tuple[Diagnostics | None, str, list[str]]:
+    """What a report (``hamrkq run``) shows: :func:`diagnose` against
+    ``reference``, and notes for the reader.
+
+    Where the reference cannot be had (a diverging partial run, say) the
+    run's own numbers are still reported, against no reference.  With
+    ``extend`` (``--reference auto``), where the independent reference is not
+    accurate enough to measure the true error (the Pleiades at 1e-8: 2.1e-8)
+    or not far below the tolerance (within
+    :data:`~hamrkq.analysis.summaries.CLOSE_REFERENCE` of it: fpu, arenstorf),
+    and the extended one can be had (heyoka) and is more accurate, the run is
+    measured against that instead, and a note says so.
+
+    Returns
+    -------
+    (diagnostics or None, the reference used, notes)
+        None for a run of fewer than two nodes.
+    """
+    if len(sol) < 2:
+        return None, reference, ["fewer than two nodes: no diagnostics"]
+    try:
+        diag = diagnose(sol, problem, reference=reference)
+    except HamrkqError as exc:
+        note = f"reference {reference!r} unavailable ({exc}); true error not reported"
+        return diagnose(sol, problem, reference="none"), reference, [note]
+    notes: list[str] = []
+    if extend and reference == "independent":
+        diag, reference = _extended_if_unmeasured(sol, problem, diag, notes)
+    return diag, reference, notes
+
+
+def _extended_if_unmeasured(
+    sol: Any, problem: Any, diag: Diagnostics, notes: list[str]
+) -> tuple[Diagnostics, str]:
+    """``diag`` against the extended reference where the independent one
+    does not measure the true error well (see :func:`diagnose_for_report`)."""
+    from hamrkq.analysis.extended_reference import available
+
+    unchanged = diag, "independent"
+    if diag.error is None or not available():
+        return unchanged
+    if diag.error_measured and not diag.reference_close:
+        return unchanged
+    accuracy = diag.error.reference_accuracy
+    try:
+        extended = diagnose(sol, problem, reference="extended")
+    except HamrkqError as exc:
+        notes.append(f"reference 'extended' unavailable ({exc})")
+        return unchanged
+    better = extended.error.reference_accuracy
+    if not better < accuracy:
+        return unchanged
+    outcome = (
+        "the true error is measured against the extended one (heyoka in extended "
+        f"precision, accurate to ~{better:.1e})"
+        if extended.error_measured
+        else f"the extended one (heyoka, accurate to ~{better:.1e}) is reported; it is "
+        "not accurate enough either"
+    )
+    notes.append(
+        f"the independent reference is accurate only to ~{accuracy:.1e}, "
+        f"{'not far below' if diag.error_measured else 'not below'} the tolerance: {outcome}"
+    )
+    return extended, "extended"

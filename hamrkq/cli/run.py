@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.analysis.diagnostics import diagnose
+from hamrkq.analysis.diagnostics import diagnose_for_report
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.cli import EXIT_WRITE_FAILED, signals_received
-from hamrkq.errors import HamrkqError, InputError, OptionError
+from hamrkq.errors import InputError, OptionError
 from hamrkq.io.report import (
     OutputDir,
     ProgressBar,
@@ -251,57 +251,6 @@ def write_csv(out: OutputDir, name: str, sol: Any) -> None:
     out.text(name, "\n".join(lines) + "\n")
 
 
-def diagnose_safely(sol: Any, problem: Any, reference: str) -> tuple[Any, list[str]]:
-    """:func:`diagnose`, falling back to no reference when the reference cannot be
-    had (a diverging partial run, say): the run's own numbers are still reported."""
-    notes: list[str] = []
-    if len(sol) < 2:
-        return None, ["fewer than two nodes: no diagnostics"]
-    try:
-        return diagnose(sol, problem, reference=reference), notes
-    except HamrkqError as exc:
-        notes.append(f"reference {reference!r} unavailable ({exc}); true error not reported")
-    return diagnose(sol, problem, reference="none"), notes
-
-
-def extend_if_unmeasured(
-    sol: Any, problem: Any, diag: Any, reference: str, notes: list[str]
-) -> tuple[Any, str]:
-    """With ``--reference auto``: where the independent reference is not
-    accurate enough to measure the true error (the Pleiades at 1e-8: 2.1e-8),
-    or not far below the tolerance (within a hundredth of it: fpu, arenstorf),
-    and the extended one can be had (heyoka) and is more accurate, measure
-    against that instead, and say so; otherwise ``(diag, reference)``
-    unchanged."""
-    from hamrkq.analysis.extended_reference import available
-
-    if reference != "independent" or diag is None or diag.error is None or not available():
-        return diag, reference
-    if diag.error_measured and not diag.reference_close:
-        return diag, reference
-    accuracy = diag.error.reference_accuracy
-    try:
-        extended = diagnose(sol, problem, reference="extended")
-    except HamrkqError as exc:
-        notes.append(f"reference 'extended' unavailable ({exc})")
-        return diag, reference
-    better = extended.error.reference_accuracy
-    if not better < accuracy:
-        return diag, reference
-    outcome = (
-        "the true error is measured against the extended one (heyoka in extended "
-        f"precision, accurate to ~{better:.1e})"
-        if extended.error_measured
-        else f"the extended one (heyoka, accurate to ~{better:.1e}) is reported; it is "
-        "not accurate enough either"
-    )
-    notes.append(
-        f"the independent reference is accurate only to ~{accuracy:.1e}, "
-        f"{'not far below' if diag.error_measured else 'not below'} the tolerance: {outcome}"
-    )
-    return extended, "extended"
-
-
 def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) -> list[str]:
     """Draw and save the figures this run supports; returns notes on those skipped."""
     from hamrkq.plotting import figures as plotting
@@ -364,10 +313,10 @@ def run_command(args: argparse.Namespace) -> int:
     notes: list[str] = []
     diag = None
     try:
-        diag, more = diagnose_safely(sol, problem, reference)
+        diag, reference, more = diagnose_for_report(
+            sol, problem, reference, extend=args.reference == "auto"
+        )
         notes += more
-        if args.reference == "auto":
-            diag, reference = extend_if_unmeasured(sol, problem, diag, reference, notes)
         if not args.no_plots and write_failed is None:
             write_failed = _attempt(
                 lambda: notes.extend(
