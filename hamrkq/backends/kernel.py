@@ -98,10 +98,15 @@ def compile_in_cache(function: Callable, arg_types: tuple):
     hash, so that a changed callee (numba only checks the time stamp of the
     compiled function's own file) never loads stale code."""
     numba = numba_module()
+    signature = numba.types.int64(*arg_types)
+    return jit(function, signature, cache_dir=_cache_folder(), callees_once=True)
+
+
+def _cache_folder() -> str:
+    """:func:`kernel_cache_dir`, created if missing."""
     folder = kernel_cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    signature = numba.types.int64(*arg_types)
-    return jit(function, signature, cache_dir=str(folder), callees_once=True)
+    return str(folder)
 
 
 # Never called: stand-ins for the kernel's ``jac`` and ``tangent`` in runs
@@ -123,10 +128,8 @@ def unused_function(name: str):
     kernel's cache folder)."""
     with LOCK:
         if name not in _UNUSED:
-            folder = kernel_cache_dir()
-            folder.mkdir(parents=True, exist_ok=True)
             plain = {"jac": _unused_jac, "rhs_jvp": _unused_rhs_jvp}[name]
-            _UNUSED[name] = jit(plain, signatures()[name], cache_dir=str(folder))
+            _UNUSED[name] = jit(plain, signatures()[name], cache_dir=_cache_folder())
         return _UNUSED[name]
 
 
