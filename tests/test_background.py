@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import sympy
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import background, compiled, numba_compile
+from hamrkq.backends import background, codegen, compiled, numba_compile
+from hamrkq.backends import kernel as kernel_module
 from hamrkq.errors import HamrkqWarning, OptionError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,7 +89,7 @@ def test_a_run_that_switches_to_compiled_code_midway_gives_the_same_bits(monkeyp
     options = {"t_span": (0.0, 60.0), "method": "rk34q8"}
     reference = hamrkq.solve(problem, backend="numba", **options)
     stand_in = StandIn(problem.hamiltonian, checks)
-    monkeypatch.setattr(background, "start", lambda ham: stand_in)
+    monkeypatch.setattr(background, "start", lambda ham, gamma: stand_in)
     sol = hamrkq.solve(problem, **options)
     _same_run(reference, sol)
     np.testing.assert_allclose(sol.energy, reference.energy, rtol=1e-14)
@@ -105,7 +107,7 @@ def test_chunks_are_short_until_the_switch(monkeypatch):
     # 1 step, then sized to UPGRADE_CHECK_SECONDS: many checks in a short run.
     problem = hamrkq.load_problem("prentice2011")
     stand_in = StandIn(problem.hamiltonian, None)
-    monkeypatch.setattr(background, "start", lambda ham: stand_in)
+    monkeypatch.setattr(background, "start", lambda ham, gamma: stand_in)
     sol = hamrkq.solve(problem, t_span=(0.0, 30.0), method="rk34q8")
     assert sol.stats["steps"] > 400
     assert stand_in.asked > 4
@@ -123,7 +125,7 @@ def test_the_mode_is_read_from_the_environment(monkeypatch):
 
 def test_explicit_numba_and_wait_mode_compile_first(monkeypatch):
     calls = []
-    monkeypatch.setattr(background, "start", lambda ham: calls.append(ham))
+    monkeypatch.setattr(background, "start", lambda ham, gamma: calls.append(ham))
     problem = hamrkq.load_problem("harmonic")
     hamrkq.solve(problem, backend="numba", t_span=(0.0, 1.0))
     hamrkq.solve(problem, backend="python", t_span=(0.0, 1.0))
@@ -141,6 +143,42 @@ def test_nothing_starts_when_the_code_is_cached(monkeypatch):
     compiled.warm_up(ham)
     assert compiled.is_compiled(ham)
     assert background.start(ham) is None
+
+
+def _unique_system(k):
+    """A small system no other test compiles (its own cache key)."""
+    q, p = sympy.symbols("q p", real=True)
+    return hamrkq.Hamiltonian(p**2 / 2 + sympy.cos(q) * k + q**4 / 11, q=[q], p=[p])
+
+
+def test_the_tangent_part_is_generated_for_the_helper_only_where_the_run_calls_it(
+    monkeypatch, tmp_path
+):
+    """auto's shadow estimate calls no Jacobian: its first use neither derives
+    nor prints one; rk34q8's tangent estimate does, so the helper, which
+    cannot generate code, finds it in the cache and compiles it too."""
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path))
+    monkeypatch.setenv(background.COMPILE_ENV, "background")
+    monkeypatch.setattr(kernel_module, "cores", lambda: 2)
+    spawned = []
+    monkeypatch.setattr(
+        kernel_module, "spawn_helper", lambda code: spawned.append(code) or _finished("pass")
+    )
+    shadow, tangent = _unique_system(3), _unique_system(5)
+    assert background.start(shadow, "shadow") is not None
+    assert background.start(tangent, "tangent") is not None
+    assert len(spawned) == 2
+    assert codegen.is_cached(shadow) and not codegen.is_cached(shadow, part="tangent")
+    assert "jacobian" not in vars(shadow)
+    assert codegen.is_cached(tangent, part="tangent")
+    # The helper's work, here: the system part only, then both.
+    before = numba_compile.stats()["compiled"]
+    background.build(codegen.cache_key(shadow), "system")
+    assert numba_compile.stats()["compiled"] - before == 3  # rhs, energy, energy_rows
+    assert not codegen.is_cached(shadow, part="tangent")
+    before = numba_compile.stats()["compiled"]
+    background.build(codegen.cache_key(tangent), "system")
+    assert numba_compile.stats()["compiled"] - before == 5  # and jac, rhs_jvp
 
 
 # -- a helper that fails --------------------------------------------------------

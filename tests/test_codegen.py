@@ -8,7 +8,9 @@ import hashlib
 import math
 import re
 import sys
+import types
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,12 +33,19 @@ def _states(problem, count=4, seed=0):
     return [y0] + [y0 + scale * rng.standard_normal(y0.size) for _ in range(count)]
 
 
+def _both_parts(ham, directory):
+    """The system and tangent parts of ``ham``'s generated code, as one namespace."""
+    system = codegen.load_module(ham, directory)
+    tangent = codegen.load_module(ham, directory, part="tangent")
+    return types.SimpleNamespace(**{**vars(system), **vars(tangent)})
+
+
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory):
-    """Every catalogue problem's generated module, in a private cache."""
+    """Every catalogue problem's generated code, both parts, in a private cache."""
     directory = tmp_path_factory.mktemp("codegen")
     return {
-        name: (problem, codegen.load_module(problem.hamiltonian, directory))
+        name: (problem, _both_parts(problem.hamiltonian, directory))
         for name in CATALOGUE
         for problem in [hamrkq.load_problem(name)]
     }
@@ -182,7 +191,8 @@ def test_the_printer_parses_no_text(monkeypatch):
         raise AssertionError("sympify called")
 
     monkeypatch.setattr(sp, "sympify", forbidden)
-    codegen.generate_source(hamrkq.load_problem("arenstorf").hamiltonian)
+    for part in codegen.PARTS:
+        codegen.generate_source(hamrkq.load_problem("arenstorf").hamiltonian, part)
     with pytest.raises(TypeError, match="str"):
         scalar_printer._constant_offsets(["q + 1"], frozenset(), sp.numbered_symbols("_k"))
 
@@ -213,25 +223,27 @@ def test_user_names_never_reach_the_source(tmp_path):
     a = sp.Symbol("params[0] + exec('1')", real=True)
     H = sum(pi**2 for pi in ps) / 2 + a * sum(qi**2 for qi in qs) + qs[0] * ps[1]
     ham = hamrkq.Hamiltonian(H, q=qs, p=ps, parameters={a: 2.0})
-    source = codegen.generate_source(ham)
-    for name in [*HOSTILE, "exec", "__import__", "pwned", "import os"]:
-        if name in ("out", "math", "def"):
-            continue  # these words legitimately occur in every generated file
-        assert name not in source
-    # Only the names the generator itself uses appear as identifiers.
-    tree = ast.parse(source)
-    identifiers = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
-    allowed = {"math", "t", "y", "params", "out", "dout", "JM", "v", "Y", "i", "k", "acc", "range",
-               "energy", "ylo", "outlo", *DD_FUNCTIONS}  # fmt: skip
-    # Numbered temporaries: c0 (CSE), f0/g0 (rhs_jvp's two CSEs), r0/d0 (its
-    # outputs), j0_1 (its Jacobian entries), h0/l0 (rhs_dd's high and low words,
-    # sh0/sl0/ch0/cl0 a sine and cosine of one argument).
-    pattern = r"[cfgrdhl][0-9]+|(sh|sl|ch|cl)[0-9]+|j[0-9]+_[0-9]+"
-    temporaries = {n for n in identifiers if re.fullmatch(pattern, n)}
-    constants = {"DIM", "NPARAMS", "CODEGEN_VERSION", "DD_UNSUPPORTED"}
-    assert identifiers - temporaries <= allowed | constants
-    imports = [node for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)]
-    assert [alias.name for node in imports for alias in node.names] == ["math", *DD_FUNCTIONS]
+    expected_imports = {"system": ["math", *DD_FUNCTIONS], "tangent": ["math"]}
+    for part in codegen.PARTS:
+        source = codegen.generate_source(ham, part)
+        for name in [*HOSTILE, "exec", "__import__", "pwned", "import os"]:
+            if name in ("out", "math", "def"):
+                continue  # these words legitimately occur in every generated file
+            assert name not in source
+        # Only the names the generator itself uses appear as identifiers.
+        tree = ast.parse(source)
+        identifiers = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
+        allowed = {"math", "t", "y", "params", "out", "dout", "JM", "v", "Y", "i", "k", "acc",
+                   "range", "energy", "ylo", "outlo", *DD_FUNCTIONS}  # fmt: skip
+        # Numbered temporaries: c0 (CSE), f0/g0 (rhs_jvp's two CSEs), r0/d0 (its
+        # outputs), j0_1 (its Jacobian entries), h0/l0 (rhs_dd's high and low words,
+        # sh0/sl0/ch0/cl0 a sine and cosine of one argument).
+        pattern = r"[cfgrdhl][0-9]+|(sh|sl|ch|cl)[0-9]+|j[0-9]+_[0-9]+"
+        temporaries = {n for n in identifiers if re.fullmatch(pattern, n)}
+        constants = {"DIM", "NPARAMS", "CODEGEN_VERSION", "DD_UNSUPPORTED"}
+        assert identifiers - temporaries <= allowed | constants
+        imports = [n for n in ast.walk(tree) if isinstance(n, ast.Import | ast.ImportFrom)]
+        assert [alias.name for node in imports for alias in node.names] == expected_imports[part]
     # And it computes the right thing.
     module = codegen.load_module(ham, tmp_path)
     y = np.arange(1.0, 7.0)
@@ -285,8 +297,8 @@ def test_abs_of_a_real_symbol_generates_code_without_diracdelta():
     q, p = sp.symbols("q p", real=True)
     with pytest.warns(hamrkq.errors.HamrkqWarning, match="not differentiable"):
         ham = hamrkq.Hamiltonian(p**2 / 2 + sp.Abs(q), q=[q], p=[p])
-    source = codegen.generate_source(ham)
-    assert "DiracDelta" not in source
+    for part in codegen.PARTS:
+        assert "DiracDelta" not in codegen.generate_source(ham, part)
     assert ham.jacobian == sp.Matrix([[0, 1], [0, 0]])
     assert ham.rhs == sp.Matrix([p, -sp.sign(q)])
 
@@ -356,6 +368,42 @@ def test_load_module_writes_once_and_names_the_file_by_the_key(tmp_path):
     assert checksum == codegen.CHECKSUM_PREFIX + hashlib.sha256((body + "\n").encode()).hexdigest()
 
 
+def test_the_tangent_part_is_generated_on_its_first_use(tmp_path):
+    """A run with the shadow estimate (auto's) never calls the Jacobian: the
+    system part is generated without deriving it, the tangent part (its
+    own file, keyed by the system's key) when it is asked for."""
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 - sp.cos(q) + q**4 / 24, q=[q], p=[p])
+    system = codegen.load_module(ham, tmp_path)
+    assert not hasattr(system, "jac") and "jacobian" not in vars(ham)
+    assert [f.name for f in tmp_path.glob("*.py")] == [Path(system.__file__).name]
+    assert not codegen.is_cached(ham, tmp_path, part="tangent")
+    tangent = codegen.load_module(ham, tmp_path, part="tangent")
+    assert "jacobian" in vars(ham) and codegen.is_cached(ham, tmp_path, part="tangent")
+    key = codegen.cache_key(ham)
+    assert tangent.__file__ == str(codegen.module_path(codegen.part_key(key, "tangent"), tmp_path))
+    assert codegen.load_part(key, "tangent", directory=tmp_path) is tangent
+    y, J = np.array([0.3, -0.2]), np.empty((2, 2))
+    tangent.jac(0.0, y, np.empty(0), J)
+    np.testing.assert_allclose(J, [[0.0, 1.0], [-math.cos(0.3) - 0.3**2 / 2, 0.0]], rtol=1e-15)
+    with pytest.raises(ValueError, match="unknown part 'hessian'"):
+        codegen.part_key(key, "hessian")
+
+
+def test_a_helper_finds_only_the_cached_parts(tmp_path):
+    """A helper process knows the key only: it loads what is cached and
+    cannot generate the rest."""
+    ham = hamrkq.load_problem("toda").hamiltonian
+    key = codegen.cache_key(ham)
+    with pytest.raises(FileNotFoundError):
+        codegen.load_part(key, "system", directory=tmp_path)
+    system = codegen.load_module(ham, tmp_path)
+    assert codegen.load_part(key, "system", directory=tmp_path) is system
+    assert not codegen.part_cached(key, "tangent", tmp_path)
+    with pytest.raises(FileNotFoundError):
+        codegen.load_part(key, "tangent", directory=tmp_path)
+
+
 def test_load_module_uses_the_environment_directory(monkeypatch, tmp_path):
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "via-env"))
     ham = hamrkq.load_problem("harmonic").hamiltonian
@@ -368,7 +416,7 @@ def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
     ham = hamrkq.load_problem("toda").hamiltonian
     path = tmp_path / f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"
     path.write_text(source_cache.sealed(codegen.generate_source(ham)))
-    monkeypatch.setattr(codegen, "generate_source", lambda ham: pytest.fail("regenerated"))
+    monkeypatch.setattr(codegen, "generate_source", lambda *a: pytest.fail("regenerated"))
     module = codegen.load_module(ham, tmp_path)
     assert module.DIM == 6
 
@@ -388,7 +436,7 @@ def test_integer_powers_are_spelled_out_and_correct(tmp_path):
         + sp.exp(q / 9) ** -9
     )
     ham = hamrkq.Hamiltonian(H, q=[q], p=[p])
-    source = codegen.generate_source(ham)
+    source = "\n".join(codegen.generate_source(ham, part) for part in codegen.PARTS)
     tree = ast.parse(source)
     for node in ast.walk(tree):
         if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
@@ -398,7 +446,7 @@ def test_integer_powers_are_spelled_out_and_correct(tmp_path):
             # Only float literals or rational expressions like (3/2) remain.
             assert not (isinstance(exponent, ast.Constant) and isinstance(exponent.value, int))
     assert "math.cos(y[0])*math.cos(y[0])" not in source  # compound bases are hoisted
-    module = codegen.load_module(ham, tmp_path)
+    module = _both_parts(ham, tmp_path)
     rng = np.random.default_rng(3)
     for _ in range(20):
         y = rng.uniform(0.3, 1.5, 2) * rng.choice([-1, 1], 2)

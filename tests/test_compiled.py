@@ -80,8 +80,9 @@ def _run(functions, problem, t0, t_end, method, atol, rtol, **options):
 
 def _interpreted(problem, t0, t_end, method, **options):
     """The interpreted kernel on the same generated functions (plain Python)."""
-    module = codegen.load_module(problem.hamiltonian)
-    return _run(python_functions(module.rhs, module.jac), problem, t0, t_end, method, **options)
+    ham = problem.hamiltonian
+    rhs, jac = codegen.load_module(ham).rhs, codegen.load_module(ham, part="tangent").jac
+    return _run(python_functions(rhs, jac), problem, t0, t_end, method, **options)
 
 
 #: The estimate of Gamma by its kernel code (what of the system the kernel calls).

@@ -97,6 +97,7 @@ def tangent_growth(
         from hamrkq.backends import compiled, extras
 
         system_fns = compiled.compile_system(ham)
+        system_fns.prepare("tangent")  # generates and compiles rhs_jvp
         args = (system_fns.rhs_jvp, tab, params, t, y, v, work, growth)
         extras.compiled_helper(sweep, ("rhs_jvp",), *args)(*args)
     else:

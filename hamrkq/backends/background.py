@@ -47,7 +47,6 @@ from hamrkq._progress import say
 from hamrkq.backends import codegen, compiled
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.numba_compile import BackendUnavailable, available
-from hamrkq.backends.source_cache import load_source
 from hamrkq.errors import CodegenError, OptionError
 
 if TYPE_CHECKING:
@@ -140,10 +139,13 @@ class BackgroundCompile:
         return True
 
 
-def start(ham: Hamiltonian) -> BackgroundCompile | None:
+def start(ham: Hamiltonian, gamma: str = "tangent") -> BackgroundCompile | None:
     """Start compiling ``ham``'s code (and the kernel) in a helper process,
     when the conditions in the module's description hold; None otherwise
-    (the caller then compiles, or loads, in its own process)."""
+    (the caller then compiles, or loads, in its own process).  ``gamma``:
+    the run's estimate of Gamma; the tangent part of the code (the
+    Jacobian) is generated here first where it calls it, so that the helper
+    compiles it too."""
     if compile_mode() != "background" or kernel_module.cores() < 2:
         return None
     key = codegen.cache_key(ham)
@@ -160,7 +162,9 @@ def start(ham: Hamiltonian) -> BackgroundCompile | None:
     if not parts:
         return None
     try:
-        codegen.load_module(ham)  # the helper compiles this file
+        codegen.load_module(ham)  # the helper compiles these files
+        if compiled.calls_tangent_part(gamma):
+            codegen.load_module(ham, part="tangent")
     except (CodegenError, OSError):
         return None  # the caller's own compile reports it
     if ham.dim < kernel_module.HELPER_MIN_DIM:
@@ -183,17 +187,14 @@ def start(ham: Hamiltonian) -> BackgroundCompile | None:
     return helper
 
 
-def _missing_source() -> str:
-    raise FileNotFoundError("the generated module is not in the cache")
-
-
 def build(key: str, parts: str = "system kernel") -> None:
     """Compile (or load) into the cache the system cached under ``key``
     and/or the kernel (``parts``; the helper process of :func:`start`)."""
     if "system" in parts.split():
-        module = load_source(key, _missing_source)
-        system = compiled.CompiledSystem(module)
-        system.compile_all()  # whatever estimate of Gamma the run has
+        module = codegen.load_part(key, "system")
+        system = compiled.CompiledSystem(module, lambda: codegen.load_part(key, "tangent"))
+        if codegen.part_cached(key, "tangent"):  # generated where the run calls it
+            system.compile_all()
         compiled.mark_compiled(system.path)
     if "kernel" in parts.split():
         # With a stand-in system: a probe of the real one may end before its

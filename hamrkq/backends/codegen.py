@@ -2,15 +2,19 @@
 
 :func:`generate_source` turns the symbolic right-hand side, Jacobian,
 Jacobian-vector product and energy of a :class:`~hamrkq.symbolic.hamiltonian.Hamiltonian`
-into the text of a small Python module of plain scalar functions::
+into the text of two small Python modules of plain scalar functions, its
+*parts* (:data:`PARTS`), each generated on its first use::
 
+    # the system part: what every run calls
     rhs(t, y, params, out)        # out[:] = dy/dt
-    jac(t, y, params, out)        # out[:, :] = d rhs / dy
-    jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
-    rhs_jvp(t, y, params, v, out, dout, JM)  # rhs and J @ v at one point
     rhs_dd(t, y, params, ylo, out, outlo, JM)  # rhs in double-double (if DD_UNSUPPORTED == "")
     energy(t, y, params) -> float # H
     energy_rows(t, Y, params, out) # out[i] = H(t[i], Y[i])
+
+    # the tangent part: the tangent and the paper's estimates of Gamma
+    jac(t, y, params, out)        # out[:, :] = d rhs / dy
+    jvp(t, y, params, v, out)     # out[:] = (d rhs / dy) @ v
+    rhs_jvp(t, y, params, v, out, dout, JM)  # rhs and J @ v at one point
 
 The text is printed by SymPy's :class:`~sympy.printing.pycode.PythonCodePrinter`
 (``math`` functions) from the output of :func:`sympy.cse`
@@ -22,7 +26,7 @@ the compiled text comes from SymPy's printers over parsed expressions, never
 from raw file text.
 
 :func:`load_module` writes the text to the cache directory (:func:`cache_dir`)
-in a file named by a hash of the inputs (:func:`cache_key`) and imports it from
+in a file named by a hash of the inputs (:func:`cache_key`, :func:`part_key`) and imports it from
 there with :mod:`importlib` (the files, their checksums and the imports are
 :mod:`hamrkq.backends.source_cache`'s), so that a compiler that caches by source file
 (``numba``'s ``cache=True``) can keep its machine code beside it.  The functions
@@ -35,6 +39,7 @@ import functools
 import hashlib
 import sys
 import weakref
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
@@ -63,6 +68,8 @@ __all__ = [
     "CHECKSUM_PREFIX",
     "CODEGEN_VERSION",
     "MODULE_PREFIX",
+    "PARTS",
+    "PART_FUNCTIONS",
     "CodegenError",
     "cache_dir",
     "cache_key",
@@ -71,13 +78,16 @@ __all__ = [
     "generate_source",
     "is_cached",
     "load_module",
+    "load_part",
     "load_source",
     "module_path",
+    "part_cached",
+    "part_key",
 ]
 
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 12
+CODEGEN_VERSION = 13
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
 _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -161,14 +171,49 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def generate_source(ham: Hamiltonian) -> str:
-    """The text of a module defining ``rhs``, ``jac``, ``jvp``, ``rhs_jvp`` and ``energy``.
+#: The parts of a system's generated code, each a module of its own, generated
+#: on first use: ``"system"`` (``rhs``, ``rhs_dd``, ``energy``,
+#: ``energy_rows``: what every run calls) and ``"tangent"`` (``jac``, ``jvp``,
+#: ``rhs_jvp``: called only by the tangent and the paper's estimates of Gamma,
+#: by the interpreted loop's Jacobian and by SciPy's implicit methods).  For a
+#: large system the tangent part is most of the generation: the symbolic
+#: Jacobian and its printing (``benchmarks/lazy_functions.md``).
+PARTS = ("system", "tangent")
+
+#: The functions of each part.
+PART_FUNCTIONS = {
+    "system": ("rhs", "rhs_dd", "energy", "energy_rows"),
+    "tangent": ("jac", "jvp", "rhs_jvp"),
+}
+
+
+def part_key(key: str, part: str) -> str:
+    """The cache key of ``part`` (one of :data:`PARTS`) of the system whose
+    key (:func:`cache_key`) is ``key``: ``key`` itself for ``"system"``, a
+    hash of it for the others (so a helper process that knows only the key
+    finds every part)."""
+    if part not in PARTS:
+        raise ValueError(f"unknown part {part!r}; valid: {', '.join(PARTS)}")
+    if part == "system":
+        return key
+    return hashlib.sha256(f"{key}\n{part}".encode()).hexdigest()
+
+
+def generate_source(ham: Hamiltonian, part: str = "system") -> str:
+    """The text of the module of one part of ``ham``'s code (:data:`PARTS`).
 
     Parameters
     ----------
     ham : Hamiltonian
-        The system; its symbolic right-hand side and Jacobian are derived here
-        if they were not yet.
+        The system; its symbolic right-hand side (and, for ``"tangent"``, its
+        Jacobian) are derived here if they were not yet.
+    part : {"system", "tangent"}
+        ``"system"``: ``rhs``, ``rhs_dd`` (or ``DD_UNSUPPORTED``, why not),
+        ``energy`` and ``energy_rows``; ``"tangent"``: ``jac``, ``jvp`` and
+        ``rhs_jvp`` (which, above
+        :data:`~hamrkq.backends.scalar_printer.MAX_FUSED_DIM` state
+        variables, calls the system part's ``rhs``: :func:`load_module`
+        binds it).
 
     Returns
     -------
@@ -181,46 +226,78 @@ def generate_source(ham: Hamiltonian) -> str:
     CodegenError
         If an expression contains something the printer cannot express.
     """
+    if part not in PARTS:
+        raise ValueError(f"unknown part {part!r}; valid: {', '.join(PARTS)}")
     dim = ham.dim
     names: dict[sp.Symbol, str] = {s: f"y[{i}]" for i, s in enumerate(ham.state)}
     names.update({s: f"params[{j}]" for j, s in enumerate(ham.parameters)})
     names[ham.t] = "t"
-    vector = sp.symbols(f"_v0:{dim}", real=True)
-    names.update({s: f"v[{k}]" for k, s in enumerate(vector)})
-
-    rhs = list(ham.rhs)
-    jac = ham.jacobian
-    nonzero = [(i, j) for i in range(dim) for j in range(dim) if jac[i, j] != 0]
-    products = [sp.Add(*(jac[i, j] * vector[j] for j in range(dim))) for i in range(dim)]
-    check_supported([ham.H, *rhs, *products], set(names))
     parameters = frozenset(ham.parameters)
-
     lines = [
         '"""Generated by hamrkq.backends.codegen: do not edit (the file is rewritten when',
-        "its hash changes).  State y = (q..., p...); params ordered like",
-        f'Hamiltonian.parameters.  dim = {dim}, parameters = {len(ham.parameters)}."""',
+        f"its hash changes).  The {part} part: {', '.join(PART_FUNCTIONS[part])}.",
+        "State y = (q..., p...); params ordered like Hamiltonian.parameters.",
+        f'dim = {dim}, parameters = {len(ham.parameters)}."""',
         "",
         "import math",
         "",
-        f"from hamrkq.rkq.ddarith import {', '.join(DD_FUNCTIONS)}",
-        "",
+    ]
+    if part == "system":
+        lines += [f"from hamrkq.rkq.ddarith import {', '.join(DD_FUNCTIONS)}", ""]
+    lines += [
         f"DIM = {dim}",
         f"NPARAMS = {len(ham.parameters)}",
         f"CODEGEN_VERSION = {CODEGEN_VERSION}",
         "",
         "",
     ]
-    lines += block(
+    body = _system_part if part == "system" else _tangent_part
+    return "\n".join(lines + body(ham, names, parameters)) + "\n"
+
+
+def _system_part(ham: Hamiltonian, names: dict, parameters: frozenset) -> list[str]:
+    rhs = list(ham.rhs)
+    check_supported([ham.H, *rhs], set(names))
+    lines = block(
         "rhs",
         "t, y, params, out",
         "out[:] = dy/dt = (dH/dp, -dH/dq).",
         rhs,
-        [f"out[{i}]" for i in range(dim)],
+        [f"out[{i}]" for i in range(ham.dim)],
         names,
         parameters,
     )
     lines += ["", ""]
+    try:
+        lines += rhs_dd_block(ham)
+        lines += ["", "", 'DD_UNSUPPORTED = ""']
+    except CodegenError as exc:  # the double-double quencher is then refused, by name
+        lines += [f"DD_UNSUPPORTED = {str(exc)!r}"]
+    lines += ["", ""]
     lines += block(
+        "energy", "t, y, params", "H at one state.", [ham.H], [], names, parameters, returns=True
+    )
+    lines += [
+        "",
+        "",
+        "def energy_rows(t, Y, params, out):",
+        '    """out[i] = H(t[i], Y[i]) for every row of Y."""',
+        "    for i in range(Y.shape[0]):",
+        "        out[i] = energy(t[i], Y[i], params)",
+    ]
+    return lines
+
+
+def _tangent_part(ham: Hamiltonian, names: dict, parameters: frozenset) -> list[str]:
+    dim = ham.dim
+    vector = sp.symbols(f"_v0:{dim}", real=True)
+    names = {**names, **{s: f"v[{k}]" for k, s in enumerate(vector)}}
+    rhs = list(ham.rhs)
+    jac = ham.jacobian
+    nonzero = [(i, j) for i in range(dim) for j in range(dim) if jac[i, j] != 0]
+    products = [sp.Add(*(jac[i, j] * vector[j] for j in range(dim))) for i in range(dim)]
+    check_supported(products, set(names))
+    lines = block(
         "jac",
         "t, y, params, out",
         "out[:, :] = Jacobian of rhs with respect to y.",
@@ -243,25 +320,7 @@ def generate_source(ham: Hamiltonian) -> str:
     )
     lines += ["", ""]
     lines += rhs_jvp_block(rhs, jac, nonzero, dim, names, parameters)
-    lines += ["", ""]
-    try:
-        lines += rhs_dd_block(ham)
-        lines += ["", "", 'DD_UNSUPPORTED = ""']
-    except CodegenError as exc:  # the double-double quencher is then refused, by name
-        lines += [f"DD_UNSUPPORTED = {str(exc)!r}"]
-    lines += ["", ""]
-    lines += block(
-        "energy", "t, y, params", "H at one state.", [ham.H], [], names, parameters, returns=True
-    )
-    lines += [
-        "",
-        "",
-        "def energy_rows(t, Y, params, out):",
-        '    """out[i] = H(t[i], Y[i]) for every row of Y."""',
-        "    for i in range(Y.shape[0]):",
-        "        out[i] = energy(t[i], Y[i], params)",
-    ]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def double_double_unsupported(ham: Hamiltonian) -> str:
@@ -270,32 +329,38 @@ def double_double_unsupported(ham: Hamiltonian) -> str:
     return load_module(ham).DD_UNSUPPORTED
 
 
-def is_cached(ham: Hamiltonian, directory: Path | None = None) -> bool:
-    """True if the generated module of ``ham`` is on disk and intact (its
-    checksum matches), so :func:`load_module` will neither derive nor print
-    anything.  A caller can use it to announce a slow first use (generation,
-    then compilation) before it starts."""
-    path = module_path(cache_key(ham), directory)
+def is_cached(ham: Hamiltonian, directory: Path | None = None, part: str = "system") -> bool:
+    """True if the generated module of ``part`` of ``ham`` is on disk and
+    intact (its checksum matches), so :func:`load_module` will neither
+    derive nor print anything.  A caller can use it to announce a slow first
+    use (generation, then compilation) before it starts."""
+    path = module_path(part_key(cache_key(ham), part), directory)
     try:
         return path.exists() and damage_of(path) is None
     except OSError:
         return False
 
 
-def load_module(ham: Hamiltonian, directory: Path | None = None) -> ModuleType:
-    """The generated module of ``ham``, from the cache or freshly written.
+def load_module(
+    ham: Hamiltonian, directory: Path | None = None, part: str = "system"
+) -> ModuleType:
+    """The generated module of one part of ``ham``'s code, from the cache or
+    freshly written (the system part first, for the tangent part).
 
     Parameters
     ----------
     ham : Hamiltonian
     directory : Path, optional
         Where to cache; :func:`cache_dir` by default.
+    part : {"system", "tangent"}
+        Which part (:data:`PARTS`).
 
     Returns
     -------
     module
-        With plain-Python functions ``rhs``, ``jac``, ``jvp``, ``energy``,
-        ``energy_rows`` and the integers ``DIM`` and ``NPARAMS``.
+        With the plain-Python functions of :data:`PART_FUNCTIONS` and the
+        integers ``DIM`` and ``NPARAMS`` (and ``DD_UNSUPPORTED``, a string,
+        in the system part).
 
     Raises
     ------
@@ -304,4 +369,35 @@ def load_module(ham: Hamiltonian, directory: Path | None = None) -> ModuleType:
     OSError
         If the cache directory cannot be written.
     """
-    return load_source(cache_key(ham), lambda: generate_source(ham), directory)
+    key = cache_key(ham)
+    system = load_source(key, lambda: generate_source(ham), directory)
+    if part == "system":
+        return system
+    return load_part(key, part, lambda: generate_source(ham, part), directory)
+
+
+def load_part(
+    key: str,
+    part: str,
+    make_source: Callable[[], str] | None = None,
+    directory: Path | None = None,
+) -> ModuleType:
+    """The module of ``part`` of the system whose key (:func:`cache_key`) is
+    ``key``, from the cache or written from ``make_source()``; without
+    ``make_source`` (a helper process, which has no Hamiltonian), from the
+    cache only, else FileNotFoundError.  The tangent part's ``rhs_jvp``,
+    which calls ``rhs`` above the fused dimension, finds the system part's.
+    """
+    module = load_source(part_key(key, part), make_source or _not_generated, directory)
+    if part == "tangent" and not hasattr(module, "rhs"):
+        module.rhs = load_source(key, _not_generated, directory).rhs
+    return module
+
+
+def _not_generated() -> str:
+    raise FileNotFoundError("the generated module is not in the cache")
+
+
+def part_cached(key: str, part: str, directory: Path | None = None) -> bool:
+    """Whether ``part`` of the system whose key is ``key`` is on disk."""
+    return module_path(part_key(key, part), directory).exists()

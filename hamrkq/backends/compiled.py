@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import os
 import types
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -49,6 +50,7 @@ import numpy as np
 from hamrkq._progress import WaitNotice
 from hamrkq.backends import codegen
 from hamrkq.backends import kernel as kernel_module
+from hamrkq.backends.codegen import PART_FUNCTIONS
 from hamrkq.backends.kernel import CompiledKernel, kernel, kernel_cache_dir
 from hamrkq.backends.numba_compile import (
     DISABLE_ENV,
@@ -164,36 +166,56 @@ class CompiledSystem:
     ``energy(t, y, params) -> float`` and ``energy_rows(t, Y, params, out)``
     (``out[i] = H(t[i], Y[i])``).  ``path`` is the generated source file.
 
-    ``jac`` and ``rhs_jvp`` are compiled on their first use: a run calls
-    ``rhs_jvp`` only with the tangent estimate of Gamma (``rk34q8``'s) and
-    ``jac`` only with the paper's (and inside ``rhs_jvp`` above
-    :data:`~hamrkq.backends.scalar_printer.MAX_FUSED_DIM` state variables),
-    while for a large system they are most of the compile (about half of the
-    outer solar system's, ``benchmarks/lazy_functions.md``).  The kernel gets
+    ``jac`` and ``rhs_jvp`` are generated (the tangent part,
+    :data:`~hamrkq.backends.codegen.PARTS`) and compiled on their first use:
+    a run calls ``rhs_jvp`` only with the tangent estimate of Gamma
+    (``rk34q8``'s) and ``jac`` only with the paper's (and inside ``rhs_jvp``
+    above :data:`~hamrkq.backends.scalar_printer.MAX_FUSED_DIM` state
+    variables), while for a large system they are most of the generation and
+    the compile (``benchmarks/lazy_functions.md``).  The kernel gets
     stand-ins for the ones a run does not call (:meth:`kernel_arguments`).
+
+    Parameters
+    ----------
+    module : module
+        The system part of the generated code.
+    tangent : callable, optional
+        Returns the tangent part (generating it if needed); without it, only
+        what the system part defines can be compiled.
     """
 
-    def __init__(self, module: types.ModuleType):
+    def __init__(
+        self, module: types.ModuleType, tangent: Callable[[], types.ModuleType] | None = None
+    ):
         self.path = Path(module.__file__)
         self.dim = module.DIM
         # A fresh namespace, so the module keeps its plain-Python functions;
         # the code objects (and so numba's cache files) stay the module's.
         self._namespace: dict[str, Any] = {"math": math, "__name__": module.__name__}
         self._module = module
+        self._tangent = tangent
         self._rhs_dd = None
         # energy before energy_rows, which calls it through the namespace.
         self.rhs = self._compile("rhs")
         self.energy = self._compile("energy")
         self.energy_rows = self._compile("energy_rows")
 
+    def _source(self, name: str) -> types.ModuleType:
+        """The generated module that defines ``name``."""
+        if name in PART_FUNCTIONS["system"]:
+            return self._module
+        if self._tangent is None:
+            raise BackendUnavailable(f"the tangent part ({name}) of {self.path.name} is unknown")
+        return self._tangent()
+
     def _compile(self, name: str):
-        """The module's ``name`` compiled (or loaded) into the namespace, once;
+        """The generated ``name`` compiled (or loaded) into the namespace, once;
         what it calls by name first (``rhs_jvp`` calls ``rhs`` and ``jac``
         above the fused dimension)."""
         with LOCK:
             compiled = self._namespace.get(name)
             if compiled is None:
-                code = getattr(self._module, name).__code__
+                code = getattr(self._source(name), name).__code__
                 for callee in ("rhs", "jac", "energy"):
                     if callee != name and callee in code.co_names:
                         self._compile(callee)
@@ -212,20 +234,29 @@ class CompiledSystem:
         return self._compile("rhs_jvp")
 
     def compile_all(self) -> None:
-        """Compile (or load) every function now (``hamrkq compile``)."""
-        for name in ("jac", "rhs_jvp"):
-            self._compile(name)
+        """Generate and compile (or load) every function now (``hamrkq
+        compile``); raises BackendUnavailable if that cannot be done."""
+        self._compile_each(("jac", "rhs_jvp"))
 
     def compiled_for(self, gamma: str) -> bool:
         """Whether what a run with this estimate of Gamma calls is compiled."""
         return all(name in self._namespace for name in _CALLED.get(gamma, ()))
 
     def prepare(self, gamma: str) -> None:
-        """Compile (or load) what a run with this estimate of Gamma calls;
-        raises BackendUnavailable if numba cannot."""
+        """Generate and compile (or load) what a run with this estimate of
+        Gamma calls; raises BackendUnavailable if that cannot be done."""
+        self._compile_each(_CALLED.get(gamma, ()))
+
+    def _compile_each(self, names) -> None:
         try:
-            for name in _CALLED.get(gamma, ()):
+            for name in names:
                 self._compile(name)
+        except BackendUnavailable:
+            raise
+        except codegen.CodegenError as exc:
+            raise BackendUnavailable(f"the system's Jacobian cannot be compiled: {exc}") from exc
+        except OSError as exc:
+            raise _cache_failure(exc) from exc
         except Exception as exc:  # numba's TypingError/LoweringError and relatives
             raise _numba_failure("the system", exc) from exc
 
@@ -257,6 +288,14 @@ class CompiledSystem:
         return self._rhs_dd
 
 
+def _cache_failure(exc: OSError) -> BackendUnavailable:
+    """The error for a cache directory that cannot be written."""
+    return BackendUnavailable(
+        f"the cache directory {codegen.cache_dir()} cannot be used ({exc}); "
+        f"set {codegen.CACHE_ENV} to a writable directory"
+    )
+
+
 def _numba_failure(what: str, exc: Exception) -> BackendUnavailable:
     """The error for numba failing to compile ``what`` (its TypingError,
     LoweringError and relatives), with the first line of numba's message."""
@@ -268,6 +307,12 @@ def _numba_failure(what: str, exc: Exception) -> BackendUnavailable:
 #: (``global_error_estimate``): the tangent propagation takes f and J v in
 #: one call, the paper's (I + h J) propagation the Jacobian.
 _CALLED = {"tangent": ("rhs_jvp",), "paper": ("jac",)}
+
+
+def calls_tangent_part(gamma: str) -> bool:
+    """Whether a run with this estimate of Gamma calls the tangent part of a
+    system's code (:data:`~hamrkq.backends.codegen.PARTS`)."""
+    return any(name in PART_FUNCTIONS["tangent"] for name in _CALLED.get(gamma, ()))
 
 
 def compile_system(ham: Hamiltonian) -> CompiledSystem:
@@ -290,14 +335,11 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
             return system
         try:
             module = codegen.load_module(ham)
-            system = CompiledSystem(module)
+            system = CompiledSystem(module, lambda: codegen.load_module(ham, part="tangent"))
         except codegen.CodegenError as exc:
             raise BackendUnavailable(f"the system cannot be compiled: {exc}") from exc
         except OSError as exc:
-            raise BackendUnavailable(
-                f"the cache directory {codegen.cache_dir()} cannot be used ({exc}); "
-                f"set {codegen.CACHE_ENV} to a writable directory"
-            ) from exc
+            raise _cache_failure(exc) from exc
         except Exception as exc:  # numba's TypingError/LoweringError and relatives
             raise _numba_failure("the system", exc) from exc
         _SYSTEMS[key] = system

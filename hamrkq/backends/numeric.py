@@ -25,7 +25,7 @@ import types
 import weakref
 from collections.abc import Callable, Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy as sp
@@ -56,19 +56,16 @@ def _ieee_math() -> types.SimpleNamespace:
     return types.SimpleNamespace(**namespace)
 
 
-def _ieee_functions(module: types.ModuleType) -> dict[str, Any]:
-    """The generated ``rhs`` and ``jac`` re-bound to :func:`_ieee_math`.
+def _ieee_function(module: types.ModuleType, name: str) -> Callable:
+    """The generated function ``name`` (``rhs`` or ``jac``) re-bound to
+    :func:`_ieee_math`.
 
-    The same code objects (so the same expressions, in the same order); only
+    The same code object (so the same expressions, in the same order); only
     ``math`` is replaced, and every number is a NumPy float64, whose
     arithmetic divides by zero and overflows to infinities instead of raising.
     """
     namespace = {"math": _ieee_math(), "__name__": module.__name__}
-    functions = {}
-    for name in ("rhs", "jac"):
-        code = getattr(module, name).__code__
-        functions[name] = namespace[name] = types.FunctionType(code, namespace, name)
-    return functions
+    return types.FunctionType(getattr(module, name).__code__, namespace, name)
 
 
 def _as_float64(array: np.ndarray) -> np.ndarray:
@@ -126,6 +123,9 @@ class NumericHamiltonian:
     def __init__(self, ham: Hamiltonian):
         self.dim = ham.dim
         self._ham = ham
+        # The generated functions' NaN/infinity-returning twins, made on
+        # the first float error (_call_scalar).
+        self._ieee: dict[str, Callable] = {}
 
     # Built on first use: most runs need one or two of these, and lambdify of
     # a large system's Jacobian costs seconds.
@@ -149,30 +149,40 @@ class NumericHamiltonian:
     def _rhs_many(self) -> Callable:
         return vectorized(self._ham, list(self._ham.rhs))
 
-    @cached_property
-    def _ieee(self) -> dict[str, Any]:
-        return _ieee_functions(self._scalar)
-
     def _call_scalar(self, name: str, t, y, params, out: np.ndarray) -> None:
         """The generated function ``name``; where the interpreter raises on a
         float error, its NaN/infinity-returning twin (the compiled code's
         values), so the caller sees non-finite numbers, never an exception."""
+        module = self._scalar if name == "rhs" else self._tangent_scalar
         try:
-            getattr(self._scalar, name)(t, y, params, out)
+            getattr(module, name)(t, y, params, out)
         except _FLOAT_ERRORS:
+            twin = self._ieee.get(name)
+            if twin is None:
+                twin = self._ieee[name] = _ieee_function(module, name)
             with np.errstate(all="ignore"):
-                self._ieee[name](np.float64(t), _as_float64(y), _as_float64(params), out)
+                twin(np.float64(t), _as_float64(y), _as_float64(params), out)
 
     @cached_property
     def _scalar(self):
-        """The scalar functions of :mod:`hamrkq.backends.codegen`, which the compiled
-        backend compiles: evaluating f and J with them here too gives every
-        integrator (and both backends) the same bits.  None when they cannot
-        be generated or cached; then the lambdified functions serve."""
+        """The system part of the scalar code of :mod:`hamrkq.backends.codegen`
+        (``rhs``), which the compiled backend compiles: evaluating f with it
+        here too gives every integrator (and both backends) the same bits.
+        None when it cannot be generated or cached; then the lambdified
+        functions serve."""
+        return self._generated("system")
+
+    @cached_property
+    def _tangent_scalar(self):
+        """The tangent part of the scalar code (``jac``), generated on the
+        first call of :meth:`jac`; None as for :attr:`_scalar`."""
+        return self._generated("tangent")
+
+    def _generated(self, part: str):
         from hamrkq.backends.codegen import CodegenError, load_module
 
         try:
-            return load_module(self._ham)
+            return load_module(self._ham, part=part)
         except (CodegenError, OSError):
             return None
 
@@ -191,7 +201,7 @@ class NumericHamiltonian:
 
     def jac(self, t: float, y: np.ndarray, params: np.ndarray) -> np.ndarray:
         """Jacobian of the right-hand side at one state, shape (2n, 2n)."""
-        scalar = self._scalar
+        scalar = self._tangent_scalar
         if scalar is None:
             return np.array(self._jac(t, y, params), dtype=float).reshape(self.dim, self.dim)
         out = np.empty((self.dim, self.dim))

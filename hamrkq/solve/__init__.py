@@ -385,7 +385,9 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     if options.double_double:
         _require_double_double(ham)
         background = False  # the helper compiles the double functions only
-    compiling = start_background(options.backend, ham, spec) if background else None
+    compiling = (
+        start_background(options.backend, ham, spec, options.gamma_name) if background else None
+    )
     chosen = (
         "numba"
         if compiling is not None

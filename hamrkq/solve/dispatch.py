@@ -216,16 +216,19 @@ def resolve_backend(
     return compiled.resolve_backend(backend, ham, gamma)
 
 
-def start_background(backend: str, ham: Hamiltonian, spec: MethodSpec) -> BackgroundCompile | None:
+def start_background(
+    backend: str, ham: Hamiltonian, spec: MethodSpec, gamma: str = "tangent"
+) -> BackgroundCompile | None:
     """With ``backend="auto"`` and a method that has a compiled runner, the
     helper compiling ``ham``'s code on a first use while the run starts
     interpreted (:func:`hamrkq.backends.background.start`); None when there
-    is nothing to compile, or the compile should be waited for."""
+    is nothing to compile, or the compile should be waited for.  ``gamma``:
+    the run's estimate of Gamma."""
     if backend != "auto" or "numba" not in spec.backends:
         return None
     from hamrkq.backends import background
 
-    return background.start(ham)
+    return background.start(ham, gamma)
 
 
 def _run_fixed(task: Task, backend: str) -> Solution:
