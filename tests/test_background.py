@@ -176,9 +176,21 @@ def test_the_tangent_part_is_generated_for_the_helper_only_where_the_run_calls_i
     background.build(codegen.cache_key(shadow), "system")
     assert numba_compile.stats()["compiled"] - before == 3  # rhs, energy, energy_rows
     assert not codegen.is_cached(shadow, part="tangent")
+    assert compiled.is_compiled(shadow, "shadow") and not compiled.is_compiled(shadow, "tangent")
     before = numba_compile.stats()["compiled"]
     background.build(codegen.cache_key(tangent), "system")
     assert numba_compile.stats()["compiled"] - before == 5  # and jac, rhs_jvp
+    assert compiled.is_compiled(tangent, "tangent")
+    # A later run of the first system with the tangent estimate: its helper
+    # compiles the tangent part, which the run generates first.
+    spawned.clear()
+    assert background.start(shadow, "tangent") is not None and len(spawned) == 1
+    assert codegen.is_cached(shadow, part="tangent")
+    before = numba_compile.stats()
+    background.build(codegen.cache_key(shadow), "system")
+    after = numba_compile.stats()
+    assert (after["compiled"] - before["compiled"], after["loaded"] - before["loaded"]) == (2, 3)
+    assert compiled.is_compiled(shadow, "tangent")
 
 
 # -- a helper that fails --------------------------------------------------------

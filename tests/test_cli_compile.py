@@ -36,7 +36,8 @@ def test_compile_puts_the_systems_and_the_kernel_in_the_cache():
     assert labels == ["harmonic", "pendulum", "the step kernel"], out
     assert all(("compiled" in line or "already in the cache" in line) for line in lines[1:])
     for name in ("harmonic", "pendulum"):
-        assert compiled.is_compiled(hamrkq.load_problem(name).hamiltonian)
+        for gamma in ("shadow", "tangent", "paper"):  # both parts of the code
+            assert compiled.is_compiled(hamrkq.load_problem(name).hamiltonian, gamma)
     assert kernel_module.kernel_cached()
     # a second time, nothing is compiled
     status, out, _ = run("compile", "harmonic")

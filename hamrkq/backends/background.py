@@ -20,8 +20,9 @@ It is used when all of these hold:
   in the calling process, as before);
 - numba can be used, and the process may run on two cores or more (the
   helper takes one);
-- the kernel is not in the cache, or the system's functions are not
-  (:func:`hamrkq.backends.compiled.is_compiled`);
+- the kernel is not in the cache, or the system's functions that the run
+  calls are not (:func:`hamrkq.backends.compiled.is_compiled`: a run with
+  the tangent estimate of Gamma calls the tangent part too);
 - the system's scalar code can be generated.
 
 For a large system (:data:`hamrkq.backends.kernel.HELPER_MIN_DIM` state
@@ -155,7 +156,7 @@ def start(ham: Hamiltonian, gamma: str = "tangent") -> BackgroundCompile | None:
     if not available()[0]:
         return None
     parts = []
-    if not compiled.is_compiled(ham):
+    if not compiled.is_compiled(ham, gamma):
         parts.append("system")
     if not kernel_module.kernel_cached():
         parts.append("kernel")

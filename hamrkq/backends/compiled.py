@@ -251,6 +251,8 @@ class CompiledSystem:
         try:
             for name in names:
                 self._compile(name)
+            if any(name in PART_FUNCTIONS["tangent"] for name in names):
+                mark_compiled(Path(self._tangent().__file__))
         except BackendUnavailable:
             raise
         except codegen.CodegenError as exc:
@@ -367,17 +369,24 @@ def mark_compiled(path: Path) -> None:
         pass
 
 
-def is_compiled(ham: Hamiltonian) -> bool:
-    """Whether the functions of ``ham`` were compiled in this process or (as
-    far as hamrkq can tell without loading them) are in numba's disk cache."""
+def is_compiled(ham: Hamiltonian, gamma: str = "off") -> bool:
+    """Whether the functions of ``ham`` that a run with the estimate of
+    Gamma ``gamma`` calls (the system part; and the tangent part, where
+    :func:`calls_tangent_part`) were compiled in this process or (as far as
+    hamrkq can tell without loading them) are in numba's disk cache."""
     key = codegen.cache_key(ham)
-    if key in _SYSTEMS:
+    parts = ("system", "tangent") if calls_tangent_part(gamma) else ("system",)
+    system = _SYSTEMS.get(key)
+    if system is not None and system.compiled_for(gamma):
         return True
-    marker = codegen.module_path(key).with_suffix(COMPILED_SUFFIX)
-    try:
-        return marker.read_text() == _numba_cache_setting()
-    except OSError:
-        return False
+    for part in parts:
+        marker = codegen.module_path(codegen.part_key(key, part)).with_suffix(COMPILED_SUFFIX)
+        try:
+            if marker.read_text() != _numba_cache_setting():
+                return False
+        except OSError:
+            return False
+    return True
 
 
 # -- the kernel's functions and the first use ------------------------------------
