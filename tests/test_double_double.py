@@ -142,7 +142,7 @@ def test_auto_carries_prentice2011_at_1e_12():
     # the message says which run was in which precision, and why it stopped
     assert (
         "ran rk78q12 with z_substeps=2, the quencher in double-double: the run with "
-        "z_substeps=2 stopped at t = 38." in sol.message
+        "z_substeps=2 and the rounding witness stopped at t = 38." in sol.message
     )
     assert "(measured by the witness) is 0.05" in sol.message
     assert "double precision's floor" in sol.message

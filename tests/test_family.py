@@ -349,3 +349,67 @@ def test_auto_reruns_when_the_stop_falls_between_output_times(auto_runs_rk78q12)
     assert sol.stats["discarded_evaluations"] > 0
     assert sol.options["z_substeps"] == 3
     assert "the run with z_substeps=2 stopped at t = 17.06" in sol.message
+
+
+# -- orbits whose error grows exponentially ------------------------------------
+
+
+def test_error_growth_tells_powers_of_t_from_exponentials():
+    from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, error_growth
+
+    t = np.linspace(0.0, 100.0, 401)
+    assert error_growth(t, 1e-3 * t**2) == pytest.approx(4.0, rel=0.02)
+    assert error_growth(t, 1e-3 * t) == pytest.approx(2.0, rel=0.02)
+    # oscillating, as Gamma does along an orbit: the running largest value counts
+    assert error_growth(t, 1e-3 * t**2 * (1.2 + np.sin(t))) < 8
+    assert error_growth(t, 1e-12 * np.exp(0.13 * t)) > EXPONENTIAL_GROWTH
+    assert error_growth(t, np.where(t < 80, 1e-12, 1e-3)) > EXPONENTIAL_GROWTH
+    assert error_growth(t, np.full(t.size, np.nan)) == math.inf
+    assert error_growth(t[:2], t[:2]) == 1.0
+
+
+def _henon_heiles_chaotic():
+    """A chaotic orbit of the Henon-Heiles system, E = 1/6 (largest Lyapunov
+    exponent about 0.13; docs/events.md)."""
+    q2 = -0.25
+    p1 = math.sqrt(2 * (1 / 6 - q2**2 / 2 + q2**3 / 3))
+    return hamrkq.load_problem("henon_heiles"), [0.0, q2], [p1, 0.0]
+
+
+@pytest.mark.parametrize("atol", [1e-6, 1e-8])
+def test_auto_does_not_certify_a_chaotic_orbit_beyond_what_double_precision_holds(atol):
+    # Before, auto met each stop with more quencher steps (2, 3, ..., 9 or
+    # 10), until the shadow's error, m^z times the quencher's, saturated at
+    # the orbit's size and the estimate could no longer grow: SUCCESS to
+    # t = 1000, where runs at 1e-8 and 1e-10 ended 0.86 apart.  Two runs at
+    # different tolerances must agree within the sum of their tolerances at
+    # every time both certify.
+    problem, q0, p0 = _henon_heiles_chaotic()
+    times = np.arange(1.0, 1000.5, 1.0)
+    options = {"q0": q0, "p0": p0, "t_span": (0, 1000), "t_eval": times, "method": "auto"}
+    runs = [hamrkq.solve(problem, atol=tol, **options) for tol in (atol, 1e-10)]
+    for sol in runs:
+        assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+        assert sol.t[-1] < 200
+    loose, tight = runs
+    assert "exponentially" in loose.message
+    common = min(loose.t.size, tight.t.size)
+    difference = np.abs(loose.y[:common] - tight.y[:common]).max()
+    assert difference <= 1.05 * (atol + 1e-10)
+
+
+def test_auto_on_the_arenstorf_orbit_stops_where_its_error_can_no_longer_be_certified():
+    # Before: SUCCESS over 10 periods at 1e-8 with 9 quencher steps a step,
+    # 2.3 from the periodic orbit at the end (3e9 times the tolerance from
+    # heyoka's extended-precision reference).  Against rk34q8 at 1e-10 (its
+    # tangent estimate carries the error with the Jacobian and stops in time).
+    problem = hamrkq.load_problem("arenstorf")
+    period = problem.t_span[1]
+    times = np.linspace(0.0, 10 * period, 401)[1:]
+    auto = hamrkq.solve(problem, t_span=(0, 10 * period), t_eval=times, method="auto", atol=1e-8)
+    tight = hamrkq.solve(problem, t_span=(0, 10 * period), t_eval=times, method="rk34q8",
+                         atol=1e-10)  # fmt: skip
+    assert auto.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and auto.t[-1] < 3 * period
+    common = min(auto.t.size, tight.t.size)
+    assert common > 20
+    assert np.abs(auto.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)

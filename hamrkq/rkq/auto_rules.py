@@ -25,10 +25,12 @@ __all__ = [
     "AUTO_PROJECT_FROM",
     "AUTO_PROJECT_SHARE",
     "AUTO_PROJECT_UNTIL",
+    "EXPONENTIAL_GROWTH",
     "auto_abandon_substeps",
     "auto_member",
     "auto_retry_substeps",
     "auto_tolerance",
+    "error_growth",
 ]
 
 #: ``method="auto"``: Verner's robust 8(7) pair with Feagin's 12th-order
@@ -191,3 +193,52 @@ def auto_abandon_substeps(
         The projected ``max |Gamma| / delta`` at ``t_end``.
     """
     return _grown_substeps(substeps, z_order, projected, gamma_limit)
+
+
+#: A run whose estimated error (its running largest ``|Gamma| / delta``) grew
+#: by more than this factor over the second half of the interval it covered
+#: grew faster than any power of ``t`` a regular orbit shows (``t^2``: a
+#: factor 4), so exponentially: a chaotic orbit, or one near an unstable
+#: equilibrium or a separatrix (:func:`error_growth`).  Measured on the runs
+#: ``auto`` abandons or stops (``benchmarks/error_growth.txt``): 3.5 to 4.3 on
+#: the periodic orbits of the catalogue run to their end, 28 on
+#: prentice2011's first run at 1e-8, abandoned after 2 % of its interval;
+#: 60 to 1700 on a chaotic Henon-Heiles orbit, 195 to 37 000 on the Arenstorf
+#: orbit over several periods, 300 to 6e7 on a Duffing separatrix.
+EXPONENTIAL_GROWTH = 50.0
+
+
+def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
+    """How much the quencher's estimated error grew over the second half of a run.
+
+    Parameters
+    ----------
+    t : ndarray
+        The run's node times, from its start.
+    ratio : ndarray
+        ``max_k |Gamma_k| / delta_k`` at the nodes.
+
+    Returns
+    -------
+    float
+        The running largest ratio at the last node over its value at the
+        middle of the run's interval (``inf`` where that is zero, or where a
+        ratio is not finite).  On a regular orbit the quencher's error grows
+        like ``t`` or ``t^2`` (a factor 2 to 4); on an unstable one like
+        ``exp(lambda t)``, and so does its rounding error, which the shadow
+        estimate does not see.  Above :data:`EXPONENTIAL_GROWTH`, ``auto``
+        measures the rounding (the witness) instead of adding quencher
+        steps, which only push the stop a little later.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    ratio = np.asarray(ratio, dtype=np.float64)
+    if t.size < 3:
+        return 1.0
+    if not np.all(np.isfinite(ratio)):
+        return math.inf
+    running = np.maximum.accumulate(ratio)
+    middle = t[0] + 0.5 * (t[-1] - t[0])
+    at_middle = running[np.searchsorted(t, middle, side="right") - 1]
+    if at_middle <= 0.0:
+        return math.inf if running[-1] > 0.0 else 1.0
+    return float(running[-1] / at_middle)

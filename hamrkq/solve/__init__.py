@@ -262,11 +262,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         started = time.perf_counter()
         try:
             out = spec.run(task, chosen)
-            # method="auto"'s runs that ran again (more quencher steps, or the
-            # quencher in double-double): (their options, run)
+            # method="auto"'s runs that ran again (more quencher steps, the
+            # rounding witness, or the quencher in double-double): (their task, run)
             discarded = []
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
-                discarded.append((task.options, out))
+                discarded.append((task, out))
                 task = rerun
                 out = spec.run(task, chosen)
         finally:

@@ -5,7 +5,10 @@ two quencher steps a step, and runs it again with more (:func:`rerun`) when
 the kernel abandoned the run on its projection (:func:`projects` says which
 runs are projected) or the run stopped on the quencher's truncation error;
 the rules are :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps` and
-:func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).
+:func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).  A
+run whose estimated error grew exponentially (an unstable orbit,
+:func:`hamrkq.rkq.auto_rules.error_growth`) runs again once with the
+rounding witness instead, and no more quencher steps.
 """
 
 from __future__ import annotations
@@ -19,11 +22,17 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_abandon_substeps, auto_retry_substeps
+from hamrkq.rkq.auto_rules import (
+    AUTO_MAX_SUBSTEPS,
+    EXPONENTIAL_GROWTH,
+    auto_abandon_substeps,
+    auto_retry_substeps,
+    error_growth,
+)
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
 
-__all__ = ["projects", "rerun"]
+__all__ = ["growth", "projects", "rerun"]
 
 
 def projects(requested: SolveOptions, task: Task) -> bool:
@@ -51,7 +60,12 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if isinstance(out, Solution):
         return None
     member = member_of(task)
+    exponential = growth(out, task) > EXPONENTIAL_GROWTH
     if out.status == ST_ABANDONED:
+        if exponential:
+            # The rounding measured, or (the quencher in double-double, where
+            # it is small) the same run to where its estimate stops it.
+            return _with_witness(requested, task) or replace(task, project=False)
         substeps = auto_abandon_substeps(
             member.z_substeps, member.z_order, out.projected, task.options.gamma_limit
         )
@@ -75,6 +89,12 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.
         return _in_double_double(requested, task)
+    if exponential:
+        # More quencher steps only push the stop a little later, and the
+        # shadow's error, m^z times the quencher's, leaves the linear regime
+        # (the estimate saturates at the orbit's size over m^z); the
+        # rounding, amplified alike, is measured instead, once.
+        return _with_witness(requested, task)
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = auto_retry_substeps(
         member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached
@@ -95,6 +115,27 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
     if codegen.double_double_unsupported(task.ham):
         return None
     task = replace(task, options=replace(task.options, quencher_precision="double-double"))
+    return replace(task, project=projects(requested, task))
+
+
+def growth(out: Any, task: Task) -> float:
+    """:func:`hamrkq.rkq.auto_rules.error_growth` of a run's estimate of Gamma
+    over the second half of its interval (1 without one)."""
+    if out.gamma is None or out.t.shape[0] < 3:
+        return 1.0
+    delta = component_tolerance(task.atol, task.rtol, out.y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.max(np.abs(out.gamma) / delta, axis=1)
+    return error_growth(out.t, ratio)
+
+
+def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
+    """``task`` again with the rounding witness (an orbit whose error grows
+    exponentially: its rounding grows alike), not projected; None where the
+    witness ran already or cannot (the quencher in double-double)."""
+    if uses_witness(task) or task.options.double_double:
+        return None
+    task = replace(task, witness=True)
     return replace(task, project=projects(requested, task))
 
 

@@ -69,6 +69,11 @@ class Task:
     #: Abandon the run when Gamma projected to t_end fails (``method="auto"``,
     #: which then runs again: :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`).
     project: bool = False
+    #: Run the rounding witness whatever the tolerance (``method="auto"``'s
+    #: rerun of an orbit whose error grows exponentially:
+    #: :func:`hamrkq.rkq.auto_rules.error_growth`); None: by the tolerance
+    #: (:func:`hamrkq.rkq.witness_rules.needs_witness`).
+    witness: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -93,12 +98,13 @@ def member_of(task: Task):
 
 def uses_witness(task: Task) -> bool:
     """Whether an RKQ-family task runs the rounding witness (the shadow
-    estimate at a tolerance near double precision's floor, :func:`needs_witness`)."""
-    return (
-        task.options.gamma_name == "shadow"
-        and not task.options.double_double
-        and needs_witness(task.atol, task.rtol, task.y0)
-    )
+    estimate at a tolerance near double precision's floor, :func:`needs_witness`,
+    or where ``auto`` asks for it: ``Task.witness``)."""
+    if task.options.gamma_name != "shadow" or task.options.double_double:
+        return False
+    if task.witness is not None:
+        return task.witness
+    return needs_witness(task.atol, task.rtol, task.y0)
 
 
 def _double_double_functions(task: Task, backend: str):

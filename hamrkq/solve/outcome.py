@@ -15,12 +15,12 @@ import numpy as np
 from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
-from hamrkq.options import SolveOptions
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.auto_rules import auto_retry_substeps
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, auto_retry_substeps
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
+from hamrkq.solve.auto import growth
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
@@ -110,6 +110,8 @@ def _component(task: Task, index: int) -> str:
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     t = out.t_last
+    if not math.isfinite(out.max_ratio):
+        return _estimate_diverged(out, task)
     text = (
         f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would reach "
         f"{out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so the "
@@ -139,6 +141,14 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "to it by itself unless quencher_precision='double' is given), a looser "
             "tolerance or a shorter interval."
         )
+    exponential = o.gamma_name == "shadow" and growth(out, task) > EXPONENTIAL_GROWTH
+    if exponential:
+        text += (
+            f" The estimate grew {growth(out, task):.3g}-fold over the second half of the "
+            "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
+            "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
+            "like exp(lambda t); more quencher steps only delay the stop."
+        )
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:
@@ -147,7 +157,29 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
-    return text + " What helps: " + "; ".join(_remedies(out, task)) + "."
+    return text + " What helps: " + "; ".join(_remedies(out, task, exponential)) + "."
+
+
+def _estimate_diverged(out: RunOutput, task: Task) -> str:
+    """The message for an estimate of Gamma that stopped being finite."""
+    o = task.options
+    text = (
+        f"At t = {float(out.t_last)!r} the estimate of the quencher's global error (Gamma) "
+        "is no longer finite, so the tolerance can no longer be certified; the run ends at "
+        "the last node where it held."
+    )
+    if o.gamma_name != "shadow":
+        return text + " A looser tolerance or a shorter interval is what works."
+    member = member_of(task)
+    amplification = float(member.z_substeps) ** member.z_order
+    return text + (
+        f" The shadow track behind the estimate runs without quenching and carries "
+        f"{member.z_substeps}^{member.z_order} = {amplification:.3g} times the quencher's "
+        "error; it diverged, which happens where errors grow fast along the orbit (near an "
+        "unstable equilibrium or a separatrix, or on a chaotic orbit). What helps: a looser "
+        "tolerance or a shorter interval; global_error_estimate='tangent' (the error carried "
+        "linearly by the Jacobian, with no amplified track to diverge; about twice the cost)."
+    )
 
 
 def _double_double_available(task: Task) -> bool:
@@ -159,15 +191,18 @@ def _double_double_available(task: Task) -> bool:
     return not codegen.double_double_unsupported(task.ham)
 
 
-def _remedies(out: RunOutput, task: Task) -> list[str]:
+def _remedies(out: RunOutput, task: Task, exponential: bool = False) -> list[str]:
     """What carries the quencher further when its truncation error stopped
-    the run, the most specific first."""
+    the run, the most specific first (``exponential``: the estimate grew
+    exponentially, and more quencher steps are no remedy)."""
     o = task.options
     member = member_of(task)
     remedies = []
+    if exponential:
+        remedies.append("a looser tolerance or a shorter interval")
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = None
-    if o.gamma_name == "shadow":  # the rule auto's reruns use, measured with this estimate
+    if o.gamma_name == "shadow" and not exponential:  # the rule auto's reruns use
         substeps = auto_retry_substeps(
             member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio, o.gamma_limit,
             reached,
@@ -178,7 +213,7 @@ def _remedies(out: RunOutput, task: Task) -> list[str]:
             f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
             "if its error keeps growing like t^2, as on a periodic orbit)"
         )
-    if o.method != "auto":
+    if o.method != "auto" and not exponential:
         remedies.append(
             "method='auto', which chooses a member and runs again with more quencher steps "
             "when a run stops on the quencher's truncation error"
@@ -187,7 +222,8 @@ def _remedies(out: RunOutput, task: Task) -> list[str]:
     better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
     if better:
         remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
-    remedies.append("a looser tolerance only if the quencher's error grows with the step")
+    if not exponential:
+        remedies.append("a looser tolerance only if the quencher's error grows with the step")
     return remedies
 
 
@@ -230,13 +266,11 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     return text
 
 
-def rerun_note(
-    task: Task, discarded: list[tuple[SolveOptions, RunOutput]], evaluations: int
-) -> str:
-    """What ``method="auto"``'s discarded runs (``(their options, run)``,
-    with ``evaluations`` between them) did, for the message."""
+def rerun_note(task: Task, discarded: list[tuple[Task, RunOutput]], evaluations: int) -> str:
+    """What ``method="auto"``'s discarded runs (``(their task, run)``, with
+    ``evaluations`` between them) did, for the message."""
     notes = []
-    for options, run in discarded:
+    for earlier, run in discarded:
         if run.status == ST_ABANDONED:
             what = (
                 f"was abandoned at t = {run.t_last!r}, where the quencher's estimated error, "
@@ -254,15 +288,24 @@ def rerun_note(
                 f"stopped at t = {run.t_last!r}, where the quencher's "
                 f"estimated error reached {run.max_ratio:.3g} x the tolerance"
             )
-        notes.append(f"the run {_quencher_setting(options)} {what}")
+        factor = growth(run, earlier)
+        if factor > EXPONENTIAL_GROWTH:
+            what += (
+                f"; the estimate had grown {factor:.3g}-fold over the second half of its "
+                "interval: exponentially, where more quencher steps only delay the stop"
+            )
+        notes.append(f"the run {_quencher_setting(earlier)} {what}")
     return (
-        f" method='auto' ran {task.options.method} {_quencher_setting(task.options)}: "
+        f" method='auto' ran {task.options.method} {_quencher_setting(task)}: "
         f"{'; '.join(notes)} "
         f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
     )
 
 
-def _quencher_setting(options: SolveOptions) -> str:
-    """``with z_substeps=3`` (and ``, the quencher in double-double``)."""
+def _quencher_setting(task: Task) -> str:
+    """``with z_substeps=3`` (and ``, the quencher in double-double`` or
+    ``and the rounding witness``)."""
+    options = task.options
     extended = ", the quencher in double-double" if options.double_double else ""
-    return f"with z_substeps={options.z_substeps}{extended}"
+    witness = " and the rounding witness" if uses_witness(task) else ""
+    return f"with z_substeps={options.z_substeps}{extended}{witness}"
