@@ -200,11 +200,13 @@ def auto_abandon_substeps(
 #: grew faster than any power of ``t`` a regular orbit shows (``t^2``: a
 #: factor 4), so exponentially: a chaotic orbit, or one near an unstable
 #: equilibrium or a separatrix (:func:`error_growth`).  Measured on the runs
-#: ``auto`` abandons or stops (``benchmarks/error_growth.txt``): 3.5 to 4.3 on
-#: the periodic orbits of the catalogue run to their end, 28 on
-#: prentice2011's first run at 1e-8, abandoned after 2 % of its interval;
-#: 60 to 1700 on a chaotic Henon-Heiles orbit, 195 to 37 000 on the Arenstorf
-#: orbit over several periods, 300 to 6e7 on a Duffing separatrix.
+#: ``auto`` abandons or stops (``benchmarks/error_growth.txt``): 3.5 to 4.6 on
+#: the catalogue's periodic orbits, 28 on prentice2011's first run at 1e-8
+#: (abandoned after 2 % of its interval), 4500 on a Kepler orbit's first run
+#: at rtol 1e-6 (its pericentre passages early in the run: one such run
+#: alone is not enough, :mod:`hamrkq.solve.auto`); 147 to 1900 on a chaotic
+#: Henon-Heiles orbit, 195 to 7500 on the Arenstorf orbit over several
+#: periods, 730 to 79 000 on a Duffing separatrix.
 EXPONENTIAL_GROWTH = 50.0
 
 

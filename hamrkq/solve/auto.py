@@ -60,9 +60,15 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if isinstance(out, Solution):
         return None
     member = member_of(task)
+    # Exponential growth in two runs in a row (one alone can be a burst: a
+    # Kepler orbit's pericentre passages early in a run): more quencher steps
+    # only push the stop a little later and carry the shadow out of its
+    # linear regime, and the rounding grows alike.
     exponential = growth(out, task) > EXPONENTIAL_GROWTH
+    unstable = exponential and task.grew_exponentially
+    task = replace(task, grew_exponentially=exponential)  # for the next run's decision
     if out.status == ST_ABANDONED:
-        if exponential:
+        if unstable:
             # The rounding measured, or (the quencher in double-double, where
             # it is small) the same run to where its estimate stops it.
             return _with_witness(requested, task) or replace(task, project=False)
@@ -89,7 +95,7 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.
         return _in_double_double(requested, task)
-    if exponential:
+    if unstable:
         # More quencher steps only push the stop a little later, and the
         # shadow's error, m^z times the quencher's, leaves the linear regime
         # (the estimate saturates at the orbit's size over m^z); the
@@ -123,7 +129,10 @@ def growth(out: Any, task: Task) -> float:
     over the second half of its interval (1 without one)."""
     if out.gamma is None or out.t.shape[0] < 3:
         return 1.0
-    delta = component_tolerance(task.atol, task.rtol, out.y)
+    # One tolerance per component over the run (at its largest |y_k|), so
+    # that a tolerance with rtol, small where a component crosses zero,
+    # does not count as growth of the error.
+    delta = component_tolerance(task.atol, task.rtol, np.abs(out.y).max(axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.max(np.abs(out.gamma) / delta, axis=1)
     return error_growth(out.t, ratio)

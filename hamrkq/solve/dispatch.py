@@ -74,6 +74,10 @@ class Task:
     #: :func:`hamrkq.rkq.auto_rules.error_growth`); None: by the tolerance
     #: (:func:`hamrkq.rkq.witness_rules.needs_witness`).
     witness: bool | None = None
+    #: The run before this one (``method="auto"``'s) grew exponentially
+    #: (:func:`hamrkq.rkq.auto_rules.error_growth`); a second such run in a
+    #: row makes auto measure the rounding instead of adding quencher steps.
+    grew_exponentially: bool = False
 
 
 @dataclass(frozen=True)
