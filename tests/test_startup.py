@@ -104,3 +104,38 @@ def test_ctrl_c_while_the_command_line_starts_prints_no_traceback(tmp_path, dela
     # signal may come during the run or its report instead, which say so on
     # stdout ("partial run: Interrupted ...", "interrupted during diagnostics").
     assert "interrupted" in (stderr + stdout).lower()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_an_interrupt_inside_a_c_callback_is_delivered_to_the_command():
+    """Ctrl-C landing in llvmlite's object-cache callback (numba loading
+    compiled code) was printed as "Exception ignored on calling ctypes
+    callback function" with a traceback, and the run went on; the command
+    line delivers it again to the main thread, where it stops the command."""
+    import ctypes
+
+    from hamrkq import cli
+
+    @ctypes.CFUNCTYPE(None)
+    def callback():
+        raise KeyboardInterrupt
+
+    with cli._interrupts_in_callbacks_delivered(), pytest.raises(KeyboardInterrupt):
+        callback()  # ctypes reports the exception through sys.unraisablehook
+        for _ in range(100):  # the interrupt arrives at the next bytecode boundaries
+            time.sleep(0.01)
+    # and other unraisable exceptions are still shown as Python shows them
+    seen = []
+    previous = sys.unraisablehook
+    sys.unraisablehook = seen.append
+    try:
+        with cli._interrupts_in_callbacks_delivered():
+
+            @ctypes.CFUNCTYPE(None)
+            def failing():
+                raise ValueError("shown")
+
+            failing()
+    finally:
+        sys.unraisablehook = previous
+    assert [type(u.exc_value) for u in seen] == [ValueError]

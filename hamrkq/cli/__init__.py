@@ -12,6 +12,7 @@ in modules of their own (``hamrkq/commands/``) that register themselves through
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import atexit
 import contextlib
@@ -85,6 +86,47 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+#: Seconds after which an interrupt swallowed by a C callback is delivered
+#: again (:func:`_interrupts_in_callbacks_delivered`): the callback has
+#: returned by then.
+_REDELIVER_AFTER = 0.02
+
+
+@contextlib.contextmanager
+def _interrupts_in_callbacks_delivered() -> Iterator[None]:
+    """Ctrl-C (or SIGTERM) that lands while a C library calls back into
+    Python (llvmlite's object cache, while numba loads compiled code) cannot
+    be raised there: Python prints it as "Exception ignored on calling ctypes
+    callback function", with a traceback, and the command goes on.  It is
+    delivered again to the main thread instead, where the command stops as
+    for any interruption."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        exc = unraisable.exc_value
+        if not isinstance(exc, KeyboardInterrupt):
+            previous(unraisable)
+            return
+        terminated = isinstance(exc, Terminated)
+        if terminated and _RECEIVED:
+            _RECEIVED.pop()  # its handler records it again
+        # From another thread, a moment later: raised here, in the hook, it
+        # would be swallowed the same way.
+        timer = threading.Timer(
+            _REDELIVER_AFTER,
+            _thread.interrupt_main,
+            (signal.SIGTERM if terminated else signal.SIGINT,),
+        )
+        timer.daemon = True
+        timer.start()
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
 
 
 @contextlib.contextmanager
@@ -167,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv : sequence of str, optional
         The arguments, without the program name (default: ``sys.argv[1:]``).
     """
-    with _sigterm_as_interrupt(), _warnings_as_messages():
+    with _sigterm_as_interrupt(), _interrupts_in_callbacks_delivered(), _warnings_as_messages():
         try:
             parser = build_parser()
             try:
