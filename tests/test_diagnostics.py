@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+import hamrkq
 from hamrkq.analysis.diagnostics import (
     bound_ratio,
     diagnose,
@@ -293,3 +294,20 @@ def test_prentice2011_rk34q8_meets_the_papers_bounds():
     track_error = np.asarray(sol.z) - true.series["reference"]
     assert np.max(np.abs(track_error - sol.gamma)) <= 0.5 * np.max(np.abs(track_error))
     assert abs(true.energy.initial - 0.8) < 1e-15
+
+
+def test_references_start_where_the_run_started_when_t_eval_omits_it():
+    """A run with t_eval need not return its initial state as a node: the
+    exact solution was refused ("starts at ..., not at the run's initial
+    state") and the independent references started from the run's own first
+    node, error included (Kepler at 1e-6 from t = 1: 3.8e-7 of it)."""
+    problem = hamrkq.load_problem("kepler")
+    sol = hamrkq.solve(problem, t_eval=np.linspace(1.0, 20.0, 20), atol=1e-6)
+    assert sol.t[0] == 1.0 and sol.options["y0"] == problem.y0.tolist()
+    exact = hamrkq.diagnose(sol, problem=problem, reference="exact")
+    independent = hamrkq.diagnose(sol, problem=problem, reference="independent")
+    truth = problem.exact(sol.t)
+    np.testing.assert_allclose(exact.series["reference"], truth, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(independent.series["reference"], truth, rtol=0, atol=1e-9)
+    first_error = np.abs(sol.y[0] - truth[0]).max()
+    assert 1e-8 < first_error <= 1.05e-6  # the first node's own error, now measured

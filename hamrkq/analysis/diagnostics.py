@@ -97,8 +97,22 @@ def _system(problem: Any, params: Any):
     return ham, params
 
 
+def _initial(sol) -> tuple[float, np.ndarray]:
+    """Where the run started: ``t_span[0]`` and ``y0`` of its options (a run
+    with ``t_eval`` need not return its initial state as a node), else its
+    first node."""
+    options = getattr(sol, "options", None) or {}
+    y0, span = options.get("y0"), options.get("t_span")
+    if y0 is not None and span is not None and len(y0) == sol.y.shape[1]:
+        return float(span[0]), np.asarray(y0, dtype=float)
+    return float(sol.t[0]), sol.y[0]
+
+
 def _reference_states(sol, kind, ham, params, exact, periodic):
-    """(states, source, description, accuracy) for a reference kind or object."""
+    """(states, source, description, accuracy) for a reference kind or object;
+    the independent references start from where the run started
+    (:func:`_initial`)."""
+    t0, y0 = _initial(sol)
     if isinstance(kind, Reference):
         if kind.y.shape != sol.y.shape or not np.array_equal(kind.t, sol.t):
             raise InputError("reference must be computed at the solution's node times")
@@ -115,23 +129,24 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
             raise InputError("reference='exact' needs an exact solution (exact= or a problem)")
         states = np.asarray(exact(sol.t), dtype=float).reshape(sol.y.shape)
         scale = float(np.max(np.abs(states)))
-        if np.max(np.abs(states[0] - sol.y[0])) > 1e-9 * (1.0 + scale):
+        start = np.asarray(exact(np.array([t0])), dtype=float).reshape(-1)
+        if np.max(np.abs(start - y0)) > 1e-9 * (1.0 + scale):
             raise InputError(
-                f"the exact solution starts at {states[0].tolist()}, not at the run's "
-                f"initial state {sol.y[0].tolist()}; use reference='independent'"
+                f"the exact solution starts at {start.tolist()}, not at the run's "
+                f"initial state {y0.tolist()}; use reference='independent'"
             )
         return states, "exact", "exact solution", 4 * EPS * scale
     if kind == "independent":
         if ham is None:
             raise InputError("reference='independent' needs a problem or a Hamiltonian")
-        ref = hamiltonian_reference(ham, sol.y[0], sol.t, params=params, periodic=periodic)
+        ref = hamiltonian_reference(ham, y0, sol.t, params=params, t0=t0, periodic=periodic)
         return ref.y, "independent", ref.method, ref.estimated_error
     if kind == "extended":
         if ham is None:
             raise InputError("reference='extended' needs a problem or a Hamiltonian")
         from hamrkq.analysis.extended_reference import extended_reference
 
-        ref = extended_reference(ham, params, sol.y[0], sol.t)
+        ref = extended_reference(ham, params, y0, sol.t, t0=t0)
         return ref.y, "extended", ref.method, ref.estimated_error
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
 

@@ -229,6 +229,7 @@ def solve_scipy(
         options={
             "method": PREFIX + method,
             "t_span": [t0, t_end],
+            "y0": np.asarray(y0, dtype=float).tolist(),
             "atol": kwargs["atol"].tolist(),
             "rtol": np.broadcast_to(scalar_rtol, (ham.dim,)).tolist(),
             "rtol_rule": "SciPy: RMS norm of err / (atol + rtol |y|), rtol >= 100 eps"

@@ -48,6 +48,8 @@ def solution(task: Task, spec: MethodSpec, out: RunOutput, backend: str) -> Solu
         "method": o.method,
         "backend": backend,
         "t_span": [task.t0, task.t_end],
+        # the initial state, which a run with t_eval need not return as a node
+        "y0": task.y0.tolist(),
         "atol": task.atol.tolist(),
         "rtol": task.rtol.tolist(),
         "tolerance_rule": o.tolerance_rule,
