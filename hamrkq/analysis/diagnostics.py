@@ -129,7 +129,10 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
             raise InputError("reference='exact' needs an exact solution (exact= or a problem)")
         states = np.asarray(exact(sol.t), dtype=float).reshape(sol.y.shape)
         scale = float(np.max(np.abs(states)))
-        start = np.asarray(exact(np.array([t0])), dtype=float).reshape(-1)
+        if sol.t.size and t0 == sol.t[0]:
+            start, y0 = states[0], sol.y[0]
+        else:  # a run with t_eval: its initial state is not a node
+            start = np.asarray(exact(np.array([t0])), dtype=float).reshape(-1)
         if np.max(np.abs(start - y0)) > 1e-9 * (1.0 + scale):
             raise InputError(
                 f"the exact solution starts at {start.tolist()}, not at the run's "
