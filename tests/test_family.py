@@ -413,3 +413,31 @@ def test_auto_on_the_arenstorf_orbit_stops_where_its_error_can_no_longer_be_cert
     common = min(auto.t.size, tight.t.size)
     assert common > 20
     assert np.abs(auto.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)
+
+
+@pytest.mark.parametrize("method", ["rk45q12", "rk56q12"])
+def test_a_member_whose_estimate_grows_exponentially_runs_again_with_the_witness(method):
+    # Before: SUCCESS over three Arenstorf periods at 1e-8 with true errors of
+    # 42 and 62 times the tolerance (heyoka's extended reference): the quencher
+    # in two steps on these pairs' short steps has almost no truncation error,
+    # and its rounding, amplified by the orbit, is what the shadow cannot see.
+    problem = hamrkq.load_problem("arenstorf")
+    period = problem.t_span[1]
+    times = np.linspace(0.0, 3 * period, 121)[1:]
+    sol = hamrkq.solve(problem, t_span=(0, 3 * period), t_eval=times, method=method, atol=1e-8)
+    tight = hamrkq.solve(problem, t_span=(0, 3 * period), t_eval=times, method="rk34q8",
+                         atol=1e-10)  # fmt: skip
+    assert sol.options["rounding_witness"] and sol.stats["discarded_evaluations"] > 0
+    assert f"This is {method}'s second run" in sol.message
+    common = min(sol.t.size, tight.t.size)
+    assert common > 20
+    assert np.abs(sol.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)
+
+
+def test_the_papers_method_on_a_chaotic_orbit_is_not_run_again():
+    # The witness runs beside the shadow estimate only: rk34q8's tangent
+    # estimate growing exponentially once made solve run it again forever.
+    problem, q0, p0 = _henon_heiles_chaotic()
+    sol = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, 1000), method="rk34q8", atol=1e-8)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert "discarded_evaluations" not in sol.stats

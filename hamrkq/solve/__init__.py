@@ -287,7 +287,12 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
         sol = outcome.solution(task, spec, out, chosen)
         if discarded:
-            note = outcome.rerun_note(task, discarded, out.stats["discarded_evaluations"])
+            note = outcome.rerun_note(
+                task,
+                discarded,
+                out.stats["discarded_evaluations"],
+                auto=prepared.requested.method == "auto",
+            )
             sol = sol.replace(message=sol.message + note)
         if dense_output or prepared.events:
             sol = _with_events(task, sol, chosen, prepared.events, dense_output)

@@ -268,12 +268,20 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     return text
 
 
-def rerun_note(task: Task, discarded: list[tuple[Task, RunOutput]], evaluations: int) -> str:
-    """What ``method="auto"``'s discarded runs (``(their task, run)``, with
-    ``evaluations`` between them) did, for the message."""
+def rerun_note(
+    task: Task, discarded: list[tuple[Task, RunOutput]], evaluations: int, auto: bool = True
+) -> str:
+    """What the discarded runs (``(their task, run)``, with ``evaluations``
+    between them) of ``method="auto"`` (``auto``) or of a member run again
+    with the rounding witness did, for the message."""
     notes = []
     for earlier, run in discarded:
-        if run.status == ST_ABANDONED:
+        if run.status == Status.SUCCESS.code:
+            what = (
+                f"reached t = {run.t_last!r}, the quencher's estimated error at most "
+                f"{run.max_ratio:.3g} x the tolerance"
+            )
+        elif run.status == ST_ABANDONED:
             what = (
                 f"was abandoned at t = {run.t_last!r}, where the quencher's estimated error, "
                 f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
@@ -294,11 +302,17 @@ def rerun_note(task: Task, discarded: list[tuple[Task, RunOutput]], evaluations:
         if factor > EXPONENTIAL_GROWTH:
             what += (
                 f"; the estimate had grown {factor:.3g}-fold over the second half of its "
-                "interval: exponentially, where more quencher steps only delay the stop"
+                "interval: exponentially, and so does the rounding, which the shadow estimate "
+                "does not see (the witness measures it); more quencher steps only delay the stop"
             )
         notes.append(f"the run {_quencher_setting(earlier)} {what}")
+    ran = (
+        f"method='auto' ran {task.options.method}"
+        if auto
+        else f"This is {task.options.method}'s second run"
+    )
     return (
-        f" method='auto' ran {task.options.method} {_quencher_setting(task)}: "
+        f" {ran} {_quencher_setting(task)}: "
         f"{'; '.join(notes)} "
         f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
     )
@@ -310,4 +324,4 @@ def _quencher_setting(task: Task) -> str:
     options = task.options
     extended = ", the quencher in double-double" if options.double_double else ""
     witness = " and the rounding witness" if uses_witness(task) else ""
-    return f"with z_substeps={options.z_substeps}{extended}{witness}"
+    return f"with z_substeps={member_of(task).z_substeps}{extended}{witness}"
