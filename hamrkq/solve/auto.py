@@ -137,10 +137,16 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
     return replace(task, project=projects(requested, task))
 
 
+#: Fewer accepted steps than this say nothing about how the estimate grows
+#: (a run of a dozen steps starts from an estimate of nearly nothing).
+MIN_GROWTH_STEPS = 50
+
+
 def growth(out: Any, task: Task) -> float:
     """:func:`hamrkq.rkq.auto_rules.error_growth` of a run's estimate of Gamma
-    over the second half of its interval (1 without one)."""
-    if out.gamma is None or out.t.shape[0] < 3:
+    over the second half of its interval (1 without one, or for a run of
+    fewer than :data:`MIN_GROWTH_STEPS` steps)."""
+    if out.gamma is None or out.t.shape[0] < 3 or out.stats.get("steps", 0) < MIN_GROWTH_STEPS:
         return 1.0
     # One tolerance per component over the run (at its largest |y_k|), so
     # that a tolerance with rtol, small where a component crosses zero,
