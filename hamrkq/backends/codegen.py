@@ -334,11 +334,7 @@ def is_cached(ham: Hamiltonian, directory: Path | None = None, part: str = "syst
     intact (its checksum matches), so :func:`load_module` will neither
     derive nor print anything.  A caller can use it to announce a slow first
     use (generation, then compilation) before it starts."""
-    path = module_path(part_key(cache_key(ham), part), directory)
-    try:
-        return path.exists() and damage_of(path) is None
-    except OSError:
-        return False
+    return part_cached(cache_key(ham), part, directory)
 
 
 def load_module(
@@ -399,5 +395,10 @@ def _not_generated() -> str:
 
 
 def part_cached(key: str, part: str, directory: Path | None = None) -> bool:
-    """Whether ``part`` of the system whose key is ``key`` is on disk."""
-    return module_path(part_key(key, part), directory).exists()
+    """Whether ``part`` of the system whose key is ``key`` is on disk and
+    intact (what :func:`is_cached` asks, for a caller that has only the key)."""
+    path = module_path(part_key(key, part), directory)
+    try:
+        return path.exists() and damage_of(path) is None
+    except OSError:
+        return False

@@ -38,10 +38,11 @@ with a warm cache compiled nothing
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -248,19 +249,11 @@ class CompiledSystem:
         self._compile_each(_CALLED.get(gamma, ()))
 
     def _compile_each(self, names) -> None:
-        try:
+        with _failures_as_unavailable("the system's Jacobian"):
             for name in names:
                 self._compile(name)
             if any(name in PART_FUNCTIONS["tangent"] for name in names):
                 mark_compiled(Path(self._tangent().__file__))
-        except BackendUnavailable:
-            raise
-        except codegen.CodegenError as exc:
-            raise BackendUnavailable(f"the system's Jacobian cannot be compiled: {exc}") from exc
-        except OSError as exc:
-            raise _cache_failure(exc) from exc
-        except Exception as exc:  # numba's TypingError/LoweringError and relatives
-            raise _numba_failure("the system", exc) from exc
 
     def kernel_arguments(self, gamma: str) -> tuple:
         """``(rhs, tangent, jac)`` for the kernel in a run with this estimate
@@ -290,12 +283,24 @@ class CompiledSystem:
         return self._rhs_dd
 
 
-def _cache_failure(exc: OSError) -> BackendUnavailable:
-    """The error for a cache directory that cannot be written."""
-    return BackendUnavailable(
-        f"the cache directory {codegen.cache_dir()} cannot be used ({exc}); "
-        f"set {codegen.CACHE_ENV} to a writable directory"
-    )
+@contextlib.contextmanager
+def _failures_as_unavailable(what: str) -> Iterator[None]:
+    """Generating, caching or compiling ``what`` failing as BackendUnavailable,
+    with what failed: the expressions (CodegenError), the cache directory
+    (OSError) or numba (its TypingError, LoweringError and relatives)."""
+    try:
+        yield
+    except BackendUnavailable:
+        raise
+    except codegen.CodegenError as exc:
+        raise BackendUnavailable(f"{what} cannot be compiled: {exc}") from exc
+    except OSError as exc:
+        raise BackendUnavailable(
+            f"the cache directory {codegen.cache_dir()} cannot be used ({exc}); "
+            f"set {codegen.CACHE_ENV} to a writable directory"
+        ) from exc
+    except Exception as exc:  # numba's TypingError/LoweringError and relatives
+        raise _numba_failure("the system", exc) from exc
 
 
 def _numba_failure(what: str, exc: Exception) -> BackendUnavailable:
@@ -335,15 +340,9 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
         system = _SYSTEMS.get(key)
         if system is not None:
             return system
-        try:
+        with _failures_as_unavailable("the system"):
             module = codegen.load_module(ham)
             system = CompiledSystem(module, lambda: codegen.load_module(ham, part="tangent"))
-        except codegen.CodegenError as exc:
-            raise BackendUnavailable(f"the system cannot be compiled: {exc}") from exc
-        except OSError as exc:
-            raise _cache_failure(exc) from exc
-        except Exception as exc:  # numba's TypingError/LoweringError and relatives
-            raise _numba_failure("the system", exc) from exc
         _SYSTEMS[key] = system
         mark_compiled(system.path)
         return system

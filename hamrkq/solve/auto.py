@@ -64,8 +64,9 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if isinstance(out, Solution):
         return None
     member = member_of(task)
+    exponential = growth(out, task) > EXPONENTIAL_GROWTH
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
-    if finished and growth(out, task) > EXPONENTIAL_GROWTH:
+    if finished and exponential:
         # A shadow estimate without the witness sees the quencher's truncation
         # error, not its rounding, which an unstable orbit amplifies alike:
         # explicit members returned SUCCESS on the Arenstorf orbit over three
@@ -77,7 +78,6 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # Kepler orbit's pericentre passages early in a run): more quencher steps
     # only push the stop a little later and carry the shadow out of its
     # linear regime, and the rounding grows alike.
-    exponential = growth(out, task) > EXPONENTIAL_GROWTH
     unstable = exponential and task.grew_exponentially
     task = replace(task, grew_exponentially=exponential)  # for the next run's decision
     if out.status == ST_ABANDONED:
@@ -112,8 +112,8 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         # More quencher steps only push the stop a little later, and the
         # shadow's error, m^z times the quencher's, leaves the linear regime
         # (the estimate saturates at the orbit's size over m^z); the
-        # rounding, amplified alike, is measured instead, once.
-        return _with_witness(requested, task)
+        # rounding, amplified alike, was measured already (above).
+        return None
     reached = (out.t_last - task.t0) / (task.t_end - task.t0)
     substeps = auto_retry_substeps(
         member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached

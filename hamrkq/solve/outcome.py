@@ -143,10 +143,11 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "to it by itself unless quencher_precision='double' is given), a looser "
             "tolerance or a shorter interval."
         )
-    exponential = o.gamma_name == "shadow" and growth(out, task) > EXPONENTIAL_GROWTH
+    factor = growth(out, task) if o.gamma_name == "shadow" else 1.0
+    exponential = factor > EXPONENTIAL_GROWTH
     if exponential:
         text += (
-            f" The estimate grew {growth(out, task):.3g}-fold over the second half of the "
+            f" The estimate grew {factor:.3g}-fold over the second half of the "
             "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
             "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
             "like exp(lambda t); more quencher steps only delay the stop."
