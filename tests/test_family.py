@@ -366,6 +366,9 @@ def test_error_growth_tells_powers_of_t_from_exponentials():
     assert error_growth(t, np.where(t < 80, 1e-12, 1e-3)) > EXPONENTIAL_GROWTH
     assert error_growth(t, np.full(t.size, np.nan)) == math.inf
     assert error_growth(t[:2], t[:2]) == 1.0
+    # backwards in time: the same growth (it read 1 for every series before)
+    assert error_growth(-t, 1e-3 * t**2) == pytest.approx(4.0, rel=0.02)
+    assert error_growth(100.0 - t, 1e-12 * np.exp(0.13 * t)) > EXPONENTIAL_GROWTH
 
 
 def _henon_heiles_chaotic():
@@ -429,6 +432,22 @@ def test_a_member_whose_estimate_grows_exponentially_runs_again_with_the_witness
                          atol=1e-10)  # fmt: skip
     assert sol.options["rounding_witness"] and sol.stats["discarded_evaluations"] > 0
     assert f"This is {method}'s second run" in sol.message
+    common = min(sol.t.size, tight.t.size)
+    assert common > 20
+    assert np.abs(sol.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)
+
+
+def test_a_run_backwards_in_time_whose_estimate_grows_exponentially_runs_again():
+    # The growth was read with t taken as increasing: a run backwards in time
+    # measured 1 whatever its estimate did, and rk45q12 returned SUCCESS over
+    # three Arenstorf periods backwards, where forwards it runs again.
+    problem = hamrkq.load_problem("arenstorf")
+    period = problem.t_span[1]
+    times = np.linspace(0.0, -3 * period, 121)[1:]
+    options = {"t_span": (0, -3 * period), "t_eval": times, "atol": 1e-8}
+    sol = hamrkq.solve(problem, method="rk45q12", **options)
+    tight = hamrkq.solve(problem, method="rk34q8", **{**options, "atol": 1e-10})
+    assert sol.options["rounding_witness"] and "This is rk45q12's second run" in sol.message
     common = min(sol.t.size, tight.t.size)
     assert common > 20
     assert np.abs(sol.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)

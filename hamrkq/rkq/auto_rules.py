@@ -216,7 +216,8 @@ def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
     Parameters
     ----------
     t : ndarray
-        The run's node times, from its start.
+        The run's node times, from its start (increasing, or decreasing on
+        a run backwards in time).
     ratio : ndarray
         ``max_k |Gamma_k| / delta_k`` at the nodes.
 
@@ -239,8 +240,11 @@ def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
     if not np.all(np.isfinite(ratio)):
         return math.inf
     running = np.maximum.accumulate(ratio)
+    # The last node at or before the middle in the direction of integration
+    # (t decreases on a run backwards in time).
     middle = t[0] + 0.5 * (t[-1] - t[0])
-    at_middle = running[np.searchsorted(t, middle, side="right") - 1]
+    before = (t <= middle) if t[-1] >= t[0] else (t >= middle)
+    at_middle = running[np.flatnonzero(before)[-1]]
     if at_middle <= 0.0:
         return math.inf if running[-1] > 0.0 else 1.0
     return float(running[-1] / at_middle)
