@@ -351,3 +351,27 @@ def test_members_that_differ_on_the_witness_run_as_batched_groups(monkeypatch):
     for i in (0, 1, 30, 31):
         _assert_member_equals_solve(ens, i, OSCILLATOR, t_span=(0, 5), method="rk78q12",
                                     atol=1e-9, rtol=0.0)  # fmt: skip
+
+
+@pytest.mark.parametrize("t_eval", [True, False])
+def test_a_member_whose_estimate_grew_exponentially_is_solved_alone_again(monkeypatch, t_eval):
+    # The batch loop returned SUCCESS for these members, where solve alone
+    # measures the estimate's growth, runs them again with the rounding
+    # witness and stops them (docs/algorithm.md): the ensemble disagreed
+    # with its own definition of a member.
+    from hamrkq.ensemble import chunk
+
+    real, alone = chunk.solve, []
+    monkeypatch.setattr(chunk, "solve", lambda *a, **k: alone.append(k) or real(*a, **k))
+    problem = hamrkq.load_problem("arenstorf")
+    span = (0.0, 3 * problem.t_span[1])
+    kwargs = {"t_span": span, "method": "rk45q12", "atol": 1e-8}
+    if t_eval:
+        kwargs["t_eval"] = np.linspace(*span, 121)[1:]
+    q0 = np.array([problem.q0, problem.q0 * (1 + 1e-9)])
+    ens = hamrkq.ensemble(problem, q0=q0, p0=problem.p0, workers=1, **kwargs)
+    assert len(alone) == 2
+    for i in range(2):
+        assert ens.member_status(i) is Status.TOLERANCE_UNATTAINABLE
+        sol = _assert_member_equals_solve(ens, i, problem, **kwargs)
+        assert sol.options["rounding_witness"]

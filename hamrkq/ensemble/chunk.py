@@ -16,7 +16,9 @@ slices.  It takes one of two paths, with the same numbers:
   option (``method="auto"``'s member from the tolerance and the state's
   size, and whether the rounding witness runs), :func:`batch_groups` splits
   the chunk into groups that agree, each batched.  A member that fails is
-  run again alone for its message.
+  run again alone for its message, and so is one whose estimate of Gamma
+  grew exponentially, which ``solve`` alone runs again with the rounding
+  witness.
 - :func:`solve_members`: :func:`hamrkq.solve` once per member, for
   everything else (the baselines, the interpreted backend).
 """
@@ -27,14 +29,21 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import auto_member, auto_tolerance
+from hamrkq.rkq.auto_rules import (
+    EXPONENTIAL_GROWTH,
+    auto_member,
+    auto_tolerance,
+    growth_of_maxima,
+)
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
+from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
 from hamrkq.solve.dispatch import integration, run_rk
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
@@ -161,7 +170,8 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
     rows = times.size if request.t_eval is not None else BUFFER_ROWS
     out = allocate_output(rows, request.ham.dim, run.member.use_z)
     params = request.params.reshape(request.size, -1)
-    batch = allocate_batch(request.y0, params, task.t0, times.size, out)
+    kept_span = (times[0], times[-1]) if request.t_eval is not None else (task.t0, task.t_end)
+    batch = allocate_batch(request.y0, params, task.t0, times.size, out, kept_span)
     args = (
         system.rhs,
         # rhs_jvp and jac where the run's estimate of Gamma calls them, else stand-ins
@@ -191,10 +201,31 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
     )
     # A member that failed is solved alone: for its message, and because
     # method="auto" may run it again with more quencher steps, which the batch
-    # loop does not (solve alone is the definition of a member's result).
-    for i in np.flatnonzero(batch.status != Status.SUCCESS.code).tolist():
+    # loop does not (solve alone is the definition of a member's result); so
+    # is one that succeeded with an estimate that grew exponentially, which
+    # solve alone runs again with the rounding witness.
+    again = batch.status != Status.SUCCESS.code
+    if reruns_with_witness(task):
+        again |= _grew_exponentially(batch, task, request.times.size)
+    for i in np.flatnonzero(again).tolist():
         _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
     return result
+
+
+def _grew_exponentially(batch: Any, task: Any, times: int) -> np.ndarray:
+    """Per member, whether the estimate of Gamma grew exponentially over the
+    second half of the run (:func:`hamrkq.solve.auto.growth`, from the maxima
+    the batch loop folded; only for members that succeeded, whose nodes span
+    the interval ``batch.middle`` was taken from)."""
+    grew = np.zeros(batch.status.shape[0], dtype=bool)
+    nodes = times if task.t_eval is not None else batch.stats[:, 0] + 1
+    enough = (batch.stats[:, 0] >= MIN_GROWTH_STEPS) & (nodes >= 3)
+    succeeded = batch.status == Status.SUCCESS.code
+    for i in np.flatnonzero(succeeded & enough).tolist():
+        delta = component_tolerance(task.atol, task.rtol, batch.y_size[i])
+        factor = growth_of_maxima(batch.gamma_to_middle[i], batch.gamma_to_end[i], delta)
+        grew[i] = factor > EXPONENTIAL_GROWTH
+    return grew
 
 
 def solve_members(request: Request) -> ChunkResult:

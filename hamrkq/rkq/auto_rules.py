@@ -31,6 +31,8 @@ __all__ = [
     "auto_retry_substeps",
     "auto_tolerance",
     "error_growth",
+    "growth_of_maxima",
+    "middle_of",
 ]
 
 #: ``method="auto"``: Verner's robust 8(7) pair with Feagin's 12th-order
@@ -210,6 +212,32 @@ def auto_abandon_substeps(
 EXPONENTIAL_GROWTH = 50.0
 
 
+def middle_of(first: float, last: float) -> tuple[float, float]:
+    """The middle of a run's interval from its first to its last kept node,
+    and the direction of integration (1.0, or -1.0 backwards in time): a
+    node at ``t`` is at or before the middle where
+    ``(t - middle) * direction <= 0`` (:func:`error_growth`; the ensemble's
+    batch loop folds its maxima with the same test)."""
+    return first + 0.5 * (last - first), (1.0 if last >= first else -1.0)
+
+
+def growth_of_maxima(to_middle: np.ndarray, to_end: np.ndarray, delta: np.ndarray) -> float:
+    """:func:`error_growth` from each component's largest ``|Gamma_k|`` over
+    the nodes up to the middle (``to_middle``) and over all of them
+    (``to_end``), with the run's tolerance per component ``delta``: the
+    largest ratio up to the middle of ``max_k |Gamma_k| / delta_k`` is
+    ``max_k to_middle_k / delta_k``, the same bits (a division by a fixed
+    ``delta_k`` keeps the order of its numerators)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        at_middle = np.max(np.asarray(to_middle) / delta)
+        at_end = np.max(np.asarray(to_end) / delta)
+    if not (np.isfinite(at_middle) and np.isfinite(at_end)):
+        return math.inf
+    if at_middle <= 0.0:
+        return math.inf if at_end > 0.0 else 1.0
+    return float(at_end / at_middle)
+
+
 def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
     """How much the quencher's estimated error grew over the second half of a run.
 
@@ -237,14 +265,6 @@ def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
     ratio = np.asarray(ratio, dtype=np.float64)
     if t.size < 3:
         return 1.0
-    if not np.all(np.isfinite(ratio)):
-        return math.inf
-    running = np.maximum.accumulate(ratio)
-    # The last node at or before the middle in the direction of integration
-    # (t decreases on a run backwards in time).
-    middle = t[0] + 0.5 * (t[-1] - t[0])
-    before = (t <= middle) if t[-1] >= t[0] else (t >= middle)
-    at_middle = running[np.flatnonzero(before)[-1]]
-    if at_middle <= 0.0:
-        return math.inf if running[-1] > 0.0 else 1.0
-    return float(running[-1] / at_middle)
+    middle, direction = middle_of(t[0], t[-1])
+    before = (t - middle) * direction <= 0.0
+    return growth_of_maxima(ratio[before].max(initial=0.0), ratio.max(initial=0.0), 1.0)

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from hamrkq.rkq import arith
+from hamrkq.rkq.auto_rules import middle_of
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
     RET_DONE,
@@ -49,10 +50,17 @@ class Batch(NamedTuple):
     ``y0`` (M, d) and ``params`` (M, P) per member; ``fresh`` a one-row
     :data:`~hamrkq.rkq.layout.STATE` at ``t0``, the state every member starts
     from; ``out`` the node buffer (the ``t_eval`` rows, or a few rows folded
-    as they fill).  Results: ``y`` (M, T, d) the kept states (NaN where a
-    member stopped short), ``t_last``, ``status``, ``max_error`` (max
-    ``|y - z|``, NaN without a quencher), ``energy0`` and ``energy_drift``
-    (max ``|H - H(t0)|`` over the kept nodes), ``stats`` (M, len(COUNTERS)).
+    as they fill); ``middle`` the middle of the interval a member that
+    succeeds keeps nodes over and the direction of integration
+    (:func:`hamrkq.rkq.auto_rules.middle_of`).  Results: ``y`` (M, T, d)
+    the kept states (NaN where a member stopped short), ``t_last``,
+    ``status``, ``max_error`` (max ``|y - z|``, NaN without a quencher),
+    ``energy0`` and ``energy_drift`` (max ``|H - H(t0)|`` over the kept
+    nodes), ``stats`` (M, len(COUNTERS)), and for the growth of the estimate
+    of Gamma (:func:`hamrkq.rkq.auto_rules.growth_of_maxima`) each
+    component's largest ``|Gamma_k|`` over the kept nodes up to ``middle``
+    (``gamma_to_middle``, M x d) and over all of them (``gamma_to_end``) and
+    its largest ``|y_k|`` (``y_size``).
     """
 
     y0: np.ndarray
@@ -66,11 +74,18 @@ class Batch(NamedTuple):
     energy0: np.ndarray
     energy_drift: np.ndarray
     stats: np.ndarray
+    middle: np.ndarray
+    gamma_to_middle: np.ndarray
+    gamma_to_end: np.ndarray
+    y_size: np.ndarray
 
 
-def allocate_batch(y0, params, t0: float, times: int, out: Output) -> Batch:
+def allocate_batch(
+    y0, params, t0: float, times: int, out: Output, kept_span: tuple[float, float]
+) -> Batch:
     """Result arrays for the members ``y0``/``params`` (NaN-filled), keeping
-    ``times`` states each, with the node buffer ``out``."""
+    ``times`` states each, with the node buffer ``out``; ``kept_span`` the
+    times of the first and last node a member that succeeds keeps."""
     m, d = y0.shape
     fresh = np.zeros(1, dtype=STATE)
     fresh[0]["t"] = t0
@@ -89,6 +104,10 @@ def allocate_batch(y0, params, t0: float, times: int, out: Output) -> Batch:
         energy0=np.full(m, np.nan),
         energy_drift=np.full(m, np.nan),
         stats=np.zeros((m, len(COUNTERS)), dtype=np.int64),
+        middle=np.array(middle_of(*kept_span), dtype=np.float64),
+        gamma_to_middle=np.zeros((m, d)),
+        gamma_to_end=np.zeros((m, d)),
+        y_size=np.zeros((m, d)),
     )
 
 
@@ -128,12 +147,20 @@ def fold_nodes(energy, params, c, s, batch, m, kept):
         value = abs(energy(out.t[r], out.y[r], params) - batch.energy0[m])
         drift = batch.energy_drift[m]
         batch.energy_drift[m] = value if kept + r == 0 else nan_max(drift, value)
+        for k in range(out.y.shape[1]):
+            batch.y_size[m, k] = nan_max(batch.y_size[m, k], abs(out.y[r, k]))
         if c["use_z"]:
             top = batch.max_error[m]
             for k in range(out.y.shape[1]):
                 err = abs(out.y[r, k] - out.z[r, k])
                 top = err if (kept + r == 0 and k == 0) else nan_max(top, err)
             batch.max_error[m] = top
+            before = (out.t[r] - batch.middle[0]) * batch.middle[1] <= 0.0
+            for k in range(out.y.shape[1]):
+                gamma = abs(out.gamma[r, k])
+                batch.gamma_to_end[m, k] = nan_max(batch.gamma_to_end[m, k], gamma)
+                if before:
+                    batch.gamma_to_middle[m, k] = nan_max(batch.gamma_to_middle[m, k], gamma)
         if c["use_t_eval"]:
             arith.copy(out.y[r], batch.y[m, kept + r])
     if n > 0:

@@ -27,12 +27,13 @@ from hamrkq.rkq.auto_rules import (
     EXPONENTIAL_GROWTH,
     auto_abandon_substeps,
     auto_retry_substeps,
-    error_growth,
+    growth_of_maxima,
+    middle_of,
 )
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
 
-__all__ = ["growth", "projects", "rerun"]
+__all__ = ["MIN_GROWTH_STEPS", "growth", "projects", "rerun", "reruns_with_witness"]
 
 
 def projects(requested: SolveOptions, task: Task) -> bool:
@@ -152,22 +153,37 @@ def growth(out: Any, task: Task) -> float:
     # that a tolerance with rtol, small where a component crosses zero,
     # does not count as growth of the error.
     delta = component_tolerance(task.atol, task.rtol, np.abs(out.y).max(axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.max(np.abs(out.gamma) / delta, axis=1)
-    return error_growth(out.t, ratio)
+    middle, direction = middle_of(out.t[0], out.t[-1])
+    gamma = np.abs(out.gamma)
+    before = gamma[(out.t - middle) * direction <= 0.0]
+    return growth_of_maxima(before.max(axis=0), gamma.max(axis=0), delta)
 
 
-def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
-    """``task`` again with the rounding witness (an orbit whose error grows
-    exponentially: its rounding grows alike), not projected; None where the
-    witness ran already or cannot (an estimate other than the shadow's, or
-    the quencher in double-double)."""
+def reruns_with_witness(task: Task) -> bool:
+    """Whether a run of ``task`` that ends with an estimate grown
+    exponentially runs again with the rounding witness (:func:`rerun`): the
+    shadow estimate, without the witness, the quencher in double."""
+    return _witnessed(task) is not None
+
+
+def _witnessed(task: Task) -> Task | None:
+    """``task`` with the rounding witness; None where the witness ran
+    already or cannot (an estimate other than the shadow's, or the quencher
+    in double-double)."""
     if uses_witness(task) or task.options.double_double:
         return None
     task = replace(task, witness=True)
     if not uses_witness(task):  # the tangent or the paper's estimate: no witness
         return None
-    return replace(task, project=projects(requested, task))
+    return task
+
+
+def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
+    """``task`` again with the rounding witness (an orbit whose error grows
+    exponentially: its rounding grows alike), not projected; None where
+    :func:`_witnessed` says it cannot."""
+    task = _witnessed(task)
+    return None if task is None else replace(task, project=projects(requested, task))
 
 
 def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
