@@ -48,6 +48,20 @@ def test_megno_regular_henon_heiles_orbit_tends_to_two():
     assert lam.value[-1] < 0.005  # measured 0.0030 and falling like log(t)/t
 
 
+def test_an_indicator_whose_orbit_stops_says_how_to_run_it_to_the_end():
+    # A chaotic orbit's error cannot be certified for long: the default
+    # gamma_limit stops the orbit, and with it the indicator.  Its message
+    # names the estimate's exponential growth (not "method='auto', which runs
+    # again with more quencher steps", which only delays the stop) and the
+    # option the docs use for indicators.
+    hh = load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 6, 5)
+    y = megno(hh, q0[0], p0[0], (0.0, 500.0), atol=1e-8)
+    assert y.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and y.t[-1] < 400
+    assert "faster than any power of t" in y.message and "method='auto'" not in y.message
+    assert "MEGNO ends with the orbit" in y.message and "gamma_limit=numpy.inf" in y.message
+
+
 @pytest.mark.slow
 def test_megno_grows_linearly_on_a_chaotic_orbit():
     hh = load_problem("henon_heiles")

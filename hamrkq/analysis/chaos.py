@@ -119,6 +119,10 @@ def _orbit(system, q0, p0, t_span, solve_options) -> Solution:
     return solve(system, q0, p0, t_span, **solve_options)
 
 
+#: The indicators' names in messages.
+_NAMES = {"lyapunov": "Lyapunov exponent", "megno": "MEGNO"}
+
+
 def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosIndicator:
     sol = _orbit(system, q0, p0, t_span, dict(solve_options))
     growth = tangent_growth(sol, system, v0)
@@ -134,7 +138,15 @@ def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosInd
             Y[1:] = 2.0 * weighted / elapsed[1:]
             integral = np.concatenate([[0.0], np.cumsum(0.5 * (Y[1:] + Y[:-1]) * np.diff(t))])
             value[1:] = integral[1:] / elapsed[1:]
-    return ChaosIndicator(t=t, value=value, status=sol.status, message=sol.message, solution=sol)
+    message = sol.message
+    if sol.status is Status.TOLERANCE_UNATTAINABLE and "gamma_limit" not in solve_options:
+        message += (
+            f" The {_NAMES[kind]} ends with the orbit. It needs the orbit past where its "
+            "error can be certified: gamma_limit=numpy.inf runs it to t_end (on a chaotic "
+            "orbit the later points are those of a nearby orbit, and the indicator, a "
+            "property of the region, is still measured; docs/events.md)."
+        )
+    return ChaosIndicator(t=t, value=value, status=sol.status, message=message, solution=sol)
 
 
 def lyapunov(

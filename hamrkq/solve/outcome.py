@@ -143,7 +143,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "to it by itself unless quencher_precision='double' is given), a looser "
             "tolerance or a shorter interval."
         )
-    factor = growth(out, task) if o.gamma_name == "shadow" else 1.0
+    factor = growth(out, task)
     exponential = factor > EXPONENTIAL_GROWTH
     if exponential:
         text += (
