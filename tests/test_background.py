@@ -24,7 +24,7 @@ import sympy
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import background, codegen, compiled, numba_compile
+from hamrkq.backends import background, codegen, compiled, first_use, numba_compile
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.errors import HamrkqWarning, OptionError
 
@@ -80,7 +80,7 @@ class StandIn:
         if self.checks is None or self.asked <= self.checks:
             return None
         self.loaded = True
-        return compiled.kernel_functions(self.ham, gamma)
+        return first_use.kernel_functions(self.ham, gamma)
 
 
 @pytest.mark.parametrize("checks", [0, 3, 8, None])
@@ -140,7 +140,7 @@ def test_explicit_numba_and_wait_mode_compile_first(monkeypatch):
 def test_nothing_starts_when_the_code_is_cached(monkeypatch):
     monkeypatch.setenv(background.COMPILE_ENV, "background")
     ham = hamrkq.load_problem("harmonic").hamiltonian
-    compiled.warm_up(ham)
+    first_use.warm_up(ham)
     assert compiled.is_compiled(ham)
     assert background.start(ham) is None
 
@@ -227,7 +227,7 @@ def test_when_numba_cannot_be_used_the_run_stays_interpreted_with_the_warning(mo
     ham = hamrkq.load_problem("kepler").hamiltonian
     helper = background.BackgroundCompile(ham, [_finished("pass")])
     monkeypatch.setenv(numba_compile.DISABLE_ENV, "1")
-    monkeypatch.setattr(compiled, "_WARM", set())
+    monkeypatch.setattr(first_use, "_WARM", set())
     monkeypatch.setattr(compiled, "_SYSTEMS", {})
     with pytest.warns(HamrkqWarning, match="HAMRKQ_DISABLE_NUMBA is set.*pure-Python"):
         assert helper.functions() is None

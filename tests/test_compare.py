@@ -170,9 +170,9 @@ def test_compare_compiles_before_it_times_a_run(monkeypatch):
     # A first use must not be timed: neither the compiler nor, compiling in
     # the background, the interpreted loop (docs/performance.md).
     from hamrkq.analysis import comparison
-    from hamrkq.backends import compiled
+    from hamrkq.backends import first_use
 
-    events, resolve, timed = [], compiled.resolve_backend, comparison._timed
+    events, resolve, timed = [], first_use.resolve_backend, comparison._timed
 
     def resolving(backend, ham=None, gamma="tangent"):
         events.append("compile")
@@ -182,7 +182,7 @@ def test_compare_compiles_before_it_times_a_run(monkeypatch):
         events.append("run")
         return timed(*args)
 
-    monkeypatch.setattr(compiled, "resolve_backend", resolving)
+    monkeypatch.setattr(first_use, "resolve_backend", resolving)
     monkeypatch.setattr(comparison, "_timed", timing)
     compare(hamrkq.load_problem("kepler"), ["scipy:DOP853"], t_end=ONE_PERIOD / 4, quick=True)
     assert events[0] == "compile" and "run" in events  # (each solve asks again: cheap)

@@ -21,7 +21,7 @@ import sympy as sp
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import codegen, compiled, kernel, numba_compile
+from hamrkq.backends import codegen, compiled, first_use, kernel, numba_compile
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, OptionError
 from hamrkq.rkq import layout, loop
@@ -96,7 +96,7 @@ _GAMMA_NAMES = {
 
 def _compiled(problem, t0, t_end, method, **options):
     gamma = _GAMMA_NAMES[options.get("gamma", _CODES["gamma"])]
-    functions = compiled.kernel_functions(problem.hamiltonian, gamma)
+    functions = first_use.kernel_functions(problem.hamiltonian, gamma)
     return _run(functions, problem, t0, t_end, method, **options)
 
 
@@ -164,7 +164,7 @@ def test_parity_backward_and_from_nonzero_t0():
 
 def test_the_compiled_kernel_is_the_interpreted_function_itself():
     problem = hamrkq.load_problem("harmonic")
-    functions = compiled.kernel_functions(problem.hamiltonian)
+    functions = first_use.kernel_functions(problem.hamiltonian)
     dispatchers = list(functions.advance.dispatchers.values())
     assert dispatchers and all(d.py_func is loop.advance for d in dispatchers)
     # Its machine code is cached under a folder named by the kernel's hash.
@@ -359,13 +359,13 @@ def test_the_environment_variable_disables_the_backend(monkeypatch):
     ok, reason = compiled.available()
     assert not ok and compiled.DISABLE_ENV in reason
     with pytest.warns(HamrkqWarning, match=compiled.DISABLE_ENV) as caught:
-        assert compiled.resolve_backend("auto") == "python"
+        assert first_use.resolve_backend("auto") == "python"
     assert len([w for w in caught if issubclass(w.category, HamrkqWarning)]) == 1
     with pytest.raises(OptionError, match="backend='numba' cannot be used"):
-        compiled.resolve_backend("numba")
+        first_use.resolve_backend("numba")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert compiled.resolve_backend("python") == "python"  # no warning when chosen
+        assert first_use.resolve_backend("python") == "python"  # no warning when chosen
 
 
 @pytest.mark.parametrize("value", ["0", "", "no"])
@@ -373,7 +373,7 @@ def test_other_values_leave_the_backend_on(monkeypatch, value):
     monkeypatch.setenv(compiled.DISABLE_ENV, value)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert compiled.resolve_backend("auto") == "numba"
+        assert first_use.resolve_backend("auto") == "numba"
 
 
 def test_a_system_that_cannot_be_compiled_falls_back_with_one_warning(monkeypatch):
@@ -388,15 +388,15 @@ def test_a_system_that_cannot_be_compiled_falls_back_with_one_warning(monkeypatc
 
     monkeypatch.setattr(compiled, "compile_system", fail)
     with pytest.warns(HamrkqWarning, match="cannot be compiled.*NoSuchFunction") as caught:
-        assert compiled.resolve_backend("auto", ham) == "python"
+        assert first_use.resolve_backend("auto", ham) == "python"
     assert len(caught) == 1
     with pytest.raises(OptionError, match="NoSuchFunction"):
-        compiled.resolve_backend("numba", ham)
+        first_use.resolve_backend("numba", ham)
 
 
 def test_unknown_backend_is_an_option_error():
     with pytest.raises(OptionError, match="'auto', 'numba', 'python'"):
-        compiled.resolve_backend("cuda")
+        first_use.resolve_backend("cuda")
 
 
 SOLVE_MODULE = importlib.import_module("hamrkq.solve")
@@ -425,25 +425,25 @@ def test_solve_gives_the_same_solution_on_both_backends(name):
 def test_a_slow_first_use_says_that_it_compiles(monkeypatch):
     import io
 
-    monkeypatch.setattr(compiled, "ANNOUNCE_AFTER", 0.0)
-    prepare = compiled._warm_up
+    monkeypatch.setattr(first_use, "ANNOUNCE_AFTER", 0.0)
+    prepare = first_use._warm_up
 
     def slow_prepare(ham):  # longer than ANNOUNCE_AFTER even with a warm disk cache
         time.sleep(0.05)
         prepare(ham)
 
-    monkeypatch.setattr(compiled, "_warm_up", slow_prepare)
+    monkeypatch.setattr(first_use, "_warm_up", slow_prepare)
     q, p, w = sp.symbols("q p omega_notice")
     ham = hamrkq.Hamiltonian(p**2 / 2 + w**2 * q**2 / 2, [q], [p], parameters=[w])
     stream = io.StringIO()
-    compiled.warm_up(ham, stream=stream, announce=True)
+    first_use.warm_up(ham, stream=stream, announce=True)
     text = stream.getvalue()
     assert "hamrkq: compiling the code for H = " in text
     assert str(codegen.cache_dir()) in text
     assert "hamrkq: compiled in" in text
     # once per system and process: no second notice
     again = io.StringIO()
-    compiled.warm_up(ham, stream=again, announce=True)
+    first_use.warm_up(ham, stream=again, announce=True)
     assert again.getvalue() == ""
 
 
@@ -464,7 +464,7 @@ def test_the_kernel_functions_pickle_to_the_receiving_process_kernel():
     import pickle
 
     problem = hamrkq.load_problem("harmonic")
-    functions = compiled.kernel_functions(problem.hamiltonian)
+    functions = first_use.kernel_functions(problem.hamiltonian)
     copy = pickle.loads(pickle.dumps(functions))
     assert copy.advance is compiled.kernel()
     options = {"atol": np.full(2, 1e-8), "rtol": np.zeros(2)}

@@ -17,7 +17,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.backends import compiled, kernel
+from hamrkq.backends import compiled, first_use, kernel
 from hamrkq.errors import HamrkqWarning, InputError
 from hamrkq.rkq.auto_rules import (
     AUTO_FIRST_SUBSTEPS,
@@ -134,7 +134,7 @@ def test_bad_input_is_refused_before_anything_is_compiled(monkeypatch):
         raise AssertionError("compiled before validating")
 
     monkeypatch.setattr(compiled, "compile_system", no_compiling)
-    monkeypatch.setattr(compiled, "warm_up", no_compiling)
+    monkeypatch.setattr(first_use, "warm_up", no_compiling)
     q, p = sp.symbols("q p")
     ham = hamrkq.Hamiltonian(p**2 / 2 + q**6 / 6, q=[q], p=[p])
     for bad in ({"atol": -1}, {"rtol": -1}, {"max_step": 0}, {"t_eval": [5.0]}):

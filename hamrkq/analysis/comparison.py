@@ -152,9 +152,9 @@ def _ready_to_time(problem, methods, t_span, backend) -> str:
     signature) would land in the first run of its sweep: SciPy's DOP853 on
     the harmonic oscillator took 0.30 s in its first run and 0.013 s in the
     next, tighter one."""
-    from hamrkq.backends import compiled
+    from hamrkq.backends import first_use
 
-    backend = compiled.resolve_backend(backend, problem.hamiltonian)
+    backend = first_use.resolve_backend(backend, problem.hamiltonian)
     t0, t_end = t_span
     short = (t0, t0 + (t_end - t0) * 1e-3)
     for method in methods:

@@ -45,7 +45,7 @@ import time
 from typing import TYPE_CHECKING
 
 from hamrkq._progress import say
-from hamrkq.backends import codegen, compiled
+from hamrkq.backends import codegen, compiled, first_use
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.numba_compile import BackendUnavailable, available
 from hamrkq.errors import CodegenError, OptionError
@@ -112,16 +112,16 @@ class BackgroundCompile:
         helper has finished (loaded from the cache, or compiled here if the
         helper failed); None while it compiles, or if the compiled backend
         cannot be used (warned once).  ``gamma``: the run's estimate of Gamma
-        (:func:`hamrkq.backends.compiled.kernel_functions`)."""
+        (:func:`hamrkq.backends.first_use.kernel_functions`)."""
         if self.failed or self.running:
             return None
         try:
             # Loads what the helper cached; compiles here only if it failed.
-            compiled.warm_up(self.ham, announce=False, gamma=gamma)
-            functions = compiled.kernel_functions(self.ham, gamma)
+            first_use.warm_up(self.ham, announce=False, gamma=gamma)
+            functions = first_use.kernel_functions(self.ham, gamma)
         except BackendUnavailable as exc:
             self.failed = True
-            compiled.warn_interpreted(str(exc))
+            first_use.warn_interpreted(str(exc))
             return None
         self.loaded = True
         elapsed = time.perf_counter() - self.started
@@ -181,7 +181,7 @@ def start(ham: Hamiltonian, gamma: str = "tangent") -> BackgroundCompile | None:
         processes.append(process)
     helper = _HELPERS[key] = BackgroundCompile(ham, processes)
     say(
-        compiled.first_use_text(ham)
+        first_use.first_use_text(ham)
         + " in the background; the run starts at once on the interpreted loop and "
         "goes on compiled when the code is ready"
     )

@@ -16,18 +16,8 @@ Nothing here re-implements the algorithm, and no source text is copied:
 
 Parameters are run-time arguments: a parameter sweep never recompiles.
 
-``HAMRKQ_DISABLE_NUMBA=1`` (or numba missing, or a system that cannot be
-compiled, or a failure compiling the kernel) makes :func:`resolve_backend`
-choose the interpreted backend for ``backend="auto"``, with one
-:class:`~hamrkq.errors.HamrkqWarning` saying what failed.
-
-A first use that compiles says so: when preparing a system (and the kernel)
-takes longer than :data:`ANNOUNCE_AFTER` seconds, a line on stderr (when it
-is a terminal, as the progress bar) and on the ``hamrkq`` logger says that
-code is being compiled once and cached, and another how long it took
-(:class:`hamrkq._progress.WaitNotice`).  For a large system with no kernel
-in the cache, a helper process compiles the kernel meanwhile
-(:func:`hamrkq.backends.kernel.start_helper`).
+Which backend a run gets, the kernel's functions for a system and the
+warm-up of a first use are :mod:`hamrkq.backends.first_use`'s.
 
 Compilation is counted: :data:`COMPILE_COUNT` (and :func:`stats`) grows by
 one for every function signature numba had to compile in this process
@@ -44,11 +34,10 @@ import os
 import types
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hamrkq._progress import WaitNotice
 from hamrkq.backends import codegen
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.codegen import PART_FUNCTIONS
@@ -63,7 +52,6 @@ from hamrkq.backends.numba_compile import (
     signatures,
     stats,
 )
-from hamrkq.errors import OptionError, warn
 
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -78,22 +66,16 @@ __all__ = [
     "available",
     "compile_system",
     "energy",
-    "first_use_text",
     "is_compiled",
     "kernel",
     "kernel_cache_dir",
-    "kernel_functions",
+    "loaded_system",
     "mark_compiled",
-    "resolve_backend",
+    "numba_failure",
     "stats",
-    "system_functions",
-    "warm_up",
-    "warn_interpreted",
 ]
 
 _SYSTEMS: dict[str, CompiledSystem] = {}
-#: Cache keys of the systems whose kernel run :func:`warm_up` has made.
-_WARM: set[str] = set()
 
 
 def __getattr__(name: str) -> Any:
@@ -102,56 +84,6 @@ def __getattr__(name: str) -> Any:
     if name == "COMPILE_COUNT":
         return stats()["compiled"]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-# -- which backend -----------------------------------------------------------------
-
-
-def resolve_backend(backend: str, ham: Hamiltonian | None = None, gamma: str = "tangent") -> str:
-    """The backend to run: ``"python"`` or ``"numba"``.
-
-    Parameters
-    ----------
-    backend : {"auto", "numba", "python"}
-        ``"auto"`` means numba when it can be used, else Python with one
-        :class:`~hamrkq.errors.HamrkqWarning`.
-    ham : Hamiltonian, optional
-        With ``"auto"``, the system is generated and compiled here, so that a
-        system numba cannot compile also falls back with the warning.
-    gamma : str
-        The run's estimate of Gamma: what of the system it compiles
-        (:func:`kernel_functions`).
-
-    Raises
-    ------
-    OptionError
-        An unknown backend name, or ``"numba"`` when it cannot be used.
-    """
-    if backend == "python":
-        return "python"
-    if backend not in ("auto", "numba"):
-        raise OptionError(f"backend={backend!r} is not valid; valid: 'auto', 'numba', 'python'")
-    ok, reason = available()
-    if ok and ham is not None:
-        try:
-            warm_up(ham, gamma=gamma)
-        except BackendUnavailable as exc:
-            ok, reason = False, str(exc)
-    if ok:
-        return "numba"
-    if backend == "numba":
-        raise OptionError(f"backend='numba' cannot be used: {reason}")
-    warn_interpreted(reason)
-    return "python"
-
-
-def warn_interpreted(reason: str) -> None:
-    """The warning of ``backend="auto"`` falling back to the interpreted loop."""
-    warn(
-        f"hamrkq: the compiled (numba) backend is not used because {reason}; "
-        "running the pure-Python loop, which is about 100 times slower. "
-        "Pass backend='python' to choose it explicitly and silence this warning."
-    )
 
 
 # -- the system ------------------------------------------------------------------
@@ -300,10 +232,10 @@ def _failures_as_unavailable(what: str) -> Iterator[None]:
             f"set {codegen.CACHE_ENV} to a writable directory"
         ) from exc
     except Exception as exc:  # numba's TypingError/LoweringError and relatives
-        raise _numba_failure("the system", exc) from exc
+        raise numba_failure("the system", exc) from exc
 
 
-def _numba_failure(what: str, exc: Exception) -> BackendUnavailable:
+def numba_failure(what: str, exc: Exception) -> BackendUnavailable:
     """The error for numba failing to compile ``what`` (its TypingError,
     LoweringError and relatives), with the first line of numba's message."""
     first = str(exc).splitlines()[0] if str(exc) else ""
@@ -320,6 +252,12 @@ def calls_tangent_part(gamma: str) -> bool:
     """Whether a run with this estimate of Gamma calls the tangent part of a
     system's code (:data:`~hamrkq.backends.codegen.PARTS`)."""
     return any(name in PART_FUNCTIONS["tangent"] for name in _CALLED.get(gamma, ()))
+
+
+def loaded_system(key: str) -> CompiledSystem | None:
+    """The system of the code-generation key ``key`` if :func:`compile_system`
+    has made it in this process, else None."""
+    return _SYSTEMS.get(key)
 
 
 def compile_system(ham: Hamiltonian) -> CompiledSystem:
@@ -386,92 +324,6 @@ def is_compiled(ham: Hamiltonian, gamma: str = "off") -> bool:
         except OSError:
             return False
     return True
-
-
-# -- the kernel's functions and the first use ------------------------------------
-
-
-def kernel_functions(ham: Hamiltonian, gamma: str = "tangent"):
-    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of ``ham`` on this
-    backend, for a run whose estimate of Gamma is ``gamma`` (its
-    ``global_error_estimate``): ``rhs_jvp`` for ``"tangent"``, ``jac`` for
-    ``"paper"``, stand-ins otherwise (:meth:`CompiledSystem.kernel_arguments`).
-
-    Raises
-    ------
-    BackendUnavailable
-        See :func:`compile_system`.
-    """
-    return system_functions(compile_system(ham), gamma)
-
-
-def system_functions(system: CompiledSystem, gamma: str = "tangent"):
-    """The :class:`~hamrkq.rkq.driver.KernelFunctions` of a compiled system
-    with the compiled kernel (``gamma``: see :func:`kernel_functions`)."""
-    from hamrkq.rkq.driver import KernelFunctions
-
-    return KernelFunctions(*system.kernel_arguments(gamma), kernel_module.kernel())
-
-
-#: Seconds of preparing a system before the first use is announced: loading
-#: from the cache takes well under this, compiling several seconds.
-ANNOUNCE_AFTER = 1.0
-
-
-def _short(text: str, width: int = 60) -> str:
-    return text if len(text) <= width else text[: width - 3] + "..."
-
-
-def first_use_text(ham: Hamiltonian) -> str:
-    """What a first use of ``ham`` says: its code is compiled once and cached."""
-    return (
-        f"compiling the code for {_short(f'H = {ham.H}')} (first use of this system or "
-        f"of this hamrkq version; cached in {codegen.cache_dir()} for later runs)"
-    )
-
-
-def warm_up(
-    ham: Hamiltonian,
-    stream: TextIO | None = None,
-    announce: bool | None = None,
-    gamma: str = "tangent",
-) -> None:
-    """Compile (or load) the system and the kernel for the signatures a run
-    uses, by integrating one step of ``ham``, once per system and process,
-    and what a run with the estimate of Gamma ``gamma`` calls
-    (:func:`kernel_functions`); raises BackendUnavailable with what failed.
-    A first use that takes long is announced on ``stream`` (stderr; when it
-    is a terminal, or ``announce``)."""
-    key = codegen.cache_key(ham)
-    system = _SYSTEMS.get(key)
-    if key in _WARM and system is not None and system.compiled_for(gamma):
-        return
-
-    def begin() -> str:
-        return first_use_text(ham) + " ..."
-
-    with WaitNotice(begin, "compiled", ANNOUNCE_AFTER, stream=stream, enabled=announce):
-        if key not in _WARM:
-            _warm_up(ham)
-            _WARM.add(key)
-        compile_system(ham).prepare(gamma)
-
-
-def _warm_up(ham: Hamiltonian) -> None:
-    helper = kernel_module.start_helper(ham.dim)
-    try:
-        compile_system(ham)  # meanwhile
-    finally:
-        kernel_module.join_helper(helper)
-    # With the stand-ins of rhs_jvp and jac (the helper compiled them beside
-    # the kernel): the probe's kernel signature is every run's.
-    functions = kernel_functions(ham, "off")
-    run = kernel_module.probe(functions, ham.dim, len(ham.parameters))
-    try:
-        with np.errstate(all="ignore"):
-            run.run()
-    except Exception as exc:  # numba's TypingError/LoweringError and relatives
-        raise _numba_failure("the RKQ kernel", exc) from exc
 
 
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:

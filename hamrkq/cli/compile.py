@@ -50,7 +50,7 @@ def compile_command(args: argparse.Namespace) -> int:
     OptionError
         The compiled backend cannot be used here (the reason is named).
     """
-    from hamrkq.backends import codegen, compiled
+    from hamrkq.backends import codegen, compiled, first_use
     from hamrkq.backends import kernel as kernel_module
     from hamrkq.backends.numba_compile import available
 
@@ -81,7 +81,7 @@ def compile_command(args: argparse.Namespace) -> int:
     for problem in problems:
         # Each system with the kernel, one step: loads what is cached (or
         # compiles what the helper did not) and proves that they work together.
-        compiled.warm_up(problem.hamiltonian, announce=False)
+        first_use.warm_up(problem.hamiltonian, announce=False)
     return 0
 
 

@@ -125,11 +125,11 @@ def _double_double_functions(task: Task, backend: str):
         if task.compiling.functions("shadow") is None:  # unusable: warned once
             backend = "python"
     if backend == "numba":
-        from hamrkq.backends import compiled
+        from hamrkq.backends import compiled, first_use
 
         system = compiled.compile_system(task.ham)
         # the shadow's Gamma: rhs_dd where the tangent goes, no jac
-        return compiled.system_functions(system, "shadow")._replace(tangent=system.rhs_dd())
+        return first_use.system_functions(system, "shadow")._replace(tangent=system.rhs_dd())
     numeric = numeric_of(task.ham)
     functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
     return functions._replace(tangent=codegen.load_module(task.ham).rhs_dd)
@@ -159,9 +159,9 @@ def integration(task: Task, backend: str) -> Integration:
     if o.double_double:
         functions = _double_double_functions(task, backend)
     elif backend == "numba" and task.compiling is None:
-        from hamrkq.backends import compiled
+        from hamrkq.backends import first_use
 
-        functions = compiled.kernel_functions(task.ham, gamma)
+        functions = first_use.kernel_functions(task.ham, gamma)
     elif backend == "numba":
         # The helper's compiled code if it is ready; else start interpreted
         # and ask again between chunks.
@@ -218,12 +218,12 @@ def resolve_backend(
     """``"auto"`` -> ``"numba"`` when the method has a compiled runner and
     numba can be used (else ``"python"``, with one HamrkqWarning when numba
     was expected but cannot be used); compiles what a run with the estimate
-    of Gamma ``gamma`` calls (:func:`hamrkq.backends.compiled.kernel_functions`)."""
+    of Gamma ``gamma`` calls (:func:`hamrkq.backends.first_use.kernel_functions`)."""
     if backend == "python" or "numba" not in spec.backends:
         return "python" if backend == "auto" else backend
-    from hamrkq.backends import compiled
+    from hamrkq.backends import first_use
 
-    return compiled.resolve_backend(backend, ham, gamma)
+    return first_use.resolve_backend(backend, ham, gamma)
 
 
 def start_background(
