@@ -35,8 +35,9 @@ def cases():
     yield "prentice2011, t <= 4000", prentice, grid, extended_reference.reference(prentice, grid)
     kepler = hamrkq.load_problem("kepler", e=0.6)
     grid = np.linspace(0.0, 20 * np.pi, NODES)
-    # The exact solution evaluated in doubles is itself 1.7e-13 off after ten
-    # orbits (tests/test_double_double.py): the long-double reference instead.
+    # The long-double reference, as for prentice2011 (the exact solution was
+    # 1.7e-13 off after ten orbits when this script was written; it is
+    # accurate to a few ulps since, tests/test_exact.py).
     yield "kepler e=0.6, 10 orbits", kepler, grid, extended_reference.reference(kepler, grid)
 
 

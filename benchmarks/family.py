@@ -8,9 +8,10 @@ quencher's true error, and how Gamma compares with it (median ratio).
 
 The truth is the extended-precision Taylor reference of
 ``extended_reference.py`` (heyoka, the ``bench`` extra) where it is
-installed: the exact formula for Kepler, evaluated in double, is itself
-1.7e-13 off after ten orbits, and the periodic DOP853 reference of
-prentice2011 7e-11 over [0, 4000], both too coarse for 1e-10 and 1e-12.
+installed: the periodic DOP853 reference of prentice2011 is 7e-11 off
+over [0, 4000], too coarse for 1e-10 and 1e-12 (the exact formula for
+Kepler was 1.7e-13 off after ten orbits when this script was written; it is
+accurate to a few ulps since, ``tests/test_exact.py``).
 Without heyoka the script falls back to them and says so in the table.
 outer_solar_system is checked on 201 returned nodes (``t_eval``), the others
 at every node.

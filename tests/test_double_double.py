@@ -8,6 +8,7 @@ import mpmath
 import numpy as np
 import pytest
 import sympy as sp
+from helpers import kepler_flow_mpmath
 
 import hamrkq
 from hamrkq.backends import codegen
@@ -65,32 +66,8 @@ def test_double_double_needs_the_shadow_estimate():
         hamrkq.solve(problem, method="rk78q12", quencher_precision="quad")
 
 
-def _kepler_exact(y0, times) -> np.ndarray:
-    """Kepler's flow from ``y0`` (doubles) to 30 digits (mpmath): the
-    catalogue's exact solution, evaluated in doubles, is itself 1.7e-13 off
-    after ten orbits, a sixth of the tolerance checked here."""
-    ctx = mpmath.MPContext()
-    ctx.dps = 30
-    q1, q2, p1, p2 = (ctx.mpf(float(v)) for v in y0)
-    r0 = ctx.sqrt(q1**2 + q2**2)
-    a = -1 / (2 * ((p1**2 + p2**2) / 2 - 1 / r0))
-    n = a ** ctx.mpf(-1.5)
-    ec, es = 1 - r0 / a, (q1 * p1 + q2 * p2) / ctx.sqrt(a)
-    rows = []
-    for time in times:
-        t = ctx.mpf(float(time))
-        mean = n * t
-        dE = ctx.findroot(lambda d, m=mean: d - ec * ctx.sin(d) + es * (1 - ctx.cos(d)) - m, mean)
-        r = a * (1 - ec * ctx.cos(dE) + es * ctx.sin(dE))
-        f, g = 1 - a / r0 * (1 - ctx.cos(dE)), t - (dE - ctx.sin(dE)) / n
-        fd, gd = -ctx.sqrt(a) / (r * r0) * ctx.sin(dE), 1 - a / r * (1 - ctx.cos(dE))
-        rows.append([float(v) for v in (f * q1 + g * p1, f * q2 + g * p2,
-                                         fd * q1 + gd * p1, fd * q2 + gd * p2)])  # fmt: skip
-    return np.array(rows)
-
-
 def _kepler_errors(sol, problem, atol):
-    exact = _kepler_exact(problem.y0, sol.t)
+    exact = kepler_flow_mpmath(problem.y0, sol.t)
     z = sol.y - sol.global_error
     return np.abs(sol.y - exact).max() / atol, np.abs(z - exact).max()
 
