@@ -174,3 +174,24 @@ def test_the_witness_rounds_stochastically_only_where_the_weights_magnify_it():
         assert member.stage_rounding_dominates == (weights > STAGE_ROUNDING_WEIGHTS), name
     assert MEMBERS["rk56q8"].stage_rounding_dominates  # DOP853: 12.9
     assert not MEMBERS["rk78q12"].stage_rounding_dominates  # Feagin 12: 1.7
+
+
+def test_a_quencher_that_magnifies_its_stages_rounding_runs_the_witness_at_any_tolerance():
+    # rk45q8 (DOP853's weights sum to 12.9) on the FPU chain at rtol 1e-6:
+    # its quencher's rounding grew to 2e-9 by t = 189, a hundred times what
+    # the shadow saw, and without the witness (the tolerance is far from the
+    # floor for the other quenchers) the run returned a node of 1.74 delta
+    # against heyoka's extended-precision reference
+    # (benchmarks/promise_members.md).  Against the quencher in
+    # double-double at atol 1e-10 here.
+    assert needs_witness(np.full(2, 1e-3), np.zeros(2), np.ones(2), stage_rounding=True)
+    fpu = hamrkq.load_problem("fpu")
+    times = np.linspace(*fpu.t_span, 201)[1:]
+    sol = hamrkq.solve(fpu, method="rk45q8", atol=1e-9, rtol=1e-6, t_eval=times)
+    assert sol.options["rounding_witness"] is True
+    reference = hamrkq.solve(fpu, method="rk78q12", quencher_precision="double-double",
+                             atol=1e-10, t_eval=times)  # fmt: skip
+    assert reference.success
+    n = sol.t.size
+    delta = np.maximum(1e-9, 1e-6 * np.abs(reference.y[:n]))
+    assert np.all(np.abs(sol.y - reference.y[:n]) <= 1.05 * delta + 1.05e-10)

@@ -44,7 +44,7 @@ from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
-from hamrkq.solve.dispatch import integration, run_rk
+from hamrkq.solve.dispatch import integration, member_of, run_rk
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
@@ -100,7 +100,8 @@ def _decided_by_y0(prepared: Any, dim: int, y0: np.ndarray) -> tuple:
         auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
     witness = None
     if task.options.gamma_name == "shadow":
-        witness = needs_witness(task.atol, task.rtol, y0)
+        stage_rounding = member_of(task).stage_rounding_dominates
+        witness = needs_witness(task.atol, task.rtol, y0, stage_rounding)
     return auto, witness
 
 

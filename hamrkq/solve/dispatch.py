@@ -102,13 +102,14 @@ def member_of(task: Task):
 
 def uses_witness(task: Task) -> bool:
     """Whether an RKQ-family task runs the rounding witness (the shadow
-    estimate at a tolerance near double precision's floor, :func:`needs_witness`,
+    estimate at a tolerance near double precision's floor, or with a
+    quencher whose weights magnify its stages' rounding: :func:`needs_witness`;
     or where ``auto`` asks for it: ``Task.witness``)."""
     if task.options.gamma_name != "shadow" or task.options.double_double:
         return False
     if task.witness is not None:
         return task.witness
-    return needs_witness(task.atol, task.rtol, task.y0)
+    return needs_witness(task.atol, task.rtol, task.y0, member_of(task).stage_rounding_dominates)
 
 
 def _double_double_functions(task: Task, backend: str):

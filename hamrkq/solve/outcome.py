@@ -131,10 +131,28 @@ def _unattainable(out: RunOutput, task: Task) -> str:
         text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
             f"quencher run again with its sums in the opposite order), is "
-            f"{out.floor_ratio:.3g} x the "
-            "tolerance: this is double precision's floor for this orbit and interval, and "
-            "no member or step size in double goes below it."
+            f"{out.floor_ratio:.3g} x the tolerance: "
         )
+        member = member_of(task)
+        if member.stage_rounding_dominates:
+            pair = task.options.method.split("q")[0]
+            quiet = [
+                name
+                for name, other in MEMBERS.items()
+                if name.startswith(pair + "q") and not other.stage_rounding_dominates
+            ]
+            weights = float(np.abs(member.quencher.b).sum())
+            text += (
+                "this is this quencher's floor for this orbit and interval (its weights, whose "
+                f"absolute values sum to {weights:.3g}, magnify the rounding of its stages); "
+                f"the same pair with another quencher ({', '.join(map(repr, quiet))}) goes "
+                "below it."
+            )
+        else:
+            text += (
+                "this is double precision's floor for this orbit and interval, and no member "
+                "or step size in double goes below it."
+            )
         if not _double_double_available(task):
             return text + " A looser tolerance or a shorter interval is what works."
         return text + (
