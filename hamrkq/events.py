@@ -174,9 +174,12 @@ def dense_output(
     params: np.ndarray,
     t: np.ndarray,
     y: np.ndarray,
+    z: np.ndarray | None = None,
 ) -> DenseOutput:
     """The continuous solution through the nodes ``(t, y)`` of a run of
-    ``member`` on ``backend`` (``"numba"`` compiles the evaluation)."""
+    ``member`` on ``backend`` (``"numba"`` compiles the evaluation), stepped
+    from the quencher track ``z`` at the same nodes where there is one
+    (:mod:`hamrkq.rkq.dense`)."""
     tab = dense_tableaus(member)
     params = np.require(params, np.float64, ("C", "W"))
     t = np.array(t, dtype=np.float64)
@@ -187,15 +190,15 @@ def dense_output(
 
         rhs = compiled.compile_system(ham).rhs
         work = prepare_work(y.shape[1], tab)
-        args = (rhs, tab, params, t, y, np.zeros(1, np.int64), np.zeros(1))
+        args = (rhs, tab, params, t, y, y, np.zeros(1, np.int64), np.zeros(1))
         fast = extras.compiled_helper(evaluate, ("rhs",), *args, work, np.zeros((1, y.shape[1])))
-        return DenseOutput(t, y, rhs, tab, params, compiled=fast, recipe=recipe)
+        return DenseOutput(t, y, z, rhs, tab, params, compiled=fast, recipe=recipe)
     numeric = numeric_of(ham)
 
     def rhs(t, y, params, out):
         out[:] = numeric.rhs(t, y, params)
 
-    return DenseOutput(t, y, rhs, tab, params, recipe=recipe)
+    return DenseOutput(t, y, z, rhs, tab, params, recipe=recipe)
 
 
 def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]:
@@ -316,7 +319,7 @@ def apply(
             ),
         )
         if keep_dense:
-            dense = dense.through(t_new, y_new)
+            dense = dense.through(t_new, y_new, changes.get("z"))
     changes.update(
         t_events=[times for times, _ in found],
         y_events=[states for _, states in found],

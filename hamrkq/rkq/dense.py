@@ -1,14 +1,25 @@
 """Dense output by re-stepping: the solution between nodes from one quencher step.
 
-``y(t)`` for ``t_i <= t <= t_{i+1}`` is one step of the member's quencher
-tableau (order 8-12; the pair's high-order method for a member without one) of
-size ``t - t_j`` from the reported node ``y_j`` nearer to ``t`` (backward from
-``t_{i+1}`` in the second half of the interval).  No state is added to the
-kernel: every node the run kept is a starting point.  The error of the value
-is ``y_j``'s (at most the tolerance delta at the node, RKQ's promise) carried
-over at most half a step, plus the local error of that partial step of a
-high-order method; ``docs/events.md`` gives the measured worst cases (within
-1.03 delta on Kepler e = 0.6 and Prentice's problem).
+For ``t_i <= t <= t_{i+1}``, ``y(t)`` is one step of the member's quencher
+tableau (order 8-12; the pair's high-order method for a member without one)
+of size ``t - t_j`` from the quencher track's node ``z_j`` nearer to ``t``
+(backward from ``t_{i+1}`` in the second half of the interval), plus the
+difference ``y - z`` of the two nodes interpolated linearly:
+
+    y(t) = z_j + step(z_j, t - t_j) + (1 - w) (y_i - z_i) + w (y_{i+1} - z_{i+1}),
+    w = (t - t_i) / (t_{i+1} - t_i),
+
+and ``y_j`` itself at a node.  No state is added to the kernel: every node
+the run kept is a starting point.  The quencher's value carries its own
+error (Gamma, at most ``gamma_limit`` of the tolerance) over at most half a
+step, and the interpolated difference is at most the larger of the two
+nodes' ``|y - z|`` (below the tolerance, or the node was quenched): the
+nodes' bound holds between them.  Stepping from ``y_j`` instead, as the
+first versions did, carried ``y_j``'s error, up to the tolerance, through
+the flow over half a step, which the long steps of the family's
+higher-order pairs stretch: ``auto`` reached 1.19 delta on prentice2011 at
+1e-6 (``docs/events.md``).  Without a quencher track (``z`` not given, or a
+member without one) it steps from ``y_j``.
 
 :func:`evaluate` is ``@jitable``: it runs interpreted, or compiled by numba
 (:mod:`hamrkq.backends.extras`) with the compiled right-hand side.
@@ -30,29 +41,40 @@ __all__ = ["DenseOutput", "dense_tableaus", "evaluate", "node_index", "prepare_w
 
 
 @jitable
-def evaluate(rhs, tab, params, t_nodes, y_nodes, index, tq, work, out):
+def evaluate(rhs, tab, params, t_nodes, y_nodes, z_nodes, index, tq, work, out):
     """``out[k] = y(tq[k])``: one step of ``tab``'s quencher of size
-    ``tq[k] - t_nodes[index[k]]`` from ``y_nodes[index[k]]``.  Returns the
-    number of right-hand-side evaluations."""
+    ``tq[k] - t_nodes[index[k]]`` from ``z_nodes[index[k]]``, plus ``y - z``
+    of the two nodes around ``tq[k]`` interpolated linearly (the module
+    docstring); ``z_nodes`` is ``y_nodes`` where there is no quencher track.
+    Returns the number of right-hand-side evaluations."""
     tab, work = borrow(tab), borrow(work)
     d = y_nodes.shape[1]
+    last = t_nodes.shape[0] - 1
     nfev = 0
     for k in range(tq.shape[0]):
-        i = index[k]
-        h = tq[k] - t_nodes[i]
+        j = index[k]
+        h = tq[k] - t_nodes[j]
         if h == 0.0:
             for c in range(d):
-                out[k, c] = y_nodes[i, c]
+                out[k, c] = y_nodes[j, c]
             continue
+        # The interval [t_i, t_i + 1] around tq[k]: j is one of its ends.
+        forward = (h > 0.0) == (t_nodes[last] >= t_nodes[0])
+        i = j if forward else j - 1
+        i = min(max(i, 0), last - 1)
+        w = (tq[k] - t_nodes[i]) / (t_nodes[i + 1] - t_nodes[i])
         zhi, zlo, inc = work.V[ZHI], work.V[ZLO], work.V[INC]
         for c in range(d):
-            zhi[c] = y_nodes[i, c]
+            zhi[c] = z_nodes[j, c]
             zlo[c] = 0.0
         nfev += steps.explicit_increment(
-            rhs, t_nodes[i], zhi, zlo, h, tab, params, work, inc, False
+            rhs, t_nodes[j], zhi, zlo, h, tab, params, work, inc, False
         )
         for c in range(d):
-            out[k, c] = y_nodes[i, c] + inc[c]
+            gap = (1.0 - w) * (y_nodes[i, c] - z_nodes[i, c]) + w * (
+                y_nodes[i + 1, c] - z_nodes[i + 1, c]
+            )
+            out[k, c] = (z_nodes[j, c] + inc[c]) + gap
     return nfev
 
 
@@ -105,6 +127,9 @@ class DenseOutput:
     ----------
     t, y : ndarray
         Every node of the run (time-major ``y``, as :attr:`Solution.y`).
+    z : ndarray, optional
+        The quencher track at the same nodes (:attr:`Solution.z`): the
+        values are stepped from it (module docstring); from ``y`` without.
     rhs : callable
         ``rhs(t, y, params, out)``, interpreted or compiled.
     tableaus : Tableaus
@@ -114,7 +139,7 @@ class DenseOutput:
         :func:`evaluate` compiled for these argument types (by
         :func:`hamrkq.backends.extras.compiled_helper`); interpreted without.
     recipe : tuple, optional
-        ``(build, args)`` with ``build(*args, t, y)`` returning this dense
+        ``(build, args)`` with ``build(*args, t, y, z)`` returning this dense
         output: how a pickled copy is rebuilt (compiled functions and the
         interpreted backend's closures do not pickle; the recipe's
         Hamiltonian and method do).  Without it the copy is rebuilt from
@@ -125,6 +150,7 @@ class DenseOutput:
         self,
         t: np.ndarray,
         y: np.ndarray,
+        z: np.ndarray | None,
         rhs: Callable,
         tableaus: Tableaus,
         params: np.ndarray,
@@ -133,8 +159,11 @@ class DenseOutput:
     ):
         self.t = np.array(t, dtype=np.float64, order="C")
         self.y = np.array(y, dtype=np.float64, order="C")
+        self.z = None if z is None else np.array(z, dtype=np.float64, order="C")
         if self.t.size == 0:
             raise ValueError("dense output needs at least one node")
+        if self.z is not None and self.z.shape != self.y.shape:
+            raise ValueError(f"z has shape {self.z.shape}, y {self.y.shape}")
         self.t_min, self.t_max = float(self.t.min()), float(self.t.max())
         self._rhs = rhs
         self._tab = tableaus
@@ -145,15 +174,18 @@ class DenseOutput:
         self._count = threading.Lock()
         self.nfev = 0
 
-    def through(self, t: np.ndarray, y: np.ndarray) -> DenseOutput:
-        """The same continuous extension through other nodes (a truncated run)."""
-        return DenseOutput(t, y, self._rhs, self._tab, self._params, self._compiled, self._recipe)
+    def through(self, t: np.ndarray, y: np.ndarray, z: np.ndarray | None) -> DenseOutput:
+        """The same continuous extension through other nodes (a truncated
+        run; ``z`` its quencher track, or None to step from ``y``)."""
+        return DenseOutput(
+            t, y, z, self._rhs, self._tab, self._params, self._compiled, self._recipe
+        )
 
     def __reduce__(self):
         if self._recipe is not None:
             build, args = self._recipe
-            return (build, (*args, self.t, self.y))
-        return (DenseOutput, (self.t, self.y, self._rhs, self._tab, self._params))
+            return (build, (*args, self.t, self.y, self.z))
+        return (DenseOutput, (self.t, self.y, self.z, self._rhs, self._tab, self._params))
 
     def values(self, t) -> np.ndarray:
         """Time-major values: shape ``(m, 2n)`` for ``m`` times."""
@@ -165,8 +197,9 @@ class DenseOutput:
             # evaluation runs without the GIL, so threads evaluating one
             # solution at once would otherwise share, and corrupt, them.
             work = prepare_work(self.y.shape[1], self._tab)
+            z = self.y if self.z is None else self.z
             nfev = self._evaluate(
-                self._rhs, self._tab, self._params, self.t, self.y, index, tq, work, out
+                self._rhs, self._tab, self._params, self.t, self.y, z, index, tq, work, out
             )
             with self._count:
                 self.nfev += int(nfev)

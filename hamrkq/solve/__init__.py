@@ -445,10 +445,10 @@ def _require_double_double(ham) -> None:
 def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
     """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run."""
     member = member_of(task)
-    dense = _events.dense_output(task.ham, member, backend, task.params, sol.t, sol.y)
+    dense = _events.dense_output(task.ham, member, backend, task.params, sol.t, sol.y, sol.z)
     if not specs:
         return sol.replace(sol=dense)
-    z_dense = None if sol.z is None else dense.through(sol.t, sol.z)
+    z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)
 
     def energy(t, Y):
         return numeric_of(task.ham).energy(t, Y, task.params)

@@ -1,0 +1,125 @@
+"""The dense output's true error between the nodes, for rk34q8 and the family.
+
+    python benchmarks/dense_error.py [--before CHECKOUT [--before-label TEXT]]
+
+For Kepler e = 0.6 over ten orbits (against its exact solution) and
+prentice2011 over [0, 4000] (against the periodic-orbit reference of
+``hamrkq.analysis.reference``, 4.5e-12 off a long-double Taylor run), at
+``atol`` 1e-6 and 1e-9, each method is run with ``dense_output=True`` and
+``sol(t)`` evaluated at 10 000 uniformly random times: the largest true
+error over the tolerance there, beside the largest at the nodes.  RKQ
+promises at most 1.05 at the nodes; the dense output should keep it.
+
+``--before``: the same runs with the checkout at CHECKOUT, side by side.
+Writes ``benchmarks/dense_error.json`` and ``benchmarks/dense_error.md``
+(docs/events.md quotes the table).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import measure
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SEED = 20261123
+METHODS = ("rk34q8", "auto", "rk45q12")
+TOLERANCES = (1e-6, 1e-9)
+
+
+def rows() -> list[dict]:
+    """Every case, measured with the ``hamrkq`` on the path."""
+    import hamrkq
+    from hamrkq.analysis.reference import periodic_reference
+    from hamrkq.backends.numeric import numeric_of
+
+    kepler = hamrkq.load_problem("kepler", e=0.6)
+    prentice = hamrkq.load_problem("prentice2011")
+    rhs = numeric_of(prentice.hamiltonian).rhs
+
+    def truth(problem, times):
+        if problem is kepler:
+            return np.asarray(problem.exact(times))
+        return periodic_reference(rhs, problem.y0, times, problem.parameter_array).y
+
+    out = []
+    for method in METHODS:
+        for name, problem in (("kepler e=0.6, 10 orbits", kepler), ("prentice2011", prentice)):
+            for atol in TOLERANCES:
+                sol = hamrkq.solve(problem, atol=atol, method=method, dense_output=True)
+                times = np.random.default_rng(SEED).uniform(sol.t[0], sol.t[-1], 10_000)
+                between = np.abs(sol.sol.values(times) - truth(problem, times)).max() / atol
+                at_nodes = np.abs(sol.y - truth(problem, sol.t)).max() / atol
+                out.append({
+                    "problem": name, "atol": atol, "method": method, "member": sol.method,
+                    "nodes": int(sol.t.size), "between": float(between),
+                    "at_nodes": float(at_nodes),
+                })  # fmt: skip
+                print(json.dumps(out[-1]), file=sys.stderr, flush=True)
+    return out
+
+
+def table(results: dict) -> str:
+    lines = [
+        f"`benchmarks/dense_error.py`, run {results['started']}: the largest true error over "
+        "the tolerance at 10 000 random times between the nodes and at the nodes.",
+        "",
+        "| problem | atol | method | checkout | nodes | between nodes / delta "
+        "| at nodes / delta |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    before = {(r["problem"], r["atol"], r["method"]): r for r in results.get("rows_before", [])}
+    for row in results["rows"]:
+        method = row["method"] if row["method"] == row["member"] else (
+            f"{row['method']} ({row['member']})"
+        )  # fmt: skip
+        cases = [("now", row)]
+        old = before.get((row["problem"], row["atol"], row["method"]))
+        if old is not None:
+            cases.append((results["before"], old))
+        for checkout, r in cases:
+            lines.append(
+                f"| {row['problem']} | {row['atol']:g} | {method} | {checkout} | {r['nodes']} | "
+                f"{r['between']:.4f} | {r['at_nodes']:.4f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _elsewhere(root: Path) -> list[dict]:
+    """:func:`rows` with the checkout at ``root``."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    done = subprocess.run([sys.executable, __file__, "--rows-only"], env=env, cwd=root,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--before", type=Path, help="a checkout from before the change")
+    parser.add_argument("--before-label", help="what the table calls it (its commit)")
+    parser.add_argument("--rows-only", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.rows_only:
+        print(json.dumps(rows()))
+        return 0
+    results = measure.begin_record(1)
+    results["rows"] = rows()
+    if args.before is not None:
+        results["before"] = args.before_label or str(args.before)
+        results["rows_before"] = _elsewhere(args.before.resolve())
+    results = measure.end_record(results)
+    (HERE / "dense_error.json").write_text(json.dumps(results, indent=1) + "\n")
+    text = table(results)
+    (HERE / "dense_error.md").write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
