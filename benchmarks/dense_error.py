@@ -7,8 +7,10 @@ prentice2011 over [0, 4000] (against the periodic-orbit reference of
 ``hamrkq.analysis.reference``, 4.5e-12 off a long-double Taylor run), at
 ``atol`` 1e-6 and 1e-9, each method is run with ``dense_output=True`` and
 ``sol(t)`` evaluated at 10 000 uniformly random times: the largest true
-error over the tolerance there, beside the largest at the nodes.  RKQ
-promises at most 1.05 at the nodes; the dense output should keep it.
+error over the tolerance there, beside the largest at the nodes, and the
+largest jump of ``sol(t)`` at the middle of an interval (where it switches
+from one node's step to the other's).  RKQ promises at most 1.05 at the
+nodes; the dense output should keep it.
 
 ``--before``: the same runs with the checkout at CHECKOUT, side by side.
 Writes ``benchmarks/dense_error.json`` and ``benchmarks/dense_error.md``
@@ -59,20 +61,37 @@ def rows() -> list[dict]:
                 out.append({
                     "problem": name, "atol": atol, "method": method, "member": sol.method,
                     "nodes": int(sol.t.size), "between": float(between),
-                    "at_nodes": float(at_nodes),
+                    "at_nodes": float(at_nodes), "jump": _jump(sol) / atol,
                 })  # fmt: skip
                 print(json.dumps(out[-1]), file=sys.stderr, flush=True)
     return out
 
 
+def _jump(sol) -> float:
+    """The largest jump of ``sol.sol`` at the middle of an interval, where
+    the value switches from one node's step to the other's (an ulp before
+    and after the middle)."""
+    from hamrkq.rkq.dense import node_index
+
+    t = sol.t
+    middle = 0.5 * (t[:-1] + t[1:])
+    before, after = np.nextafter(middle, -np.inf), np.nextafter(middle, np.inf)
+    switches = (node_index(t, before) == np.arange(t.size - 1)) & (
+        node_index(t, after) == np.arange(1, t.size)
+    )
+    values = sol.sol.values(before[switches]) - sol.sol.values(after[switches])
+    return float(np.abs(values).max())
+
+
 def table(results: dict) -> str:
     lines = [
         f"`benchmarks/dense_error.py`, run {results['started']}: the largest true error over "
-        "the tolerance at 10 000 random times between the nodes and at the nodes.",
+        "the tolerance at 10 000 random times between the nodes and at the nodes, and the "
+        "largest jump of sol(t) at the middle of an interval.",
         "",
         "| problem | atol | method | checkout | nodes | between nodes / delta "
-        "| at nodes / delta |",
-        "|---|---|---|---|---|---|---|",
+        "| at nodes / delta | largest jump at a middle / delta |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     before = {(r["problem"], r["atol"], r["method"]): r for r in results.get("rows_before", [])}
     for row in results["rows"]:
@@ -86,7 +105,7 @@ def table(results: dict) -> str:
         for checkout, r in cases:
             lines.append(
                 f"| {row['problem']} | {row['atol']:g} | {method} | {checkout} | {r['nodes']} | "
-                f"{r['between']:.4f} | {r['at_nodes']:.4f} |"
+                f"{r['between']:.4f} | {r['at_nodes']:.4f} | {r['jump']:.1e} |"
             )
     return "\n".join(lines) + "\n"
 
