@@ -74,7 +74,13 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         # periods at 1e-8 with true errors of 17 to 62 times the tolerance.
         witnessed = _with_witness(requested, task)
         if witnessed is not None:
-            return replace(witnessed, grew_exponentially=True)
+            # The same run again: its growth will read the same, which is
+            # not a second reading (task.grew_exponentially keeps the one
+            # before): prentice2011 at 1e-4, whose estimate grows faster
+            # than t^2 over its first few periods, read 1120-fold on four
+            # output times, stopped on the quencher's truncation error with
+            # the witness too, and was not run with more quencher steps.
+            return witnessed
     # Exponential growth in two runs in a row (one alone can be a burst: a
     # Kepler orbit's pericentre passages early in a run): more quencher steps
     # only push the stop a little later and carry the shadow out of its

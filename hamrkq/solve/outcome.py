@@ -321,8 +321,9 @@ def rerun_note(
         if factor > EXPONENTIAL_GROWTH:
             what += (
                 f"; the estimate had grown {factor:.3g}-fold over the second half of its "
-                "interval: exponentially, and so does the rounding, which the shadow estimate "
-                "does not see (the witness measures it); more quencher steps only delay the stop"
+                "interval, faster than a periodic orbit's t^2: where that is exponential "
+                "growth, the rounding grows alike, which the shadow estimate does not see (the "
+                "witness measures it), and more quencher steps only delay the stop"
             )
         notes.append(f"the run {_quencher_setting(earlier)} {what}")
     ran = (
