@@ -29,21 +29,15 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import (
-    EXPONENTIAL_GROWTH,
-    auto_member,
-    auto_tolerance,
-    growth_of_maxima,
-)
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, auto_member, auto_tolerance
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
+from hamrkq.solve.auto import MIN_GROWTH_STEPS, folded_growth, reruns_with_witness
 from hamrkq.solve.dispatch import integration, member_of, run_rk
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
@@ -223,8 +217,9 @@ def _grew_exponentially(batch: Any, task: Any, times: int) -> np.ndarray:
     enough = (batch.stats[:, 0] >= MIN_GROWTH_STEPS) & (nodes >= 3)
     succeeded = batch.status == Status.SUCCESS.code
     for i in np.flatnonzero(succeeded & enough).tolist():
-        delta = component_tolerance(task.atol, task.rtol, batch.y_size[i])
-        factor = growth_of_maxima(batch.gamma_to_middle[i], batch.gamma_to_end[i], delta)
+        factor = folded_growth(
+            task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
+        )
         grew[i] = factor > EXPONENTIAL_GROWTH
     return grew
 

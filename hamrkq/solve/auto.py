@@ -33,7 +33,14 @@ from hamrkq.rkq.auto_rules import (
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
 
-__all__ = ["MIN_GROWTH_STEPS", "growth", "projects", "rerun", "reruns_with_witness"]
+__all__ = [
+    "MIN_GROWTH_STEPS",
+    "folded_growth",
+    "growth",
+    "projects",
+    "rerun",
+    "reruns_with_witness",
+]
 
 
 def projects(requested: SolveOptions, task: Task) -> bool:
@@ -155,14 +162,23 @@ def growth(out: Any, task: Task) -> float:
     fewer than :data:`MIN_GROWTH_STEPS` steps)."""
     if out.gamma is None or out.t.shape[0] < 3 or out.stats.get("steps", 0) < MIN_GROWTH_STEPS:
         return 1.0
-    # One tolerance per component over the run (at its largest |y_k|), so
-    # that a tolerance with rtol, small where a component crosses zero,
-    # does not count as growth of the error.
-    delta = component_tolerance(task.atol, task.rtol, np.abs(out.y).max(axis=0))
     middle, direction = middle_of(out.t[0], out.t[-1])
     gamma = np.abs(out.gamma)
     before = gamma[(out.t - middle) * direction <= 0.0]
-    return growth_of_maxima(before.max(axis=0), gamma.max(axis=0), delta)
+    return folded_growth(task, before.max(axis=0), gamma.max(axis=0), np.abs(out.y).max(axis=0))
+
+
+def folded_growth(
+    task: Task, to_middle: np.ndarray, to_end: np.ndarray, y_size: np.ndarray
+) -> float:
+    """:func:`growth` from each component's largest ``|Gamma_k|`` over the
+    nodes up to the middle and over all of them, and its largest ``|y_k|``
+    (what the ensemble's batch loop folds)."""
+    # One tolerance per component over the run (at its largest |y_k|), so
+    # that a tolerance with rtol, small where a component crosses zero,
+    # does not count as growth of the error.
+    delta = component_tolerance(task.atol, task.rtol, y_size)
+    return growth_of_maxima(to_middle, to_end, delta)
 
 
 def reruns_with_witness(task: Task) -> bool:
