@@ -216,8 +216,10 @@ def auto_abandon_substeps(
 #: (abandoned after 2 % of its interval), 4500 on a Kepler orbit's first run
 #: at rtol 1e-6 (its pericentre passages early in the run: one such run
 #: alone is not enough, :mod:`hamrkq.solve.auto`); 147 to 1900 on a chaotic
-#: Henon-Heiles orbit, 195 to 7500 on the Arenstorf orbit over several
-#: periods, 730 to 79 000 on a Duffing separatrix.
+#: Henon-Heiles orbit, 83 to 7500 on the Arenstorf orbit over several
+#: periods, 295 on a Duffing separatrix (whose other runs, of fewer than 50
+#: steps, are not measured).  A run made again with the rounding witness
+#: reads the same and is not a second reading.
 EXPONENTIAL_GROWTH = 50.0
 
 
