@@ -195,3 +195,29 @@ def test_a_quencher_that_magnifies_its_stages_rounding_runs_the_witness_at_any_t
     n = sol.t.size
     delta = np.maximum(1e-9, 1e-6 * np.abs(reference.y[:n]))
     assert np.all(np.abs(sol.y - reference.y[:n]) <= 1.05 * delta + 1.05e-10)
+
+
+def test_after_exponential_growth_the_witness_runs_where_amplified_rounding_could_matter():
+    from hamrkq.rkq.witness_rules import needs_witness_after_growth
+
+    arenstorf = hamrkq.load_problem("arenstorf")
+    atol = lambda tol: np.full(4, tol)  # noqa: E731
+    rtol = np.zeros(4)
+    # One period: 276-fold over the second half of 233 steps (its close
+    # approach): the rounding can reach (276/4)^2 sqrt(233/1e4) = 730 times
+    # a regular orbit's, 2e-7 of the state's size
+    assert not needs_witness_after_growth(atol(1e-6), rtol, arenstorf.y0, 276.0, 233)
+    assert needs_witness_after_growth(atol(1e-8), rtol, arenstorf.y0, 276.0, 233)
+    # rk45q12 over three periods: 66 500-fold (true error 42 x 1e-8 before
+    # the witness ran)
+    assert needs_witness_after_growth(atol(1e-6), rtol, arenstorf.y0, 66_500.0, 700)
+    # The run at 1e-6 is not made again: the same nodes, its quencher's true
+    # error a thousandth of the tolerance; against rk34q8 at 1e-10.
+    times = np.linspace(*arenstorf.t_span, 201)[1:]
+    sol = hamrkq.solve(arenstorf, method="auto", atol=1e-6, t_eval=times)
+    assert sol.success and "discarded_evaluations" not in sol.stats
+    assert sol.options["rounding_witness"] is False
+    tight = hamrkq.solve(arenstorf, method="rk34q8", atol=1e-10, t_eval=times)
+    n = min(sol.t.size, tight.t.size)
+    assert n >= times.size - 2  # rk34q8 at 1e-10 stops just before the end
+    assert np.abs(sol.y[:n] - tight.y[:n]).max() <= 1.05 * (1e-6 + 1e-10)

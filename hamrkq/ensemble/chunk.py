@@ -32,12 +32,17 @@ import numpy as np
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, auto_member, auto_tolerance
+from hamrkq.rkq.auto_rules import auto_member, auto_tolerance
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.auto import MIN_GROWTH_STEPS, folded_growth, reruns_with_witness
+from hamrkq.solve.auto import (
+    MIN_GROWTH_STEPS,
+    folded_growth,
+    reruns_with_witness,
+    witness_rerun_needed,
+)
 from hamrkq.solve.dispatch import integration, member_of, run_rk
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
@@ -199,28 +204,30 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
     # loop does not (solve alone is the definition of a member's result); so
     # is one that succeeded with an estimate that grew exponentially, which
     # solve alone runs again with the rounding witness.
-    again = batch.status != Status.SUCCESS.code
-    if reruns_with_witness(task):
-        again |= _grew_exponentially(batch, task, request.times.size)
+    again = (batch.status != Status.SUCCESS.code) | _grew_exponentially(batch, task, request)
     for i in np.flatnonzero(again).tolist():
         _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
     return result
 
 
-def _grew_exponentially(batch: Any, task: Any, times: int) -> np.ndarray:
-    """Per member, whether the estimate of Gamma grew exponentially over the
-    second half of the run (:func:`hamrkq.solve.auto.growth`, from the maxima
-    the batch loop folded; only for members that succeeded, whose nodes span
-    the interval ``batch.middle`` was taken from)."""
+def _grew_exponentially(batch: Any, task: Any, request: Request) -> np.ndarray:
+    """Per member, whether it succeeded with an estimate of Gamma grown so
+    that ``solve`` alone runs it again with the rounding witness
+    (:func:`hamrkq.solve.auto.witness_rerun_needed`, from the maxima the
+    batch loop folded; members that succeeded keep nodes over the interval
+    ``batch.middle`` was taken from)."""
     grew = np.zeros(batch.status.shape[0], dtype=bool)
-    nodes = times if task.t_eval is not None else batch.stats[:, 0] + 1
-    enough = (batch.stats[:, 0] >= MIN_GROWTH_STEPS) & (nodes >= 3)
+    if not reruns_with_witness(task):
+        return grew
+    steps = batch.stats[:, 0]
+    nodes = request.times.size if task.t_eval is not None else steps + 1
+    enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
     succeeded = batch.status == Status.SUCCESS.code
     for i in np.flatnonzero(succeeded & enough).tolist():
         factor = folded_growth(
             task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
         )
-        grew[i] = factor > EXPONENTIAL_GROWTH
+        grew[i] = witness_rerun_needed(task, request.y0[i], factor, int(steps[i]))
     return grew
 
 

@@ -8,6 +8,8 @@ witness").
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hamrkq._tolerance import component_tolerance
@@ -15,9 +17,11 @@ from hamrkq._tolerance import component_tolerance
 __all__ = [
     "STAGE_ROUNDING_WEIGHTS",
     "WITNESS_BELOW",
+    "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
     "component_scales",
     "needs_witness",
+    "needs_witness_after_growth",
     "tightest_tolerance",
 ]
 
@@ -109,3 +113,39 @@ def needs_witness(
         return True
     tolerance = component_tolerance(atol, rtol, y0)
     return bool(np.any(tolerance < WITNESS_BELOW * component_scales(atol, y0)))
+
+
+#: The steps of the runs :data:`WITNESS_BELOW` was measured on (prentice2011
+#: over [0, 4000]: about 10 000 with ``auto``); rounding errors add like a
+#: random walk, so a run of ``N`` steps gathers ``sqrt(N / 10 000)`` times as
+#: much before the orbit amplifies it.
+WITNESS_REFERENCE_STEPS = 10_000
+
+
+def needs_witness_after_growth(
+    atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray, growth: float, steps: int
+) -> bool:
+    """Whether a run without the witness, whose estimate of Gamma grew
+    ``growth``-fold over the second half of its ``steps`` steps (faster than
+    a periodic orbit's ``t^2``, a factor 4), must run again with it.
+
+    An error that grows like ``exp(lambda t)`` grows by ``g`` over the second
+    half of a run and by ``g^2`` over all of it, the quencher's rounding
+    alike; on a regular orbit by ``4`` and ``16``.  So the rounding can reach
+    ``(g / 4)^2`` times what it reaches on a regular orbit of as many steps,
+    and the witness runs where :func:`needs_witness`'s threshold, scaled by
+    that and by ``sqrt(steps / WITNESS_REFERENCE_STEPS)``, is above some
+    component's tolerance.  Measured (``benchmarks/witness_after_growth.md``,
+    ``method="auto"`` on the catalogue at eight tolerances): made again every
+    time, the witness run returned the same nodes on the Arenstorf orbit at
+    1e-4 and 1e-6 (240- to 280-fold at its close approach, the quencher's
+    true error a thousandth of the tolerance), the FPU chain at 1e-4 and
+    1e-6 and the Pleiades at 1e-4, for 2.6 times the evaluations; at 1e-8 on
+    the Arenstorf orbit it still runs.  A member whose quencher has no
+    truncation error left (``rk45q12`` over three Arenstorf periods at 1e-8,
+    66 500-fold) needs it: its true error was 42 times the tolerance
+    (``benchmarks/error_growth.txt``).
+    """
+    ratio = max(1.0, growth / 4.0) ** 2 * math.sqrt(max(steps, 1) / WITNESS_REFERENCE_STEPS)
+    tolerance = component_tolerance(atol, rtol, y0)
+    return bool(np.any(tolerance < WITNESS_BELOW * ratio * component_scales(atol, y0)))

@@ -31,6 +31,7 @@ from hamrkq.rkq.auto_rules import (
     middle_of,
 )
 from hamrkq.rkq.layout import ST_ABANDONED
+from hamrkq.rkq.witness_rules import needs_witness_after_growth
 from hamrkq.solve.dispatch import METHODS, Task, member_of, run_rk, uses_witness
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "projects",
     "rerun",
     "reruns_with_witness",
+    "witness_rerun_needed",
 ]
 
 
@@ -72,9 +74,10 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     if isinstance(out, Solution):
         return None
     member = member_of(task)
-    exponential = growth(out, task) > EXPONENTIAL_GROWTH
+    factor = growth(out, task)
+    exponential = factor > EXPONENTIAL_GROWTH
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
-    if finished and exponential:
+    if finished and witness_rerun_needed(task, task.y0, factor, out.stats.get("steps", 0)):
         # A shadow estimate without the witness sees the quencher's truncation
         # error, not its rounding, which an unstable orbit amplifies alike:
         # explicit members returned SUCCESS on the Arenstorf orbit over three
@@ -179,6 +182,20 @@ def folded_growth(
     # does not count as growth of the error.
     delta = component_tolerance(task.atol, task.rtol, y_size)
     return growth_of_maxima(to_middle, to_end, delta)
+
+
+def witness_rerun_needed(task: Task, y0: np.ndarray, factor: float, steps: int) -> bool:
+    """Whether a finished run of ``task`` from ``y0`` (an ensemble member's),
+    whose estimate grew ``factor``-fold over the second half of its ``steps``
+    steps, runs again with the rounding witness: it grew exponentially, the
+    witness did not run and can (:func:`reruns_with_witness`), and the
+    rounding so amplified could reach the tolerance
+    (:func:`hamrkq.rkq.witness_rules.needs_witness_after_growth`)."""
+    return (
+        factor > EXPONENTIAL_GROWTH
+        and reruns_with_witness(task)
+        and needs_witness_after_growth(task.atol, task.rtol, y0, factor, steps)
+    )
 
 
 def reruns_with_witness(task: Task) -> bool:
