@@ -42,31 +42,22 @@ __all__ = [
 #: with SUCCESS, every node within 1.05 of it, on prentice2011 and Kepler) ...
 AUTO_MEMBER = "rk78q12"
 #: ... and Verner's 7(6) pair with Verner's 9th-order quencher from
-#: :data:`AUTO_LARGE_DIM` on: fewer evaluations on the large catalogue
-#: problems at 1e-6 to 1e-9 (the outer solar system 10 to 17 %, the Pleiades 6
-#: to 65 %, the FPU chain 20 to 23 % at 1e-8 and 1e-9;
-#: ``benchmarks/auto_member.md``), but the FPU chain at 1e-6 takes 2.5 times
-#: ``rk78q12``'s: its estimate grows 83-fold over the second half of the run,
-#: so it runs again with the rounding witness (:data:`EXPONENTIAL_GROWTH`),
-#: where ``rk78q12``'s run, with three quencher steps, stays below the
-#: threshold; at 1e-10 the outer solar system takes 20 % more and the FPU
-#: chain 79 %.  Small
-#: systems are split: fewer on most short runs, but up to 54 % more on
-#: prentice2011 (7 to 54 % at 1e-8 to 1e-10), whose 600 periods need the
+#: :data:`AUTO_LARGE_DIM` on: fewer evaluations on every large catalogue
+#: problem at 1e-6 to 1e-9 (the outer solar system 11 to 17 %, the Pleiades 6
+#: to 65 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
+#: the outer solar system takes 20 % more and the FPU chain 79 %).  Small
+#: systems are split: fewer on most short runs, but up to 53 % more on
+#: prentice2011 (7 to 53 % at 1e-8 to 1e-10), whose 600 periods need the
 #: 12th-order quencher, so they keep :data:`AUTO_MEMBER`.  What decides is
 #: the number of periods, which auto cannot know before the run.
 AUTO_LARGE_MEMBER = "rk67q9"
 AUTO_LARGE_DIM = 12
 #: ... and at tolerances of 1e-7 or looser (:func:`auto_tolerance`) for every
 #: dimension: at atol 1e-4 to 1e-6 ``rk67q9`` needs the fewest evaluations
-#: in 30 of 33 cases (prentice2011 2 to 5 % fewer, Kepler 11 to 27 %,
-#: Arenstorf 32 to 50 %, the short runs of the harmonic oscillator and the
-#: pendulum a third; ``benchmarks/auto_member_loose.md``; the three others
-#: are runs again with the rounding witness after an estimate grown more
-#: than :data:`EXPONENTIAL_GROWTH`-fold: the FPU chain at 1e-4 and 1e-6, 2.0
-#: and 2.5 times ``rk78q12``'s, the Pleiades at 1e-4, 1.7 times
-#: ``rk67q12``'s), and at 1e-7 on ten of eleven (the Toda lattice takes 31 %
-#: more).  Its
+#: on every catalogue problem (33 of 33 cases; prentice2011 2 to 8 % fewer,
+#: Kepler 11 to 27 %, Arenstorf 31 to 49 %, the short runs of the harmonic
+#: oscillator and the pendulum a third; ``benchmarks/auto_member_loose.md``),
+#: and at 1e-7 on ten of eleven (the Toda lattice takes 31 % more).  Its
 #: Verner-9 shadow also reads the quencher's error more closely on
 #: prentice2011 at 1e-6 (Gamma over the true error 3.1, against 5.2 with
 #: Feagin 12: ``benchmarks/family.md``).
