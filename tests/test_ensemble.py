@@ -375,3 +375,26 @@ def test_a_member_whose_estimate_grew_exponentially_is_solved_alone_again(monkey
         assert ens.member_status(i) is Status.TOLERANCE_UNATTAINABLE
         sol = _assert_member_equals_solve(ens, i, problem, **kwargs)
         assert sol.options["rounding_witness"]
+
+
+def test_a_member_whose_shadow_saturated_in_the_batch_loop_is_solved_alone(monkeypatch):
+    # rk78q12 with eight quencher steps on a chaotic Henon-Heiles orbit: the
+    # batch loop ran it to t = 1000 with SUCCESS; solve alone cuts it where
+    # its shadow track passes half the orbit's size and runs it again with
+    # the witness (tests/test_family.py).
+    import math
+
+    from hamrkq.ensemble import chunk
+
+    real, alone = chunk.solve, []
+    monkeypatch.setattr(chunk, "solve", lambda *a, **k: alone.append(k) or real(*a, **k))
+    problem = hamrkq.load_problem("henon_heiles")
+    q2 = np.array([-0.25, -0.2501])
+    p1 = np.sqrt(2 * (1 / 6 - q2**2 / 2 + q2**3 / 3))
+    kwargs = {"t_span": (0.0, 1000.0), "method": "rk78q12", "z_substeps": 8, "atol": 1e-8}
+    ens = hamrkq.ensemble(problem, q0=np.column_stack([np.zeros(2), q2]),
+                          p0=np.column_stack([p1, np.zeros(2)]), workers=1, **kwargs)  # fmt: skip
+    assert len(alone) == 2 and not math.isnan(ens.t_last[0])
+    for i in range(2):
+        assert ens.member_status(i) is Status.TOLERANCE_UNATTAINABLE
+        _assert_member_equals_solve(ens, i, problem, **kwargs)

@@ -483,3 +483,55 @@ def test_a_run_again_with_the_witness_is_not_a_second_reading_of_exponential_gro
     rhs = numeric_of(problem.hamiltonian).rhs
     truth = periodic_reference(rhs, problem.y0, times, problem.parameter_array).y
     assert np.abs(sol.y - truth).max() <= 1.05e-4
+
+
+def test_a_member_whose_shadow_saturates_does_not_certify_a_chaotic_orbit():
+    # rk78q12 with eight quencher steps on the chaotic Henon-Heiles orbit at
+    # 1e-8: its shadow track (the quencher in one step a step, 8^12 times its
+    # error) moved twice the orbit's size away from the quencher, Gamma (their
+    # distance over 8^12 - 1) stopped growing with the quencher's error, the
+    # growth read over the second half stayed small, and the run returned
+    # SUCCESS to t = 1000 with nodes 40 times the tolerance from auto's
+    # certified run at 1e-12 by t = 177.  Cut where the shadow passes half
+    # the orbit's size, the run grew exponentially and runs again with the
+    # witness, which stops it at double precision's floor.
+    from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
+
+    problem, q0, p0 = _henon_heiles_chaotic()
+    times = np.arange(1.0, 1000.5, 1.0)
+    options = {"q0": q0, "p0": p0, "t_span": (0, 1000), "t_eval": times}
+    sol = hamrkq.solve(problem, method="rk78q12", z_substeps=8, atol=1e-8, **options)
+    tight = hamrkq.solve(problem, method="auto", atol=1e-12, **options)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and sol.t[-1] < 200
+    assert sol.options["rounding_witness"]
+    common = min(sol.t.size, tight.t.size)
+    assert np.abs(sol.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-12)
+    # shadow_departure on a made-up estimate: (m^z - 1) |Gamma| over the size
+    departure = shadow_departure(np.array([[1e-9, 2e-9]]), np.array([1.0, 0.5]), 1e8)
+    assert departure[0] == pytest.approx(0.4) and departure[0] < SHADOW_SATURATION
+
+
+def test_auto_brings_a_saturated_shadow_back_with_a_smaller_max_step():
+    # prentice2011 at 1e-4 to t = 40 000: with seven quencher steps on the
+    # pair's long steps the shadow track moved twice the orbit's size from
+    # the quencher by the end (Gamma right only by chance).  Cut at t = 7300
+    # where it passed half, auto runs again with max_step chosen to keep it
+    # near a tenth: SUCCESS, Gamma within 3 of the quencher's true error.
+    from hamrkq.analysis.reference import periodic_reference
+    from hamrkq.backends.numeric import numeric_of
+    from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
+    from hamrkq.rkq.witness_rules import component_scales
+
+    problem = hamrkq.load_problem("prentice2011")
+    times = np.linspace(0.0, 40000.0, 401)
+    sol = hamrkq.solve(problem, method="auto", atol=1e-4, t_span=(0, 40000), t_eval=times)
+    assert sol.success and sol.options["max_step"] < math.inf
+    assert "shadow track had moved" in sol.message
+    scale = component_scales(sol.atol, np.abs(sol.y).max(axis=0))
+    member = MEMBERS[sol.method]
+    assert shadow_departure(sol.gamma, scale, member.shadow_scale).max() <= SHADOW_SATURATION
+    rhs = numeric_of(problem.hamiltonian).rhs
+    truth = periodic_reference(rhs, problem.y0, times, problem.parameter_array).y
+    assert np.abs(sol.y - truth).max() <= 1.05e-4
+    z_error, gamma = np.abs(sol.z - truth).max(), np.abs(sol.gamma).max()
+    assert z_error / 3 <= gamma <= 3 * z_error

@@ -32,10 +32,15 @@ import numpy as np
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import auto_member, auto_tolerance
+from hamrkq.rkq.auto_rules import (
+    SHADOW_SATURATION,
+    auto_member,
+    auto_tolerance,
+    shadow_departure,
+)
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
-from hamrkq.rkq.witness_rules import needs_witness
+from hamrkq.rkq.witness_rules import component_scales, needs_witness
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.auto import (
     MIN_GROWTH_STEPS,
@@ -202,33 +207,42 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
     # A member that failed is solved alone: for its message, and because
     # method="auto" may run it again with more quencher steps, which the batch
     # loop does not (solve alone is the definition of a member's result); so
-    # is one that succeeded with an estimate that grew exponentially, which
-    # solve alone runs again with the rounding witness.
-    again = (batch.status != Status.SUCCESS.code) | _grew_exponentially(batch, task, request)
+    # is one that succeeded where solve alone would not return that run
+    # (a saturated shadow, or a rerun with the rounding witness).
+    again = (batch.status != Status.SUCCESS.code) | _runs_again_alone(batch, task, request)
     for i in np.flatnonzero(again).tolist():
         _store(result, request, i, solve(request.ham, **request.member_kwargs(i)))
     return result
 
 
-def _grew_exponentially(batch: Any, task: Any, request: Request) -> np.ndarray:
-    """Per member, whether it succeeded with an estimate of Gamma grown so
-    that ``solve`` alone runs it again with the rounding witness
-    (:func:`hamrkq.solve.auto.witness_rerun_needed`, from the maxima the
-    batch loop folded; members that succeeded keep nodes over the interval
-    ``batch.middle`` was taken from)."""
-    grew = np.zeros(batch.status.shape[0], dtype=bool)
-    if not reruns_with_witness(task):
-        return grew
+def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
+    """Per member, whether it succeeded in the batch loop where ``solve``
+    alone would not return that run: its shadow track left the linear
+    regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`), or its
+    estimate of Gamma grew so that ``solve`` runs it again with the rounding
+    witness (:func:`hamrkq.solve.auto.witness_rerun_needed`); from the maxima
+    the batch loop folded (members that succeeded keep nodes over the
+    interval ``batch.middle`` was taken from)."""
+    again = np.zeros(batch.status.shape[0], dtype=bool)
+    if task.options.gamma_name != "shadow":
+        return again
     steps = batch.stats[:, 0]
     nodes = request.times.size if task.t_eval is not None else steps + 1
     enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
-    succeeded = batch.status == Status.SUCCESS.code
-    for i in np.flatnonzero(succeeded & enough).tolist():
-        factor = folded_growth(
-            task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
-        )
-        grew[i] = witness_rerun_needed(task, request.y0[i], factor, int(steps[i]))
-    return grew
+    witness = reruns_with_witness(task)
+    amplification = member_of(task).shadow_scale
+    certified = task.options.gamma_limit < np.inf  # within_linear_shadow's condition
+    for i in np.flatnonzero(batch.status == Status.SUCCESS.code).tolist():
+        scale = component_scales(task.atol, batch.y_size[i])
+        departure = shadow_departure(batch.gamma_to_end[i : i + 1], scale, amplification)
+        if certified and departure[0] > SHADOW_SATURATION:
+            again[i] = True
+        elif witness and enough[i]:
+            factor = folded_growth(
+                task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
+            )
+            again[i] = witness_rerun_needed(task, request.y0[i], factor, int(steps[i]))
+    return again
 
 
 def solve_members(request: Request) -> ChunkResult:

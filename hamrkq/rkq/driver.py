@@ -123,6 +123,10 @@ class RunOutput:
     bad_component: int  # first non-finite component found, or -1
     stats: dict
     projected: float = 0.0  # |Gamma| / delta projected to t_end (status ST_ABANDONED)
+    #: The shadow's departure from the quencher over the orbit's size that
+    #: ended the run (hamrkq.rkq.auto_rules.SHADOW_SATURATION), or 0.
+    saturated: float = 0.0
+    saturated_step: float = 0.0  # the run's mean step where ``saturated`` ended it
 
     @property
     def at_rounding_floor(self) -> bool:

@@ -13,6 +13,7 @@ rounding witness instead, and no more quencher steps.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -91,6 +92,10 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
             # output times, stopped on the quencher's truncation error with
             # the witness too, and was not run with more quencher steps.
             return witnessed
+    if out.saturated:
+        # More quencher steps do not move the shadow back: its error is the
+        # quencher's in one step a step, whatever m.
+        return None if exponential else _with_shorter_steps(requested, task, out)
     # Exponential growth in two runs in a row (one alone can be a burst: a
     # Kepler orbit's pericentre passages early in a run): more quencher steps
     # only push the stop a little later and carry the shadow out of its
@@ -223,6 +228,31 @@ def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
     :func:`_witnessed` says it cannot."""
     task = _witnessed(task)
     return None if task is None else replace(task, project=projects(requested, task))
+
+
+#: auto's runs again with a smaller ``max_step`` after a saturated shadow, at most.
+MAX_SHORTER_STEPS = 2
+#: The shadow's departure (over the orbit's size) such a run aims at, at t_end.
+SHADOW_TARGET = 0.1
+
+
+def _with_shorter_steps(requested: SolveOptions, task: Task, out: Any) -> Task | None:
+    """``method="auto"``'s next run after its shadow track saturated
+    (:func:`hamrkq.solve.dispatch.within_linear_shadow`): the same with a
+    ``max_step`` that brings the shadow's departure, projected to ``t_end``
+    as growing like ``t^2``, to :data:`SHADOW_TARGET` (it falls like
+    ``h^z``); None for a named member, a ``max_step`` given by the caller, or
+    after :data:`MAX_SHORTER_STEPS` such runs."""
+    if requested.method != "auto" or requested.max_step < math.inf:
+        return None
+    if task.shorter_steps >= MAX_SHORTER_STEPS or out.saturated_step <= 0.0:
+        return None
+    reached = abs(out.t_last - task.t0) / abs(task.t_end - task.t0)
+    projected = out.saturated / max(reached, 1e-3) ** 2
+    z_order = member_of(task).z_order
+    step = out.saturated_step * min(0.9, (SHADOW_TARGET / projected) ** (1.0 / z_order))
+    options = replace(task.options, max_step=min(task.options.max_step, step))
+    return replace(task, options=options, shorter_steps=task.shorter_steps + 1)
 
 
 def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:

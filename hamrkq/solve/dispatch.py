@@ -11,8 +11,9 @@ baselines of :mod:`hamrkq.fixed_step` and the SciPy baselines of
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,10 +23,11 @@ from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
-from hamrkq.result import Solution
+from hamrkq.result import Solution, Status
+from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
 from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
 from hamrkq.rkq.family import MEMBERS
-from hamrkq.rkq.witness_rules import needs_witness
+from hamrkq.rkq.witness_rules import component_scales, needs_witness
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 if TYPE_CHECKING:
@@ -74,6 +76,9 @@ class Task:
     #: :func:`hamrkq.rkq.auto_rules.error_growth`); None: by the tolerance
     #: (:func:`hamrkq.rkq.witness_rules.needs_witness`).
     witness: bool | None = None
+    #: ``method="auto"``'s runs made again with a smaller ``max_step`` after
+    #: the shadow track saturated (:func:`within_linear_shadow`).
+    shorter_steps: int = 0
     #: The run before this one (``method="auto"``'s) grew exponentially
     #: (:func:`hamrkq.rkq.auto_rules.error_growth`); a second such run in a
     #: row makes auto measure the rounding instead of adding quencher steps.
@@ -195,7 +200,38 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     if task.compiling is not None:
         out.stats["interpreted_steps"] = run.steps_before_upgrade
         out.stats["compile_wait_s"] = run.upgrade_s
-    return out
+    return within_linear_shadow(task, out)
+
+
+def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
+    """``out``, or its nodes before the first where the shadow track had
+    moved more than :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION` of the
+    orbit's size from the quencher (:func:`~hamrkq.rkq.auto_rules.shadow_departure`),
+    where Gamma can no longer certify the tolerance: status
+    TOLERANCE_UNATTAINABLE, ``saturated`` the departure found.  Not with
+    ``gamma_limit=inf``, which turns the certificate off."""
+    if task.options.gamma_name != "shadow" or out.gamma is None or out.t.shape[0] == 0:
+        return out
+    if not task.options.gamma_limit < math.inf:  # the certificate is turned off
+        return out
+    scale = component_scales(task.atol, np.abs(out.y).max(axis=0))
+    departure = shadow_departure(out.gamma, scale, member_of(task).shadow_scale)
+    beyond = np.flatnonzero(departure > SHADOW_SATURATION)
+    if beyond.size == 0 or beyond[0] == 0:
+        return out
+    kept = int(beyond[0])
+    return replace(
+        out,
+        t=out.t[:kept],
+        y=out.y[:kept],
+        z=out.z[:kept],
+        gamma=out.gamma[:kept],
+        quenched=out.quenched[:kept],
+        status=Status.TOLERANCE_UNATTAINABLE.code,
+        t_last=float(out.t[kept - 1]),
+        saturated=float(departure[kept]),
+        saturated_step=abs(out.t_last - task.t0) / max(out.stats.get("steps", 0), 1),
+    )
 
 
 def _inplace(fun: Callable, matrix: bool) -> Callable:

@@ -16,7 +16,7 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, auto_retry_substeps
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, auto_retry_substeps
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
@@ -112,6 +112,8 @@ def _component(task: Task, index: int) -> str:
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     t = out.t_last
+    if out.saturated:
+        return _shadow_saturated(out, task)
     if not math.isfinite(out.max_ratio):
         return _estimate_diverged(out, task)
     text = (
@@ -179,6 +181,33 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "this orbit), is what works."
         )
     return text + " What helps: " + "; ".join(_remedies(out, task, exponential)) + "."
+
+
+def _shadow_saturated(out: RunOutput, task: Task) -> str:
+    """The message for a run ended where its shadow track left the linear
+    regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`)."""
+    member = member_of(task)
+    text = (
+        f"After t = {float(out.t_last)!r} the shadow track behind the estimate of the "
+        f"quencher's global error (Gamma: the quencher in one step a step, whose error is "
+        f"{member.z_substeps}^{member.z_order} times the quencher's) had moved "
+        f"{out.saturated:.3g} of the orbit's size away from the quencher, more than "
+        f"{SHADOW_SATURATION:g}: it no longer grows with the quencher's error (it "
+        "saturates), so Gamma can no longer certify the tolerance; the run ends at the last "
+        "node where it held."
+    )
+    if growth(out, task) > EXPONENTIAL_GROWTH:
+        text += (
+            " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
+            "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
+            "is what works."
+        )
+    return text + (
+        " What helps: a smaller max_step (the shadow's error falls like "
+        f"h^{member.z_order}; more quencher steps do not change it); "
+        "global_error_estimate='tangent' (the error carried by the Jacobian, no shadow); a "
+        "shorter interval."
+    )
 
 
 def _estimate_diverged(out: RunOutput, task: Task) -> str:
@@ -306,6 +335,12 @@ def rerun_note(
                 f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
                 "at t_end"
             )
+        elif run.saturated:
+            what = (
+                f"stopped after t = {run.t_last!r}, where its shadow track had moved "
+                f"{run.saturated:.3g} of the orbit's size from the quencher (saturated: "
+                "a smaller max_step brings it back, more quencher steps do not)"
+            )
         elif run.at_rounding_floor:
             what = (
                 f"stopped at t = {run.t_last!r}, where the quencher's estimated error "
@@ -344,4 +379,5 @@ def _quencher_setting(task: Task) -> str:
     options = task.options
     extended = ", the quencher in double-double" if options.double_double else ""
     witness = " and the rounding witness" if uses_witness(task) else ""
-    return f"with z_substeps={member_of(task).z_substeps}{extended}{witness}"
+    shorter = f", max_step={options.max_step:.4g}" if task.shorter_steps else ""
+    return f"with z_substeps={member_of(task).z_substeps}{shorter}{extended}{witness}"
