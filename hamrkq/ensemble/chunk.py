@@ -32,15 +32,10 @@ import numpy as np
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import (
-    SHADOW_SATURATION,
-    auto_member,
-    auto_tolerance,
-    shadow_departure,
-)
+from hamrkq.rkq.auto_rules import SHADOW_SATURATION, auto_member, auto_tolerance
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
-from hamrkq.rkq.witness_rules import component_scales, needs_witness
+from hamrkq.rkq.witness_rules import needs_witness
 from hamrkq.solve import prepare, solve
 from hamrkq.solve.auto import (
     MIN_GROWTH_STEPS,
@@ -48,7 +43,7 @@ from hamrkq.solve.auto import (
     reruns_with_witness,
     witness_rerun_needed,
 )
-from hamrkq.solve.dispatch import integration, member_of, run_rk
+from hamrkq.solve.dispatch import integration, member_of, run_rk, shadow_departures
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
@@ -230,12 +225,9 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
     nodes = request.times.size if task.t_eval is not None else steps + 1
     enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
     witness = reruns_with_witness(task)
-    amplification = member_of(task).shadow_scale
-    certified = task.options.gamma_limit < np.inf  # within_linear_shadow's condition
     for i in np.flatnonzero(batch.status == Status.SUCCESS.code).tolist():
-        scale = component_scales(task.atol, batch.y_size[i])
-        departure = shadow_departure(batch.gamma_to_end[i : i + 1], scale, amplification)
-        if certified and departure[0] > SHADOW_SATURATION:
+        departure = shadow_departures(task, batch.gamma_to_end[i : i + 1], batch.y_size[i])
+        if departure is not None and departure[0] > SHADOW_SATURATION:
             again[i] = True
         elif witness and enough[i]:
             factor = folded_growth(

@@ -6,9 +6,13 @@ the kernel abandoned the run on its projection (:func:`projects` says which
 runs are projected) or the run stopped on the quencher's truncation error;
 the rules are :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps` and
 :func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).  A
-run whose estimated error grew exponentially (an unstable orbit,
+finished run whose estimated error grew exponentially (an unstable orbit,
 :func:`hamrkq.rkq.auto_rules.error_growth`) runs again once with the
-rounding witness instead, and no more quencher steps.
+rounding witness where the rounding so amplified could reach the tolerance
+(:func:`witness_rerun_needed`, for every member with the shadow estimate);
+two such runs in a row allow no more quencher steps.  A run cut where its
+shadow track saturated runs again with a smaller ``max_step``
+(:func:`hamrkq.solve.dispatch.within_linear_shadow`).
 """
 
 from __future__ import annotations

@@ -203,6 +203,18 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     return within_linear_shadow(task, out)
 
 
+def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.ndarray | None:
+    """:func:`~hamrkq.rkq.auto_rules.shadow_departure` of the rows of
+    ``gamma`` for a run of ``task`` whose largest ``|y_k|`` are ``y_size``;
+    None where no limit applies: another estimate than the shadow's, or
+    ``gamma_limit=inf`` (the certificate turned off).  The ensemble's batch
+    loop asks it with each member's folded maxima."""
+    if task.options.gamma_name != "shadow" or not task.options.gamma_limit < math.inf:
+        return None
+    scale = component_scales(task.atol, y_size)
+    return shadow_departure(gamma, scale, member_of(task).shadow_scale)
+
+
 def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     """``out``, or its nodes before the first where the shadow track had
     moved more than :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION` of the
@@ -210,12 +222,11 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     where Gamma can no longer certify the tolerance: status
     TOLERANCE_UNATTAINABLE, ``saturated`` the departure found.  Not with
     ``gamma_limit=inf``, which turns the certificate off."""
-    if task.options.gamma_name != "shadow" or out.gamma is None or out.t.shape[0] == 0:
+    if out.gamma is None or out.t.shape[0] == 0:
         return out
-    if not task.options.gamma_limit < math.inf:  # the certificate is turned off
+    departure = shadow_departures(task, out.gamma, np.abs(out.y).max(axis=0))
+    if departure is None:
         return out
-    scale = component_scales(task.atol, np.abs(out.y).max(axis=0))
-    departure = shadow_departure(out.gamma, scale, member_of(task).shadow_scale)
     beyond = np.flatnonzero(departure > SHADOW_SATURATION)
     if beyond.size == 0 or beyond[0] == 0:
         return out
