@@ -276,3 +276,26 @@ def test_a_file_may_ask_for_method_auto(tmp_path):
     path.write_text(path.read_text().replace("atol = 1e-9", 'atol = 1e-9\nmethod = "auto"'))
     problem = hamrkq.load_problem(path)
     assert problem.integration["method"] == "auto"
+
+
+def test_a_relative_tolerance_run_has_its_true_error_measured():
+    """Before, the reports compared the reference's accuracy with the
+    smallest tolerance of any component at any node, which with rtol and a
+    tiny atol is atol where a component crosses zero: ``hamrkq run harmonic
+    --rtol 1e-8 --atol 1e-20`` said "not measured: ... not below the
+    tolerance 1.0e-20" against its exact solution (accurate to 1e-15)."""
+    from hamrkq.analysis.diagnostics import diagnose
+    from hamrkq.analysis.summaries import tolerance_scale
+
+    sol = hamrkq.solve(OSC, q0=[1.0], p0=[0.0], t_span=(0, 10), rtol=1e-8, atol=1e-20)
+    exact = np.column_stack([np.cos(2 * sol.t), -2 * np.sin(2 * sol.t)])
+    diag = diagnose(sol, OSC, reference=hamrkq.analysis.reference.Reference(
+        sol.t, exact, 1e-15, "exact cosine"))  # fmt: skip
+    assert diag.error_measured and diag.error_note is None
+    assert max(diag.error.max_abs) == np.abs(sol.y - exact).max() > 0
+    # each component's largest tolerance along the run, the smallest of those
+    delta = np.maximum(1e-20, 1e-8 * np.abs(sol.y))
+    assert tolerance_scale(delta) == min(delta[:, 0].max(), delta[:, 1].max())
+    assert delta.min() < 1e-12 < tolerance_scale(delta)  # q crosses zero
+    # absolute tolerances, one per component: the smallest, as before
+    assert tolerance_scale(np.tile([1e-6, 1e-9], (5, 1))) == 1e-9

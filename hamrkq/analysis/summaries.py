@@ -27,6 +27,7 @@ __all__ = [
     "drift_summary",
     "error_summary",
     "reference_is_close",
+    "tolerance_scale",
     "unmeasured_error",
 ]
 
@@ -175,13 +176,30 @@ NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accu
 CLOSE_REFERENCE = 0.01
 
 
+def tolerance_scale(delta: Any) -> float:
+    """The tolerance a reference must beat to measure a run's true error:
+    each component's largest tolerance over the run, and the smallest of those
+    (nan for a run without a tolerance).
+
+    Not the smallest tolerance of any component at any node: with ``rtol`` a
+    component passing through zero has a tolerance down to ``atol`` (1e-20,
+    say) there, which no reference beats, so a relative-tolerance run never
+    had its true error measured.  A component's error is measured on the
+    scale of its tolerance along the run; with ``rtol = 0`` this is the
+    smallest ``atol_k``, as before.
+    """
+    delta = np.asarray(delta, dtype=float)
+    if not np.any(np.isfinite(delta)):
+        return float("nan")
+    return float(np.nanmin(np.nanmax(delta, axis=0)))
+
+
 def reference_is_close(accuracy: float, delta: Any) -> bool:
     """Whether a reference's ``accuracy`` is above :data:`CLOSE_REFERENCE` times
-    the smallest tolerance in ``delta`` (never, for a run without one)."""
-    delta = np.asarray(delta, dtype=float)
-    return bool(np.any(np.isfinite(delta))) and accuracy > CLOSE_REFERENCE * float(
-        np.nanmin(delta)
-    )
+    the tolerance it must beat (:func:`tolerance_scale`; never, for a run
+    without one)."""
+    scale = tolerance_scale(delta)
+    return bool(np.isfinite(scale)) and accuracy > CLOSE_REFERENCE * scale
 
 
 def unmeasured_error(summary: ErrorSummary, scale: float, what: str = "the tolerance") -> str:
@@ -294,7 +312,7 @@ class Diagnostics:
     def error_measured(self) -> bool:
         """True when :attr:`error` is a true error worth showing: measured against a
         reference (not the run's own RK8 track) whose own accuracy is finite and
-        below the smallest tolerance.  Otherwise the "true error" would be mostly
+        below the tolerance (:func:`tolerance_scale`).  Otherwise the "true error" would be mostly
         the reference's error."""
         if self.error is None or self.error is self.estimated:
             return False
@@ -316,9 +334,9 @@ class Diagnostics:
         tenth of the largest error it measures (before, no fixed-step run
         ever reported a true error: every comparison with a nan tolerance is
         false)."""
-        delta = np.asarray(self.series["delta"], dtype=float)
-        if np.any(np.isfinite(delta)):
-            return float(np.nanmin(delta)), "the tolerance"
+        scale = tolerance_scale(self.series["delta"])
+        if np.isfinite(scale):
+            return scale, "the tolerance"
         return 0.1 * max(self.error.max_abs, default=0.0), "a tenth of the error it measures,"
 
     @property
