@@ -129,6 +129,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 f" The tolerance is at double precision's floor for this state (the rounding "
                 f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
             )
+        text += _near_zero(out, task)
     if out.at_rounding_floor:
         text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
@@ -181,6 +182,38 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "this orbit), is what works."
         )
     return text + " What helps: " + "; ".join(_remedies(out, task, exponential)) + "."
+
+
+#: A component whose tolerance at the last node is below this fraction of its
+#: largest along the run is passing close to zero (with ``rtol``).
+NEAR_ZERO = 0.1
+
+
+def _near_zero(out: RunOutput, task: Task) -> str:
+    """A sentence for a stop where ``rtol`` shrank the tolerance of the
+    component closest to its limit because that component passes close to
+    zero (its tolerance is then ``atol`` alone), or "".
+
+    With a tiny ``atol`` (1e-20, say) nothing is certified there, and the
+    first remedy is an ``atol`` the size of the error one accepts near zero
+    (Kepler at rtol 1e-8, atol 1e-20 with rk34q8 stopped as q1 crossed zero
+    at t = 68.7, and the message named only other members)."""
+    if out.gamma is None or not np.any(task.rtol > 0) or out.y.shape[0] < 2:
+        return ""
+    delta = component_tolerance(task.atol, task.rtol, out.y)
+    last = delta[-1]
+    k = int(np.argmax(np.abs(out.gamma[-1]) / last))
+    typical = float(np.max(delta[:, k]))
+    if task.rtol[k] <= 0 or last[k] >= NEAR_ZERO * typical:
+        return ""
+    name = task.ham.names[k]
+    return (
+        f" The component closest to its limit, {name} = {out.y[-1, k]:.3g}, is passing "
+        f"close to zero: its tolerance max(atol, rtol |{name}|) is {last[k]:.3g} there, "
+        f"{last[k] / typical:.2g} of its largest along the run ({typical:.3g}), and it "
+        f"falls to atol = {task.atol[k]:.3g} at zero, so there the limit is atol's: a "
+        "larger atol (the error acceptable where a component is near zero) helps too."
+    )
 
 
 def _shadow_saturated(out: RunOutput, task: Task) -> str:
