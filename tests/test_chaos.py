@@ -96,3 +96,16 @@ def test_lyapunov_exponent_of_the_henon_heiles_sea_agrees_with_the_published_val
         assert lam.success
         finals.append(lam.value[-1])
     assert abs(np.mean(finals) / 0.0450 - 1) < 0.10
+
+
+def test_indicator_of_a_finished_run_needs_every_node():
+    from hamrkq.analysis.chaos import indicator_of
+
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-10)
+    again = megno(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-10)
+    assert np.array_equal(indicator_of("megno", sol, OSC).value, again.value)
+    thinned = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 20.0), atol=1e-10, keep_every=4)
+    with pytest.raises(ValueError, match="every node"):
+        indicator_of("lyapunov", thinned, OSC)
+    with pytest.raises(ValueError, match="kind must be one of"):
+        indicator_of("fli", sol, OSC)

@@ -110,6 +110,36 @@ def test_cli_poincare_writes_points_and_figure(tmp_path, capsys):
     summary = __import__("json").loads((out / "summary.json").read_text())
     assert summary["crossings"] == data["t"].size and len(summary["megno"]) == 3
     assert "crossings of q1 = 0" in capsys.readouterr().out
+    # each orbit's MEGNO from the section's own run is the same number as
+    # megno() integrating the orbit again (events change no node)
+    hh = hamrkq.load_problem("henon_heiles")
+    options = {"atol": 1e-9, "gamma_limit": math.inf, "backend": "auto"}
+    alone = [
+        float(hamrkq.megno(hh, q, p, (0.0, 60.0), **options).value[-1])
+        for q, p in zip(data["q0"], data["p0"], strict=True)
+    ]
+    assert summary["megno"] == alone
+
+
+def test_section_figure_coloured_by_megno():
+    from matplotlib import colormaps
+    from matplotlib.colors import to_rgba
+
+    from hamrkq.plotting.sections import MEGNO_RANGE, section_figure
+
+    hh = hamrkq.load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 8, 2)
+    sec = hamrkq.poincare(hh, "q1 = 0", q0, p0, (0, 30), atol=1e-8)
+    fig = section_figure(sec, "q2", "p2", megno=[2.0, 9.0])
+    ax, bar = fig.axes
+    regular, chaotic = (to_rgba(line.get_color()) for line in ax.lines)
+    turbo = colormaps["turbo"]
+    low, high = MEGNO_RANGE
+    assert regular == to_rgba(turbo((2.0 - low) / (high - low)))
+    assert chaotic == to_rgba(turbo(1.0))  # 9 is above the scale: its top colour
+    assert bar.get_ylim() == MEGNO_RANGE and "MEGNO" in bar.get_ylabel()
+    with pytest.raises(ValueError, match="one value per orbit"):
+        section_figure(sec, "q2", "p2", megno=[2.0])
 
 
 def test_cli_poincare_method_auto_finds_the_same_crossings(tmp_path):

@@ -21,7 +21,7 @@ Time is counted from ``t0``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -33,7 +33,7 @@ from hamrkq.rkq.dense import dense_tableaus, prepare_work
 from hamrkq.rkq.variational import sweep
 from hamrkq.solve import solve
 
-__all__ = ["ChaosIndicator", "lyapunov", "megno", "tangent_growth"]
+__all__ = ["ChaosIndicator", "indicator_of", "lyapunov", "megno", "tangent_growth"]
 
 
 @dataclass(frozen=True)
@@ -125,6 +125,29 @@ _NAMES = {"lyapunov": "Lyapunov exponent", "megno": "MEGNO"}
 
 def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosIndicator:
     sol = _orbit(system, q0, p0, t_span, dict(solve_options))
+    indicator = indicator_of(kind, sol, system, v0)
+    if sol.status is Status.TOLERANCE_UNATTAINABLE and "gamma_limit" not in solve_options:
+        message = sol.message + (
+            f" The {_NAMES[kind]} ends with the orbit. It needs the orbit past where its "
+            "error can be certified: gamma_limit=numpy.inf runs it to t_end (on a chaotic "
+            "orbit the later points are those of a nearby orbit, and the indicator, a "
+            "property of the region, is still measured; docs/events.md)."
+        )
+        indicator = replace(indicator, message=message)
+    return indicator
+
+
+def indicator_of(kind: str, sol: Solution, system: Any, v0: Any = None) -> ChaosIndicator:
+    """The indicator ``kind`` (``"lyapunov"`` or ``"megno"``) along an orbit
+    already integrated: ``sol``, a run of :func:`hamrkq.solve` of ``system``
+    with every node (events and dense output change no node, so a run made
+    for a Poincare section serves: ``hamrkq poincare --megno`` integrates
+    each orbit once).  :func:`lyapunov` and :func:`megno` are this after
+    their own run."""
+    if kind not in _NAMES:
+        raise ValueError(f"kind must be one of {sorted(_NAMES)}, got {kind!r}")
+    if sol.options.get("keep_every", 1) != 1 or sol.options.get("t_eval") is not None:
+        raise ValueError("the indicators need every node: a run without keep_every or t_eval")
     growth = tangent_growth(sol, system, v0)
     t = np.asarray(sol.t)
     elapsed = t - t[0]
@@ -138,15 +161,7 @@ def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosInd
             Y[1:] = 2.0 * weighted / elapsed[1:]
             integral = np.concatenate([[0.0], np.cumsum(0.5 * (Y[1:] + Y[:-1]) * np.diff(t))])
             value[1:] = integral[1:] / elapsed[1:]
-    message = sol.message
-    if sol.status is Status.TOLERANCE_UNATTAINABLE and "gamma_limit" not in solve_options:
-        message += (
-            f" The {_NAMES[kind]} ends with the orbit. It needs the orbit past where its "
-            "error can be certified: gamma_limit=numpy.inf runs it to t_end (on a chaotic "
-            "orbit the later points are those of a nearby orbit, and the indicator, a "
-            "property of the region, is still measured; docs/events.md)."
-        )
-    return ChaosIndicator(t=t, value=value, status=sol.status, message=message, solution=sol)
+    return ChaosIndicator(t=t, value=value, status=sol.status, message=sol.message, solution=sol)
 
 
 def lyapunov(

@@ -2,8 +2,9 @@
 
 Chooses ``--orbits`` initial conditions on the section at ``--energy``
 (:func:`hamrkq.analysis.poincare.energy_orbits`), integrates each with RKQ
-and the section as an event, draws the crossings coloured by orbit
-(``section.png``) and writes them to ``section.npz`` with ``summary.json``.
+and the section as an event, draws the crossings coloured by orbit, or by
+its MEGNO with ``--megno`` (``section.png``), and writes them to
+``section.npz`` with ``summary.json``.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from hamrkq.analysis.chaos import megno
+from hamrkq.analysis.chaos import indicator_of
 from hamrkq.analysis.poincare import energy_orbits, poincare
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problem import Problem
@@ -60,7 +61,10 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--backend", default="auto", help="auto, numba or python")
     p.add_argument(
-        "--megno", action="store_true", help="also compute each orbit's MEGNO <Y> at the end"
+        "--megno",
+        action="store_true",
+        help="also compute each orbit's MEGNO <Y> at the end (summary.json) and colour the "
+        "section by it",
     )
     p.add_argument("--out", metavar="DIR", help="output directory (default hamrkq-poincare/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
@@ -103,10 +107,9 @@ def poincare_command(args: argparse.Namespace) -> int:
     sec = poincare(problem, args.section, q0, p0, (0.0, args.t_end), **options)
     elapsed = time.perf_counter() - started
     indicators = None
-    if args.megno:
+    if args.megno:  # along the section's own runs: each orbit integrated once
         indicators = [
-            float(megno(problem, q, p, (0.0, args.t_end), **options).value[-1])
-            for q, p in zip(q0, p0, strict=True)
+            float(indicator_of("megno", orbit, problem).value[-1]) for orbit in sec.solutions
         ]
     lhs = args.section.split("=")[0].strip()
     k = [s.name for s in ham.q].index(lhs)
@@ -120,7 +123,8 @@ def poincare_command(args: argparse.Namespace) -> int:
         from hamrkq.plotting.sections import section_figure
 
         title = f"{problem.name}: {args.section}, E = {energy_text}, {args.orbits} orbits"
-        out.figure("section.png", section_figure(sec, x, y, title=title), dpi=args.dpi)
+        figure = section_figure(sec, x, y, title=title, megno=indicators)
+        out.figure("section.png", figure, dpi=args.dpi)
     out.json(
         "summary.json",
         jsonable(

@@ -1,4 +1,5 @@
-"""The Poincare section figure: crossings in a plane, coloured by orbit."""
+"""The Poincare section figure: crossings in a plane, coloured by orbit or by
+its MEGNO."""
 
 from __future__ import annotations
 
@@ -11,7 +12,13 @@ if TYPE_CHECKING:
 
     from hamrkq.analysis.poincare import PoincareSection
 
-__all__ = ["section_figure"]
+__all__ = ["MEGNO_RANGE", "section_figure"]
+
+
+#: The colour scale of an orbit's MEGNO <Y>: 0 (isochronous) to 2
+#: (quasi-periodic) and beyond (chaotic, saturated at the top), as MEGNO maps
+#: are drawn (REBOUND's example uses 1.9 to 4).
+MEGNO_RANGE = (0.0, 5.0)
 
 
 def section_figure(
@@ -21,25 +28,48 @@ def section_figure(
     *,
     ax: Any = None,
     title: str | None = None,
+    megno: Any = None,
 ) -> Figure:
     """Scatter ``y`` against ``x`` (state component names) at every crossing,
     one colour per orbit (the classic surface of section).
+
+    Parameters
+    ----------
+    section : PoincareSection
+    x, y : str
+        State component names for the axes.
+    ax : matplotlib Axes, optional
+    title : str, optional
+    megno : array of one value per orbit, optional
+        Colour each orbit by its MEGNO ``<Y>`` (:data:`MEGNO_RANGE`, with a
+        colour bar) instead of by its index: regular and chaotic orbits apart.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     from matplotlib import colormaps
+    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
     if ax is None:
-        fig = Figure(figsize=(6.0, 5.5), layout="constrained")
+        fig = Figure(figsize=(6.6 if megno is not None else 6.0, 5.5), layout="constrained")
         ax = fig.add_subplot()
     else:
         fig = ax.figure
     orbits = int(section.orbit.max()) + 1 if section.orbit.size else 0
-    cmap = colormaps["turbo"]
-    colours = cmap(np.linspace(0.0, 1.0, max(orbits, 1)))
+    if megno is not None:
+        values = np.asarray(megno, dtype=float)
+        if values.shape != (len(section.solutions),):
+            raise ValueError(
+                f"megno needs one value per orbit ({len(section.solutions)}), got shape "
+                f"{values.shape}"
+            )
+        cmap, norm = colormaps["turbo"], Normalize(*MEGNO_RANGE)
+        colours = cmap(norm(values))
+    else:
+        cmap = colormaps["turbo"]
+        colours = cmap(np.linspace(0.0, 1.0, max(orbits, 1)))
     for k in range(orbits):
         mine = section.orbit == k
         ax.plot(
@@ -50,6 +80,11 @@ def section_figure(
             color=colours[k],
             rasterized=True,
         )
+    if megno is not None:
+        from matplotlib.cm import ScalarMappable
+
+        bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, extend="max")
+        bar.set_label("orbit's MEGNO <Y> at the end (2: regular; larger: chaotic)")
     ax.set_xlabel(x)
     ax.set_ylabel(y)
     ax.set_title(title or f"Poincare section {section.section} ({orbits} orbits)")
