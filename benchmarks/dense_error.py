@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -112,10 +110,7 @@ def table(results: dict) -> str:
 
 def _elsewhere(root: Path) -> list[dict]:
     """:func:`rows` with the checkout at ``root``."""
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    done = subprocess.run([sys.executable, __file__, "--rows-only"], env=env, cwd=root,
-                          capture_output=True, text=True, check=True)  # fmt: skip
-    return json.loads(done.stdout.splitlines()[-1])
+    return measure.rows_at_checkout(__file__, root, "--rows-only")
 
 
 def main(argv: list[str] | None = None) -> int:

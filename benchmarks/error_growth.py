@@ -28,7 +28,6 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -174,11 +173,8 @@ def truth_rows() -> list[dict]:
 
 
 def _elsewhere(root: Path) -> list[dict]:
-    """:func:`truth_rows` run with the checkout at ``root``."""
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    done = subprocess.run([sys.executable, __file__, "--truth-only"], env=env, cwd=root,
-                          capture_output=True, text=True, check=True)  # fmt: skip
-    return json.loads(done.stdout.splitlines()[-1])
+    """:func:`truth_rows` with the checkout at ``root``."""
+    return measure.rows_at_checkout(__file__, root, "--truth-only")
 
 
 def table(results: dict) -> str:

@@ -150,6 +150,16 @@ def python(
     return wall, (json.loads(lines[-1]) if lines else {})
 
 
+def rows_at_checkout(script: str, root: Path, flag: str) -> list[dict]:
+    """The rows ``script`` prints (one JSON list, its last line) when run
+    with ``flag`` against the checkout at ``root`` (first on ``PYTHONPATH``,
+    and the working directory): a benchmark's ``--before CHECKOUT``."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    done = subprocess.run([sys.executable, script, flag], env=env, cwd=root,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    return json.loads(done.stdout.splitlines()[-1])
+
+
 def command(args: list[str], *, cache: Path | None = None, timeout: float = 600) -> float:
     """Wall seconds of a command line (interpreter start included)."""
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
