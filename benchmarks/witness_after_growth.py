@@ -7,7 +7,7 @@ problem at eight tolerances, against heyoka's extended-precision
 reference): BEFORE made with every exponentially grown run made again with
 the rounding witness, AFTER (default ``benchmarks/promise.json``) with the
 witness run again only where the rounding so amplified could reach the
-tolerance (``hamrkq.rkq.witness_rules.needs_witness_after_growth``).  For
+tolerance (``hamrkq.rkq.witness_rules.needs_witness_after_run``).  For
 each run whose evaluations or result changed: both counts, both largest
 true errors over the tolerance, both statuses.  Writes
 ``benchmarks/witness_after_growth.md``.

@@ -198,7 +198,7 @@ def test_a_quencher_that_magnifies_its_stages_rounding_runs_the_witness_at_any_t
 
 
 def test_after_exponential_growth_the_witness_runs_where_amplified_rounding_could_matter():
-    from hamrkq.rkq.witness_rules import needs_witness_after_growth
+    from hamrkq.rkq.witness_rules import needs_witness_after_run
 
     arenstorf = hamrkq.load_problem("arenstorf")
     atol = lambda tol: np.full(4, tol)  # noqa: E731
@@ -206,11 +206,11 @@ def test_after_exponential_growth_the_witness_runs_where_amplified_rounding_coul
     # One period: 276-fold over the second half of 233 steps (its close
     # approach): the rounding can reach (276/4)^2 sqrt(233/1e4) = 730 times
     # a regular orbit's, 2e-7 of the state's size
-    assert not needs_witness_after_growth(atol(1e-6), rtol, arenstorf.y0, 276.0, 233)
-    assert needs_witness_after_growth(atol(1e-8), rtol, arenstorf.y0, 276.0, 233)
+    assert not needs_witness_after_run(atol(1e-6), rtol, arenstorf.y0, 276.0, 233)
+    assert needs_witness_after_run(atol(1e-8), rtol, arenstorf.y0, 276.0, 233)
     # rk45q12 over three periods: 66 500-fold (true error 42 x 1e-8 before
     # the witness ran)
-    assert needs_witness_after_growth(atol(1e-6), rtol, arenstorf.y0, 66_500.0, 700)
+    assert needs_witness_after_run(atol(1e-6), rtol, arenstorf.y0, 66_500.0, 700)
     # The run at 1e-6 is not made again: the same nodes, its quencher's true
     # error a thousandth of the tolerance; against rk34q8 at 1e-10.
     times = np.linspace(*arenstorf.t_span, 201)[1:]
@@ -221,3 +221,34 @@ def test_after_exponential_growth_the_witness_runs_where_amplified_rounding_coul
     n = min(sol.t.size, tight.t.size)
     assert n >= times.size - 2  # rk34q8 at 1e-10 stops just before the end
     assert np.abs(sol.y[:n] - tight.y[:n]).max() <= 1.05 * (1e-6 + 1e-10)
+
+
+@pytest.mark.slow
+def test_a_long_regular_run_runs_again_with_the_witness():
+    """The quencher's rounding on a periodic orbit grows like the square of
+    the run's length, which the threshold at the start (measured over about
+    10 000 steps) did not see: prentice2011 to t = 1.7e5 at 1e-8 with
+    ``auto`` returned nodes 2.2 times the tolerance off, Gamma reading
+    3.5e-12 where the quencher was 2.3e-8 off."""
+    from hamrkq.analysis.extended_reference import extended_reference
+    from hamrkq.rkq.witness_rules import needs_witness_after_run
+
+    prentice = hamrkq.load_problem("prentice2011")
+    y0, rtol = prentice.y0, np.zeros(2)
+    atol = lambda tol: np.full(2, tol)  # noqa: E731
+    # auto over [0, 4000] at 1e-9 (13 756 steps, the quencher's rounding
+    # 3e-11): not made again; to 20 000 (53 000 steps, 2.3e-10), made again
+    assert not needs_witness_after_run(atol(1e-9), rtol, y0, 1.0, 13_756)
+    assert needs_witness_after_run(atol(1e-9), rtol, y0, 1.0, 53_000)
+    assert needs_witness_after_run(atol(1e-8), rtol, y0, 1.0, 443_000)
+    assert not needs_witness_after_run(atol(1e-6), rtol, y0, 1.0, 443_000)
+
+    times = np.linspace(0.0, 20_000.0, 401)
+    sol = hamrkq.solve(prentice, t_span=(0, 20_000), method="auto", atol=1e-9, t_eval=times)
+    assert sol.success and sol.t[-1] == 20_000.0
+    assert "the rounding witness stopped" in sol.message and "floor" in sol.message
+    assert "could reach the tolerance: run again with the witness" in sol.message
+    assert sol.options["quencher_precision"] == "double-double"
+    ref = extended_reference(prentice.hamiltonian, prentice.parameter_array, y0, times)
+    assert ref.estimated_error < 1e-12
+    assert np.abs(sol.y - ref.y).max() <= 1.05e-9 + ref.estimated_error

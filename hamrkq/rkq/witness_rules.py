@@ -15,13 +15,15 @@ import numpy as np
 from hamrkq._tolerance import component_tolerance
 
 __all__ = [
+    "FLOOR_STEPS",
     "STAGE_ROUNDING_WEIGHTS",
     "WITNESS_BELOW",
     "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
     "component_scales",
+    "length_factor",
     "needs_witness",
-    "needs_witness_after_growth",
+    "needs_witness_after_run",
     "tightest_tolerance",
 ]
 
@@ -116,26 +118,64 @@ def needs_witness(
 
 
 #: The steps of the runs :data:`WITNESS_BELOW` was measured on (prentice2011
-#: over [0, 4000]: about 10 000 with ``auto``); rounding errors add like a
-#: random walk, so a run of ``N`` steps gathers ``sqrt(N / 10 000)`` times as
-#: much before the orbit amplifies it.
+#: over [0, 4000]: about 10 000 with ``auto``).
 WITNESS_REFERENCE_STEPS = 10_000
 
 
-def needs_witness_after_growth(
+#: The steps after which a regular orbit's quencher rounding, growing like
+#: the square of the steps, is taken to reach :data:`WITNESS_BELOW` times
+#: ``gamma_limit`` (0.05) of the state's size, 1.5e-11: prentice2011's
+#: measured 1.2e-11 at 13 300 steps (``benchmarks/witness_length.txt``).
+FLOOR_STEPS = 15_000
+
+
+def length_factor(steps: int) -> float:
+    """How much more rounding a regular run of ``steps`` steps gathers,
+    amplified by the orbit, than :data:`WITNESS_BELOW` allows for.
+
+    ``(N / FLOOR_STEPS)^2``: an error in the energy made by each step's
+    rounding drifts the orbit's phase, by the number of steps times the time,
+    and along a periodic orbit the rounding repeats from period to period.
+    Measured (``benchmarks/witness_length.py``, ``witness_length.txt``): the
+    quencher's true error in double on prentice2011 (``rk78q12``, four
+    quencher steps a step) grows 3.6- to 5.2-fold each time the run doubles
+    from 10 000 time units on (27 000 steps, 2.6e-11 of the state's size;
+    426 000 steps, 9.1e-9), the double-double quencher's 8.6e-12 at the end;
+    this law is 1.3 to 2 times above those points.  Kepler e = 0.6
+    (``rk67q9``): 3.5- to 4.3-fold.  Never below ``sqrt(N / 10 000)``, a
+    random walk's law, which the rule for an exponentially growing run was
+    measured with before.
+    """
+    share = max(steps, 1)
+    return max(math.sqrt(share / WITNESS_REFERENCE_STEPS), (share / FLOOR_STEPS) ** 2)
+
+
+def needs_witness_after_run(
     atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray, growth: float, steps: int
 ) -> bool:
     """Whether a run without the witness, whose estimate of Gamma grew
-    ``growth``-fold over the second half of its ``steps`` steps (faster than
-    a periodic orbit's ``t^2``, a factor 4), must run again with it.
+    ``growth``-fold over the second half of its ``steps`` steps (an
+    exponential growth; 1, or anything up to 4, for a regular orbit), must
+    run again with it: its quencher's rounding, amplified by the orbit over the
+    run's length, could reach the tolerance, which the shadow estimate does
+    not see.
 
     An error that grows like ``exp(lambda t)`` grows by ``g`` over the second
     half of a run and by ``g^2`` over all of it, the quencher's rounding
     alike; on a regular orbit by ``4`` and ``16``.  So the rounding can reach
     ``(g / 4)^2`` times what it reaches on a regular orbit of as many steps,
-    and the witness runs where :func:`needs_witness`'s threshold, scaled by
-    that and by ``sqrt(steps / WITNESS_REFERENCE_STEPS)``, is above some
-    component's tolerance.  Measured (``benchmarks/witness_after_growth.md``,
+    which is :func:`length_factor` times what it reaches in
+    :data:`WITNESS_REFERENCE_STEPS`; the witness runs where
+    :func:`needs_witness`'s threshold, scaled by both, is above some
+    component's tolerance.
+
+    The length alone: prentice2011 to t = 1e6 at atol 1e-8 with
+    ``method="auto"`` (``rk78q12``, six quencher steps a step, no witness:
+    1e-8 is above the threshold's 7.5e-10) returned nodes 2.2 times the
+    tolerance off by t = 1.7e5, Gamma reading 3.5e-12, the quencher's true
+    error 2.3e-8 (rounding: in double-double 1e-11).
+
+    The growth, measured (``benchmarks/witness_after_growth.md``,
     ``method="auto"`` on the catalogue at eight tolerances): made again every
     time, the witness run returned the same nodes on the Arenstorf orbit at
     1e-4 and 1e-6 (240- to 280-fold at its close approach, the quencher's
@@ -146,6 +186,6 @@ def needs_witness_after_growth(
     66 500-fold) needs it: its true error was 42 times the tolerance
     (``benchmarks/error_growth.txt``).
     """
-    ratio = max(1.0, growth / 4.0) ** 2 * math.sqrt(max(steps, 1) / WITNESS_REFERENCE_STEPS)
+    ratio = max(1.0, growth / 4.0) ** 2 * length_factor(steps)
     tolerance = component_tolerance(atol, rtol, y0)
     return bool(np.any(tolerance < WITNESS_BELOW * ratio * component_scales(atol, y0)))
