@@ -535,3 +535,25 @@ def test_auto_brings_a_saturated_shadow_back_with_a_smaller_max_step():
     assert np.abs(sol.y - truth).max() <= 1.05e-4
     z_error, gamma = np.abs(sol.z - truth).max(), np.abs(sol.gamma).max()
     assert z_error / 3 <= gamma <= 3 * z_error
+
+
+def test_auto_shortens_the_steps_where_the_shadow_departs_faster_than_t_squared():
+    """The Fermi-Pasta-Ulam chain at atol 1e-3 and 1e-2 stopped at t = 191 of
+    200 (TOLERANCE_UNATTAINABLE) where 1e-4 succeeds: the pair's longer steps
+    let the shadow depart from 0.006 of the orbit's size at t = 100 to 0.74
+    at 200; the step chosen again assumed a t^2 growth (or, after a growth
+    read as exponential, none was tried).  Now the departure is projected by
+    its own growth, and shorter steps are tried after either reading."""
+    from hamrkq.analysis.extended_reference import extended_reference
+
+    fpu = hamrkq.load_problem("fpu")
+    times = np.linspace(*fpu.t_span, 201)
+    ref = extended_reference(fpu.hamiltonian, fpu.parameter_array, fpu.y0, times)
+    assert ref.estimated_error < 1e-8
+    for atol in (1e-2, 1e-3):
+        sol = hamrkq.solve(fpu, method="auto", atol=atol, rtol=0.0, t_eval=times)
+        assert sol.success and sol.t[-1] == times[-1]
+        assert "shadow track had moved" in sol.message
+        # auto chose the max_step (shorter than the 0.0286 of 1e-3's first run)
+        assert sol.options["max_step"] is not None and sol.options["max_step"] < 0.025
+        assert np.abs(sol.y - ref.y).max() <= 1.05 * atol
