@@ -557,3 +557,23 @@ def test_auto_shortens_the_steps_where_the_shadow_departs_faster_than_t_squared(
         # auto chose the max_step (shorter than the 0.0286 of 1e-3's first run)
         assert sol.options["max_step"] is not None and sol.options["max_step"] < 0.025
         assert np.abs(sol.y - ref.y).max() <= 1.05 * atol
+
+
+def test_the_projected_departure_of_a_short_fast_growing_run_is_finite():
+    """A cut run that reached 1 % of its interval with its departure grown
+    1e5-fold over its second half projects beyond any float: the projection
+    is taken in logarithms (a power overflowed)."""
+    from types import SimpleNamespace
+
+    from hamrkq.solve import prepare
+    from hamrkq.solve.auto import projected_departure
+
+    problem = hamrkq.load_problem("kepler")
+    task = prepare(problem, t_span=(0.0, 100.0), method="rk67q9", atol=1e-6).task
+    t = np.linspace(0.0, 1.0, 11)
+    gamma = np.zeros((11, 4))
+    gamma[:6] = 1e-20
+    gamma[6:] = 1e-15  # 1e5-fold over the second half
+    out = SimpleNamespace(t=t, y=np.ones((11, 4)), gamma=gamma, t_last=1.0, saturated=0.6)
+    projected = projected_departure(task, out)
+    assert math.isfinite(projected) and projected > 0.6 / 0.01**2

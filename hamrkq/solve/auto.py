@@ -279,7 +279,9 @@ def projected_departure(task: Task, out: Any) -> float:
     if not factor > 4.0 or half <= 0.0:
         return quadratic
     remaining = abs(task.t_end - out.t_last) / half
-    return max(quadratic, out.saturated * min(factor, 1e300) ** remaining)
+    # in logarithms: a fast growth over a short cut run overflows a power
+    exponent = math.log(out.saturated) + remaining * math.log(min(factor, 1e300))
+    return max(quadratic, math.exp(min(exponent, 700.0)))
 
 
 def _with_shorter_steps(requested: SolveOptions, task: Task, out: Any) -> Task | None:
