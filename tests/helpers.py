@@ -65,3 +65,23 @@ def pendulum_flow_mpmath(y0, times) -> np.ndarray:
         sn, cn = ctx.ellipfun("sn", u, m=m), ctx.ellipfun("cn", u, m=m)
         rows.append([float(2 * ctx.asin(k * sn)), float(2 * k * cn)])
     return np.array(rows)
+
+
+def pendulum_rotation_mpmath(p0, times) -> np.ndarray:
+    """The pendulum (``H = p^2/2 - cos q``) going over the top from
+    ``q = 0, p = p0`` (``p0 > 2``, a double taken as exact) at ``t = 0`` to
+    ``times``, to 30 digits: ``q = 2 am(t/k | k^2)``, ``p = (2/k) dn(t/k |
+    k^2)`` with ``k = 2/p0``, the amplitude from ``am(u + 2K) = am(u) + pi``."""
+    ctx = mpmath.MPContext()
+    ctx.dps = 30
+    k = 2 / ctx.mpf(float(p0))
+    m = k**2
+    period = 2 * ctx.ellipk(m)
+    rows = []
+    for time in times:
+        u = ctx.mpf(float(time)) / k
+        n = ctx.nint(u / period)
+        r = u - n * period
+        sn, cn, dn = (ctx.ellipfun(name, r, m=m) for name in ("sn", "cn", "dn"))
+        rows.append([float(2 * (n * ctx.pi + ctx.atan2(sn, cn))), float(2 / k * dn)])
+    return np.array(rows)

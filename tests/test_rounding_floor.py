@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import pendulum_rotation_mpmath
 
 import hamrkq
 from hamrkq.rkq.layout import FLOOR
@@ -252,3 +253,26 @@ def test_a_long_regular_run_runs_again_with_the_witness():
     ref = extended_reference(prentice.hamiltonian, prentice.parameter_array, y0, times)
     assert ref.estimated_error < 1e-12
     assert np.abs(sol.y - ref.y).max() <= 1.05e-9 + ref.estimated_error
+
+
+def test_a_run_whose_state_grew_runs_again_with_the_witness():
+    """A pendulum going over the top from q = 0, p = 3 at 1e-8 reached
+    q = 13 000 by t = 5000: its quencher's rounding grows with |q| (2.9e-12
+    an ulp there), which the threshold at the start, measured at |y0| = 3,
+    did not see; it returned SUCCESS with nodes 1.08 times the tolerance
+    off.  The rule after the run measures at the run's largest state."""
+    from hamrkq.rkq.witness_rules import needs_witness_after_run
+
+    atol, rtol = np.full(2, 1e-8), np.zeros(2)
+    y0 = np.array([0.0, 3.0])
+    assert not needs_witness_after_run(atol, rtol, y0, 1.0, 18_000)
+    assert needs_witness_after_run(atol, rtol, y0, 1.0, 18_000, np.array([13_020.0, 3.0]))
+
+    pendulum = hamrkq.load_problem("pendulum")
+    times = np.linspace(0.0, 5000.0, 501)
+    sol = hamrkq.solve(pendulum, [0.0], [3.0], (0.0, 5000.0), method="auto", atol=1e-8,
+                       t_eval=times)  # fmt: skip
+    assert sol.success and sol.y[-1, 0] > 13_000
+    assert "run again with the witness" in sol.message
+    truth = pendulum_rotation_mpmath(3.0, times)
+    assert np.abs(sol.y - truth).max() <= 1.05e-8

@@ -229,11 +229,16 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
         departure = shadow_departures(task, batch.gamma_to_end[i : i + 1], batch.y_size[i])
         if departure is not None and departure[0] > SHADOW_SATURATION:
             again[i] = True
-        elif witness and enough[i]:
-            factor = folded_growth(
-                task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
+        elif witness:
+            # as solve.auto.growth: no reading of the growth from a short run
+            factor = 1.0
+            if enough[i]:
+                factor = folded_growth(
+                    task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
+                )
+            again[i] = witness_rerun_needed(
+                task, request.y0[i], batch.y_size[i], factor, int(steps[i])
             )
-            again[i] = witness_rerun_needed(task, request.y0[i], factor, int(steps[i]))
     return again
 
 

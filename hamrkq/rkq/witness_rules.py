@@ -151,14 +151,21 @@ def length_factor(steps: int) -> float:
 
 
 def needs_witness_after_run(
-    atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray, growth: float, steps: int
+    atol: np.ndarray,
+    rtol: np.ndarray,
+    y0: np.ndarray,
+    growth: float,
+    steps: int,
+    size: np.ndarray | None = None,
 ) -> bool:
     """Whether a run without the witness, whose estimate of Gamma grew
     ``growth``-fold over the second half of its ``steps`` steps (an
-    exponential growth; 1, or anything up to 4, for a regular orbit), must
-    run again with it: its quencher's rounding, amplified by the orbit over the
-    run's length, could reach the tolerance, which the shadow estimate does
-    not see.
+    exponential growth; 1, or anything up to 4, for a regular orbit), from
+    ``y0``, whose components reached ``size`` (the largest ``|y_k|`` over
+    the run, ``y0`` by default), must run again with it: its quencher's
+    rounding, amplified by the orbit over the run's length and grown with
+    the state, could reach the tolerance, which the shadow estimate does not
+    see.
 
     An error that grows like ``exp(lambda t)`` grows by ``g`` over the second
     half of a run and by ``g^2`` over all of it, the quencher's rounding
@@ -187,5 +194,9 @@ def needs_witness_after_run(
     (``benchmarks/error_growth.txt``).
     """
     ratio = max(1.0, growth / 4.0) ** 2 * length_factor(steps)
+    # The tolerance at y0, as the rule at the start (with rtol, a component
+    # that is 0 there has atol, as it has wherever it crosses zero); the
+    # rounding at the run's largest state (it grows with |y|).
     tolerance = component_tolerance(atol, rtol, y0)
-    return bool(np.any(tolerance < WITNESS_BELOW * ratio * component_scales(atol, y0)))
+    largest = np.maximum(np.abs(y0), y0 if size is None else size)
+    return bool(np.any(tolerance < WITNESS_BELOW * ratio * component_scales(atol, largest)))

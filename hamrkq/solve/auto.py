@@ -51,6 +51,7 @@ __all__ = [
     "MIN_GROWTH_STEPS",
     "folded_growth",
     "growth",
+    "largest_state",
     "projects",
     "rerun",
     "reruns_with_witness",
@@ -90,7 +91,8 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     factor = growth(out, task)
     exponential = factor > EXPONENTIAL_GROWTH
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
-    if finished and witness_rerun_needed(task, task.y0, factor, out.stats.get("steps", 0)):
+    steps = out.stats.get("steps", 0)
+    if finished and witness_rerun_needed(task, task.y0, largest_state(out), factor, steps):
         # A shadow estimate without the witness sees the quencher's truncation
         # error, not its rounding, which an unstable orbit amplifies alike:
         # explicit members returned SUCCESS on the Arenstorf orbit over three
@@ -205,21 +207,34 @@ def folded_growth(
     return growth_of_maxima(to_middle, to_end, delta)
 
 
-def witness_rerun_needed(task: Task, y0: np.ndarray, factor: float, steps: int) -> bool:
+def witness_rerun_needed(
+    task: Task, y0: np.ndarray, y_size: np.ndarray, factor: float, steps: int
+) -> bool:
     """Whether a finished run of ``task`` from ``y0`` (an ensemble member's),
-    whose estimate grew ``factor``-fold over the second half of its ``steps``
-    steps, runs again with the rounding witness: the witness did not run and
-    can (:func:`reruns_with_witness`), and the rounding, amplified by an
+    whose largest ``|y_k|`` over its nodes are ``y_size`` and whose estimate
+    grew ``factor``-fold over the second half of its ``steps`` steps, runs
+    again with the rounding witness: the witness did not run and can
+    (:func:`reruns_with_witness`), and the rounding, amplified by an
     exponential growth or by a long run, could reach the tolerance
-    (:func:`hamrkq.rkq.witness_rules.needs_witness_after_run`)."""
+    (:func:`hamrkq.rkq.witness_rules.needs_witness_after_run`) at the run's
+    largest state, not only at ``y0``: a pendulum going over the top from
+    q = 0 at 1e-8 reached q = 13 000 by t = 5000, its quencher's rounding
+    1e-12 of that, and returned nodes 1.08 times the tolerance off."""
     # A growth below EXPONENTIAL_GROWTH is a regular orbit's, read noisily
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
     # and would have run again for nothing).
     exponential = factor if factor > EXPONENTIAL_GROWTH else 1.0
     return reruns_with_witness(task) and needs_witness_after_run(
-        task.atol, task.rtol, y0, exponential, steps
+        task.atol, task.rtol, y0, exponential, steps, y_size
     )
+
+
+def largest_state(out: Any) -> np.ndarray:
+    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none)."""
+    if out.y.shape[0] == 0:
+        return np.zeros(out.y.shape[1])
+    return np.abs(out.y).max(axis=0)
 
 
 def reruns_with_witness(task: Task) -> bool:

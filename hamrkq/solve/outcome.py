@@ -20,7 +20,7 @@ from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, auto_re
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.solve.auto import growth, witness_rerun_needed
+from hamrkq.solve.auto import growth, largest_state, witness_rerun_needed
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
@@ -393,13 +393,17 @@ def rerun_note(
                 "growth, the rounding grows alike, which the shadow estimate does not see (the "
                 "witness measures it), and more quencher steps only delay the stop"
             )
-        elif not uses_witness(earlier) and witness_rerun_needed(
-            earlier, earlier.y0, factor, run.stats.get("steps", 0)
+        elif (
+            run.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
+            and not uses_witness(earlier)
+            and witness_rerun_needed(
+                earlier, earlier.y0, largest_state(run), factor, run.stats.get("steps", 0)
+            )
         ):
             what += (
                 f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
-                "which Gamma does not see and a periodic orbit amplifies like the square of "
-                "the run's length, could reach the tolerance: run again with the witness"
+                "which Gamma does not see (it grows like the square of a run's length, and "
+                "with the state's size), could reach the tolerance: run again with the witness"
             )
         notes.append(f"the run {_quencher_setting(earlier)} {what}")
     ran = (
