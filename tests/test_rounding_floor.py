@@ -276,3 +276,25 @@ def test_a_run_whose_state_grew_runs_again_with_the_witness():
     assert "run again with the witness" in sol.message
     truth = pendulum_rotation_mpmath(3.0, times)
     assert np.abs(sol.y - truth).max() <= 1.05e-8
+
+
+def test_the_papers_method_runs_again_with_the_witness_where_the_state_grew():
+    """rk34q8's tangent Gamma does not see its quencher's rounding: on the
+    pendulum going over the top from q = 0, p = 3 at 1e-9 it stopped at
+    t = 800 (q = 1500) after returning nodes 1.11 times the tolerance off.
+    It is not made again for its rounding at the state it starts from (the
+    paper's runs stay the paper's), but where the state grew so far that
+    this alone calls for the witness."""
+    pendulum = hamrkq.load_problem("pendulum")
+    times = np.linspace(0.0, 5000.0, 501)
+    sol = hamrkq.solve(pendulum, [0.0], [3.0], (0.0, 5000.0), atol=1e-9, t_eval=times,
+                       max_steps=10**7)  # fmt: skip
+    assert sol.method == "rk34q8" and sol.options["rounding_witness"]
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert "This is rk34q8's second run" in sol.message and "floor" in sol.message
+    truth = pendulum_rotation_mpmath(3.0, sol.t)
+    assert np.abs(sol.y - truth).max() <= 1.05e-9
+    # the paper's own problem is run once, as before
+    prentice = hamrkq.load_problem("prentice2011")
+    once = hamrkq.solve(prentice, t_span=(0.0, 400.0))
+    assert not once.options["rounding_witness"] and "discarded_evaluations" not in once.stats

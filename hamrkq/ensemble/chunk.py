@@ -219,7 +219,7 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
     the batch loop folded (members that succeeded keep nodes over the
     interval ``batch.middle`` was taken from)."""
     again = np.zeros(batch.status.shape[0], dtype=bool)
-    if task.options.gamma_name != "shadow":
+    if task.options.gamma_name not in ("shadow", "tangent"):
         return again
     steps = batch.stats[:, 0]
     nodes = request.times.size if task.t_eval is not None else steps + 1

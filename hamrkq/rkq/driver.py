@@ -217,7 +217,7 @@ class Integration:
             shadow_scale=member.shadow_scale,
             error_exponent=1.0 / (member.error_order + 1),
             beta=member.beta,
-            witness=int(settings.witness and gamma == GAMMA_SHADOW),
+            witness=int(settings.witness and gamma in (GAMMA_SHADOW, GAMMA_TANGENT)),
             witness_scale=WITNESS_SAFETY,
             witness_stochastic=int(member.stage_rounding_dominates),
             project=int(settings.project and member.use_z),

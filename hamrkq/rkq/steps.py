@@ -241,14 +241,12 @@ def quencher_step(rhs, tangent, jac, t, h, tab, cfg, problem, work, state):
         state["nfev"] += explicit_increment(rhs, t, shi, slo, h, tab, params, work, inc, False)
         arith.two_sum(shi, slo, inc, nshi, nslo)
         arith.scaled_difference(nshi, nslo, nhi, nlo, cfg["shadow_scale"], gnew)
-        if cfg["witness"]:
-            attempt = float(state["steps"] + state["rejected"])
-            state["nfev"] += witness_step(
-                rhs, t, h, tab, cfg, problem.witness_params, work, attempt
-            )
     elif mode == GAMMA_OFF:
         for i in range(gnew.shape[0]):
             gnew[i] = 0.0
+    if cfg["witness"]:  # the shadow's or the tangent's estimate (driver.Integration)
+        attempt = float(state["steps"] + state["rejected"])
+        state["nfev"] += witness_step(rhs, t, h, tab, cfg, problem.witness_params, work, attempt)
     state["cached_roundoff"] = 1 if (rounding_steps == m and mode != GAMMA_OFF) else 0
 
 

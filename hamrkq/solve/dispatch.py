@@ -106,14 +106,21 @@ def member_of(task: Task):
 
 
 def uses_witness(task: Task) -> bool:
-    """Whether an RKQ-family task runs the rounding witness (the shadow
+    """Whether an RKQ-family task runs the rounding witness: the shadow
     estimate at a tolerance near double precision's floor, or with a
-    quencher whose weights magnify its stages' rounding: :func:`needs_witness`;
-    or where ``auto`` asks for it: ``Task.witness``)."""
-    if task.options.gamma_name != "shadow" or task.options.double_double:
+    quencher whose weights magnify its stages' rounding (:func:`needs_witness`);
+    or where a run is made again with it (``Task.witness``: after a run whose
+    rounding could have reached the tolerance, the shadow's or the tangent's
+    estimate, :func:`hamrkq.solve.auto.witness_rerun_needed`).  The tangent
+    estimate (``rk34q8``'s) does not run it from the start, so that the
+    paper's runs stay the paper's; the paper's own estimate never runs it."""
+    name = task.options.gamma_name
+    if name not in ("shadow", "tangent") or task.options.double_double:
         return False
     if task.witness is not None:
         return task.witness
+    if name != "shadow":
+        return False
     return needs_witness(task.atol, task.rtol, task.y0, member_of(task).stage_rounding_dominates)
 
 
