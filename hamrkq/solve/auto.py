@@ -231,30 +231,35 @@ def witness_rerun_needed(
     largest state, not only at ``y0``: a pendulum going over the top from
     q = 0 at 1e-8 reached q = 13 000 by t = 5000, its quencher's rounding
     1e-12 of that, and returned nodes 1.08 times the tolerance off."""
+    if not reruns_with_witness(task):
+        return False
+    if task.options.gamma_name == "tangent":
+        return _state_outgrew_its_start(task, y0, y_size)
     # A growth below EXPONENTIAL_GROWTH is a regular orbit's, read noisily
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
     # and would have run again for nothing).
     exponential = factor if factor > EXPONENTIAL_GROWTH else 1.0
-    if not reruns_with_witness(task):
-        return False
-    needed = needs_witness_after_run(task.atol, task.rtol, y0, exponential, steps, y_size)
-    if task.options.gamma_name == "tangent":
-        # rk34q8's estimate: the paper's runs are not made again, after an
-        # exponential growth, for their length (its short steps gather less
-        # rounding than the law in steps says: promise_members.md) or for
-        # their rounding at the state they start from (rk34q8's documented
-        # limit, docs/algorithm.md); only where the state grew more than
-        # STATE_GROWTH-fold and that growth alone calls for the witness (the
-        # pendulum going over the top at 1e-9 returned nodes 1.11 times the
-        # tolerance off at q = 1500; its tangent Gamma does not see rounding).
-        start = component_scales(task.atol, np.abs(y0))
-        grew = np.max(component_scales(task.atol, np.maximum(np.abs(y0), y_size)) / start)
-        reference = WITNESS_REFERENCE_STEPS  # the rule at the start, at the run's size
-        at_size = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference, y_size)
-        at_start = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference)
-        return bool(grew > STATE_GROWTH) and at_size and not at_start
-    return needed
+    return needs_witness_after_run(task.atol, task.rtol, y0, exponential, steps, y_size)
+
+
+def _state_outgrew_its_start(task: Task, y0: np.ndarray, y_size: np.ndarray) -> bool:
+    """:func:`witness_rerun_needed` for the tangent estimate (``rk34q8``'s).
+
+    The paper's runs are not made again after an exponential growth, for
+    their length (its short steps gather less rounding than the law in
+    steps says: ``benchmarks/promise_members.md``) or for their rounding at
+    the state they start from (rk34q8's documented limit,
+    docs/algorithm.md); only where the state grew more than
+    :data:`STATE_GROWTH`-fold and that growth alone calls for the witness:
+    the pendulum going over the top at 1e-9 returned nodes 1.11 times the
+    tolerance off at q = 1500 (its tangent Gamma does not see rounding)."""
+    start = component_scales(task.atol, np.abs(y0))
+    grew = np.max(component_scales(task.atol, np.maximum(np.abs(y0), y_size)) / start)
+    reference = WITNESS_REFERENCE_STEPS  # the rule at the start, at the run's size
+    at_size = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference, y_size)
+    at_start = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference)
+    return bool(grew > STATE_GROWTH) and at_size and not at_start
 
 
 def largest_state(out: Any) -> np.ndarray:
