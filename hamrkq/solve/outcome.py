@@ -157,6 +157,14 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "or step size in double goes below it."
             )
         if not _double_double_available(task):
+            if member.stage_rounding_dominates:
+                # rk34q8 (the tangent estimate): no double-double quencher,
+                # but another member, or auto, goes below this floor
+                return text + (
+                    " What works: one of those, method='auto' (which chooses a member and "
+                    "runs its quencher in double-double where needed), a looser tolerance "
+                    "or a shorter interval."
+                )
             return text + " A looser tolerance or a shorter interval is what works."
         return text + (
             " What works: quencher_precision='double-double' (the quencher's stages and f "
