@@ -281,7 +281,7 @@ def test_a_run_whose_state_grew_runs_again_with_the_witness():
 def test_the_papers_method_runs_again_with_the_witness_where_the_state_grew():
     """rk34q8's tangent Gamma does not see its quencher's rounding: on the
     pendulum going over the top from q = 0, p = 3 at 1e-9 it stopped at
-    t = 800 (q = 1500) after returning nodes 1.11 times the tolerance off.
+    t = 800 (q = 2080) after returning nodes 1.11 times the tolerance off.
     It is not made again for its rounding at the state it starts from (the
     paper's runs stay the paper's), but where the state grew so far that
     this alone calls for the witness."""

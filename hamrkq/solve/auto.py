@@ -6,13 +6,16 @@ the kernel abandoned the run on its projection (:func:`projects` says which
 runs are projected) or the run stopped on the quencher's truncation error;
 the rules are :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps` and
 :func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).  A
-finished run whose estimated error grew exponentially (an unstable orbit,
-:func:`hamrkq.rkq.auto_rules.error_growth`) runs again once with the
-rounding witness where the rounding so amplified could reach the tolerance
-(:func:`witness_rerun_needed`, for every member with the shadow estimate);
-two such runs in a row allow no more quencher steps.  A run cut where its
-shadow track saturated runs again with a smaller ``max_step``
-(:func:`hamrkq.solve.dispatch.within_linear_shadow`).
+finished run runs again once with the rounding witness where its rounding,
+amplified by an exponential growth of the estimate (an unstable orbit,
+:func:`hamrkq.rkq.auto_rules.error_growth`), by the run's length or by a
+state grown beyond its start, could reach the tolerance
+(:func:`witness_rerun_needed`, for every member with the shadow estimate,
+and for ``rk34q8``'s tangent estimate where its state outgrew its start);
+two exponential runs in a row allow no more quencher steps.  A run cut where
+its shadow track saturated runs again with a smaller ``max_step``
+(:func:`hamrkq.solve.dispatch.within_linear_shadow`,
+:func:`projected_departure`).
 """
 
 from __future__ import annotations
@@ -37,14 +40,11 @@ from hamrkq.rkq.auto_rules import (
     middle_of,
 )
 from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.rkq.witness_rules import (
-    WITNESS_REFERENCE_STEPS,
-    component_scales,
-    needs_witness_after_run,
-)
+from hamrkq.rkq.witness_rules import needs_witness_after_run, state_outgrew_its_start
 from hamrkq.solve.dispatch import (
     METHODS,
     Task,
+    largest_state,
     member_of,
     run_rk,
     shadow_departures,
@@ -55,9 +55,10 @@ __all__ = [
     "MIN_GROWTH_STEPS",
     "folded_growth",
     "growth",
-    "largest_state",
+    "projected_departure",
     "projects",
     "rerun",
+    "reruns_for_rounding",
     "reruns_with_witness",
     "witness_rerun_needed",
 ]
@@ -94,13 +95,12 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     member = member_of(task)
     factor = growth(out, task)
     exponential = factor > EXPONENTIAL_GROWTH
-    finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
-    steps = out.stats.get("steps", 0)
-    if finished and witness_rerun_needed(task, task.y0, largest_state(out), factor, steps):
-        # A shadow estimate without the witness sees the quencher's truncation
-        # error, not its rounding, which an unstable orbit amplifies alike:
-        # explicit members returned SUCCESS on the Arenstorf orbit over three
-        # periods at 1e-8 with true errors of 17 to 62 times the tolerance.
+    if reruns_for_rounding(task, out, factor):
+        # Gamma without the witness sees the quencher's truncation error, not
+        # its rounding, which an unstable orbit, a long run or a grown state
+        # amplify: explicit members returned SUCCESS on the Arenstorf orbit
+        # over three periods at 1e-8 with true errors of 17 to 62 times the
+        # tolerance, auto on prentice2011 to t = 170 000 at 1e-8 2.7 times.
         witnessed = _with_witness(requested, task)
         if witnessed is not None:
             # The same run again: its growth will read the same, which is
@@ -181,13 +181,6 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
     return replace(task, project=projects(requested, task))
 
 
-#: How many times the size of its state (``component_scales``) a run of the
-#: tangent estimate (``rk34q8``) must outgrow its start before its rounding is
-#: checked with the witness (:func:`witness_rerun_needed`): the outer solar
-#: system's Pluto moves from 33 to 49 AU, the pendulum going over the top
-#: from q = 0 to q = 13 000.
-STATE_GROWTH = 10.0
-
 #: Fewer accepted steps than this say nothing about how the estimate grows
 #: (a run of a dozen steps starts from an estimate of nearly nothing).
 MIN_GROWTH_STEPS = 50
@@ -202,7 +195,7 @@ def growth(out: Any, task: Task) -> float:
     middle, direction = middle_of(out.t[0], out.t[-1])
     gamma = np.abs(out.gamma)
     before = gamma[(out.t - middle) * direction <= 0.0]
-    return folded_growth(task, before.max(axis=0), gamma.max(axis=0), np.abs(out.y).max(axis=0))
+    return folded_growth(task, before.max(axis=0), gamma.max(axis=0), largest_state(out))
 
 
 def folded_growth(
@@ -218,6 +211,17 @@ def folded_growth(
     return growth_of_maxima(to_middle, to_end, delta)
 
 
+def reruns_for_rounding(task: Task, out: Any, factor: float) -> bool:
+    """Whether a run of ``task`` (``out``, its estimate grown ``factor``-fold)
+    runs again with the rounding witness: it finished (SUCCESS, or stopped
+    on its estimate) and :func:`witness_rerun_needed` says so at its largest
+    state and its steps.  :func:`rerun` makes the run; the message says why
+    (:func:`hamrkq.solve.outcome.rerun_note`)."""
+    finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
+    steps = out.stats.get("steps", 0)
+    return finished and witness_rerun_needed(task, task.y0, largest_state(out), factor, steps)
+
+
 def witness_rerun_needed(
     task: Task, y0: np.ndarray, y_size: np.ndarray, factor: float, steps: int
 ) -> bool:
@@ -229,12 +233,14 @@ def witness_rerun_needed(
     exponential growth or by a long run, could reach the tolerance
     (:func:`hamrkq.rkq.witness_rules.needs_witness_after_run`) at the run's
     largest state, not only at ``y0``: a pendulum going over the top from
-    q = 0 at 1e-8 reached q = 13 000 by t = 5000, its quencher's rounding
-    1e-12 of that, and returned nodes 1.08 times the tolerance off."""
+    q = 0 at 1e-8 reached q = 13 000 by t = 5000 (an ulp of q there is
+    1.8e-12) and returned nodes 1.08 times the tolerance off.  For the
+    tangent estimate only a state grown far beyond its start counts
+    (:func:`hamrkq.rkq.witness_rules.state_outgrew_its_start`)."""
     if not reruns_with_witness(task):
         return False
     if task.options.gamma_name == "tangent":
-        return _state_outgrew_its_start(task, y0, y_size)
+        return state_outgrew_its_start(task.atol, task.rtol, y0, y_size)
     # A growth below EXPONENTIAL_GROWTH is a regular orbit's, read noisily
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
@@ -243,43 +249,17 @@ def witness_rerun_needed(
     return needs_witness_after_run(task.atol, task.rtol, y0, exponential, steps, y_size)
 
 
-def _state_outgrew_its_start(task: Task, y0: np.ndarray, y_size: np.ndarray) -> bool:
-    """:func:`witness_rerun_needed` for the tangent estimate (``rk34q8``'s).
-
-    The paper's runs are not made again after an exponential growth, for
-    their length (its short steps gather less rounding than the law in
-    steps says: ``benchmarks/promise_members.md``) or for their rounding at
-    the state they start from (rk34q8's documented limit,
-    docs/algorithm.md); only where the state grew more than
-    :data:`STATE_GROWTH`-fold and that growth alone calls for the witness:
-    the pendulum going over the top at 1e-9 returned nodes 1.11 times the
-    tolerance off at q = 1500 (its tangent Gamma does not see rounding)."""
-    start = component_scales(task.atol, np.abs(y0))
-    grew = np.max(component_scales(task.atol, np.maximum(np.abs(y0), y_size)) / start)
-    reference = WITNESS_REFERENCE_STEPS  # the rule at the start, at the run's size
-    at_size = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference, y_size)
-    at_start = needs_witness_after_run(task.atol, task.rtol, y0, 1.0, reference)
-    return bool(grew > STATE_GROWTH) and at_size and not at_start
-
-
-def largest_state(out: Any) -> np.ndarray:
-    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none)."""
-    if out.y.shape[0] == 0:
-        return np.zeros(out.y.shape[1])
-    return np.abs(out.y).max(axis=0)
-
-
 def reruns_with_witness(task: Task) -> bool:
-    """Whether a run of ``task`` that ends with an estimate grown
-    exponentially runs again with the rounding witness (:func:`rerun`): the
-    shadow estimate, without the witness, the quencher in double."""
+    """Whether a run of ``task`` can run again with the rounding witness
+    where its rounding calls for it (:func:`rerun`): the shadow's or the
+    tangent's estimate, without the witness, the quencher in double."""
     return _witnessed(task) is not None
 
 
 def _witnessed(task: Task) -> Task | None:
     """``task`` with the rounding witness; None where the witness ran
-    already or cannot (an estimate other than the shadow's, or the quencher
-    in double-double)."""
+    already or cannot (the paper's estimate, or the quencher in
+    double-double)."""
     if uses_witness(task) or task.options.double_double:
         return None
     task = replace(task, witness=True)
@@ -317,7 +297,7 @@ def projected_departure(task: Task, out: Any) -> float:
     shorter steps chosen for it saturated again at t = 191."""
     reached = abs(out.t_last - task.t0) / abs(task.t_end - task.t0)
     quadratic = out.saturated / max(reached, 1e-3) ** 2
-    departures = shadow_departures(task, out.gamma, np.abs(out.y).max(axis=0))
+    departures = shadow_departures(task, out.gamma, largest_state(out))
     if departures is None or departures.size < 2:
         return quadratic
     t = np.append(out.t, out.t_last)

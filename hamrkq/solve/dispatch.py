@@ -39,11 +39,14 @@ __all__ = [
     "MethodSpec",
     "Task",
     "integration",
+    "largest_state",
     "member_of",
     "resolve_backend",
     "run_rk",
+    "shadow_departures",
     "start_background",
     "uses_witness",
+    "within_linear_shadow",
 ]
 
 #: Step attempts between checks for a terminal event.
@@ -222,6 +225,14 @@ def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.n
     return shadow_departure(gamma, scale, member_of(task).shadow_scale)
 
 
+def largest_state(out: RunOutput) -> np.ndarray:
+    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none):
+    the size the rules after a run measure against."""
+    if out.y.shape[0] == 0:
+        return np.zeros(out.y.shape[1])
+    return np.abs(out.y).max(axis=0)
+
+
 def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     """``out``, or its nodes before the first where the shadow track had
     moved more than :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION` of the
@@ -231,7 +242,7 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     ``gamma_limit=inf``, which turns the certificate off."""
     if out.gamma is None or out.t.shape[0] == 0:
         return out
-    departure = shadow_departures(task, out.gamma, np.abs(out.y).max(axis=0))
+    departure = shadow_departures(task, out.gamma, largest_state(out))
     if departure is None:
         return out
     beyond = np.flatnonzero(departure > SHADOW_SATURATION)

@@ -20,7 +20,7 @@ from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, auto_re
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.solve.auto import growth, largest_state, witness_rerun_needed
+from hamrkq.solve.auto import growth, reruns_for_rounding
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
@@ -401,13 +401,7 @@ def rerun_note(
                 "growth, the rounding grows alike, which the shadow estimate does not see (the "
                 "witness measures it), and more quencher steps only delay the stop"
             )
-        elif (
-            run.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
-            and not uses_witness(earlier)
-            and witness_rerun_needed(
-                earlier, earlier.y0, largest_state(run), factor, run.stats.get("steps", 0)
-            )
-        ):
+        elif reruns_for_rounding(earlier, run, factor):
             what += (
                 f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
                 "which Gamma does not see (it grows like the square of a run's length, and "
