@@ -137,7 +137,11 @@ class Solution:
         True where the node was quenched (``y`` replaced by ``z``).
     stats : mapping
         ``steps`` (accepted), ``rejected``, ``quenches``, ``nfev``, ``njev``
-        and any method-specific counters.
+        and any method-specific counters; seconds of the call: ``compile_s``
+        (compiling or loading code, in every run made), ``integrate_s`` (the
+        returned run's integration) and, where ``method="auto"`` ran again,
+        ``discarded_s`` (the integration of the runs it discarded, whose
+        evaluations are ``discarded_evaluations``).
     status : Status
         Why the run stopped.
     message : str

@@ -4,6 +4,9 @@ solutions."""
 
 from __future__ import annotations
 
+import io
+import time
+
 import mpmath
 import numpy as np
 import pytest
@@ -124,3 +127,52 @@ def test_auto_carries_prentice2011_at_1e_12():
     assert "(measured by the witness) is 0.05" in sol.message
     assert "double precision's floor" in sol.message
     assert np.abs(sol.gamma).max() <= 0.05e-12
+
+
+def test_a_rerun_in_double_double_reports_its_compiling(monkeypatch):
+    """auto's rerun in double-double compiles f in double-double on its
+    first use: that wait is in ``compile_s`` (it was in neither timing, so a
+    13-second first call of an 8-body system read as 1.5 s of compiling),
+    the discarded run's integration is ``discarded_s``, and the summary
+    shows both."""
+    from hamrkq.backends import first_use
+    from hamrkq.io.report import summary_rows
+
+    compiling = first_use.double_double_functions
+    wait = 0.4
+
+    def slow(*args, **kwargs):
+        time.sleep(wait)  # stands in for numba compiling rhs_dd
+        return compiling(*args, **kwargs)
+
+    monkeypatch.setattr(first_use, "double_double_functions", slow)
+    problem = hamrkq.load_problem("kepler", e=0.6)
+    sol = hamrkq.solve(problem, t_span=(0.0, 20 * np.pi), method="auto", atol=1e-12, rtol=0.0)
+    assert sol.options["quencher_precision"] == "double-double"
+    assert sol.stats["compile_s"] >= wait
+    assert sol.stats["integrate_s"] < sol.stats["compile_s"]
+    assert sol.stats["discarded_s"] > 0.0 and sol.stats["discarded_evaluations"] > 0
+    assert "compile_wait_s" not in sol.stats
+    wall = dict(summary_rows(sol, None, wall_time=1.0))["wall time (solve)"]
+    assert "discarded runs" in wall and "compiling or loading code" in wall
+
+
+def test_compiling_f_in_double_double_is_announced(monkeypatch):
+    """A long first compile of f in double-double says what it compiles,
+    like the first use of a system (a silent wait of seconds otherwise)."""
+    from hamrkq.backends import compiled, first_use
+
+    monkeypatch.setattr(first_use, "ANNOUNCE_AFTER", 0.0)
+    original = compiled.CompiledSystem.rhs_dd
+
+    def slow(self):
+        time.sleep(0.3)
+        return original(self)
+
+    monkeypatch.setattr(compiled.CompiledSystem, "rhs_dd", slow)
+    stream = io.StringIO()
+    ham = hamrkq.load_problem("harmonic").hamiltonian
+    functions = first_use.double_double_functions(ham, stream=stream, announce=True)
+    assert functions.tangent is compiled.compile_system(ham).rhs_dd()
+    said = stream.getvalue()
+    assert "compiling f in double-double" in said and "compiled in" in said

@@ -45,6 +45,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ANNOUNCE_AFTER",
+    "double_double_functions",
     "first_use_text",
     "kernel_functions",
     "resolve_backend",
@@ -142,12 +143,33 @@ def _short(text: str, width: int = 60) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
-def first_use_text(ham: Hamiltonian) -> str:
-    """What a first use of ``ham`` says: its code is compiled once and cached."""
+def first_use_text(ham: Hamiltonian, what: str = "the code") -> str:
+    """What a first use of ``ham`` says: its code (``what``) is compiled once
+    and cached."""
     return (
-        f"compiling the code for {_short(f'H = {ham.H}')} (first use of this system or "
+        f"compiling {what} for {_short(f'H = {ham.H}')} (first use of this system or "
         f"of this hamrkq version; cached in {codegen.cache_dir()} for later runs)"
     )
+
+
+def double_double_functions(
+    ham: Hamiltonian, stream: TextIO | None = None, announce: bool | None = None
+):
+    """The compiled kernel's functions for a run with the quencher in
+    double-double: the shadow estimate's, with ``rhs_dd`` (f in
+    double-double) in the tangent's place.  ``rhs_dd`` is compiled on its
+    first use (for a large system, longer than the rest of the system: 13 s
+    for eight bodies in space); a wait longer than :data:`ANNOUNCE_AFTER`
+    is announced as :func:`warm_up`'s."""
+    system = compiled.compile_system(ham)
+
+    def begin() -> str:
+        what = "f in double-double (the quencher's extended precision)"
+        return first_use_text(ham, what) + " ..."
+
+    with WaitNotice(begin, "compiled", ANNOUNCE_AFTER, stream=stream, enabled=announce):
+        rhs_dd = system.rhs_dd()
+    return system_functions(system, "shadow")._replace(tangent=rhs_dd)
 
 
 def warm_up(

@@ -156,6 +156,21 @@ def _num(value: Any, spec: str = ".3e") -> str:
     return format(value, spec)
 
 
+def _wall_time(wall_time: float, stats: Any) -> str:
+    """The wall time of a solve and where it went (``stats``' seconds)."""
+    text = f"{wall_time:.2f} s"
+    if "integrate_s" not in stats:
+        return text
+    text += f" (integration {float(stats['integrate_s']):.3f} s"
+    if stats.get("interpreted_steps"):  # a first use compiling in the background
+        text += f", {stats['interpreted_steps']} steps interpreted"
+    if stats.get("discarded_s"):  # method="auto"'s runs made again (sol.message)
+        text += f"; discarded runs {float(stats['discarded_s']):.3f} s"
+    if "compile_s" in stats:
+        text += f"; compiling or loading code {float(stats['compile_s']):.3f} s"
+    return text + ")"
+
+
 def summary_rows(
     solution: Any, diagnostics: Any, wall_time: float | None = None
 ) -> list[tuple[str, str]]:
@@ -178,13 +193,7 @@ def summary_rows(
         ("f evaluations", evaluations),
     ]
     if wall_time is not None:
-        text = f"{wall_time:.2f} s"
-        if "integrate_s" in stats:  # the rest: compiling or loading code, diagnostics
-            text += f" (integration {float(stats['integrate_s']):.3f} s"
-            if stats.get("interpreted_steps"):  # a first use compiling in the background
-                text += f", {stats['interpreted_steps']} steps interpreted"
-            text += ")"
-        rows.append(("wall time (solve)", text))
+        rows.append(("wall time (solve)", _wall_time(wall_time, stats)))
     rows += _event_rows(sol)
     if diag is None:
         return rows

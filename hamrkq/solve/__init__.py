@@ -276,15 +276,21 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         if isinstance(out, Solution):  # the baselines build their own
             return out
         out.stats.setdefault("integrate_s", elapsed)
-        # With a background compile, loading the compiled code mid-run counts
-        # as compiling; a run that ended before it was ready ran in Python.
-        out.stats["compile_s"] = prepared.compile_s + out.stats.pop("compile_wait_s", 0.0)
+        # Loading the compiled code mid-run (a background compile), or
+        # compiling f in double-double for a rerun, counts as compiling, in
+        # every run made; a run that ended before the code was ready ran in
+        # Python.
+        runs = [r for _, r in discarded] + [out]
+        out.stats["compile_s"] = prepared.compile_s + sum(
+            r.stats.pop("compile_wait_s", 0.0) for r in runs
+        )
         if task.compiling is not None and not task.compiling.loaded:
             chosen = "python"
         if discarded:
             out.stats["discarded_evaluations"] = sum(
                 r.stats["nfev"] + r.stats["njev"] for _, r in discarded
             )
+            out.stats["discarded_s"] = sum(r.stats["integrate_s"] for _, r in discarded)
         sol = outcome.solution(task, spec, out, chosen)
         if discarded:
             note = outcome.rerun_note(

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -141,11 +142,9 @@ def _double_double_functions(task: Task, backend: str):
         if task.compiling.functions("shadow") is None:  # unusable: warned once
             backend = "python"
     if backend == "numba":
-        from hamrkq.backends import compiled, first_use
+        from hamrkq.backends import first_use
 
-        system = compiled.compile_system(task.ham)
-        # the shadow's Gamma: rhs_dd where the tangent goes, no jac
-        return first_use.system_functions(system, "shadow")._replace(tangent=system.rhs_dd())
+        return first_use.double_double_functions(task.ham)
     numeric = numeric_of(task.ham)
     functions = python_functions(_inplace(numeric.rhs, False), _inplace(numeric.jac, True))
     return functions._replace(tangent=codegen.load_module(task.ham).rhs_dd)
@@ -203,13 +202,17 @@ def integration(task: Task, backend: str) -> Integration:
 
 def run_rk(task: Task, backend: str) -> RunOutput:
     """Run an RKQ-family task (the runner of every family member in :data:`METHODS`)."""
+    started = time.perf_counter()
     run = integration(task, backend)
+    # Loading the functions, or compiling them (f in double-double on its
+    # first use), is the run's compiling, not its integration.
+    building_s = time.perf_counter() - started
     # With a terminal event, shorter chunks: the run stops soon after the event.
     out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
     out.stats["integrate_s"] = run.integrate_s
+    out.stats["compile_wait_s"] = building_s + run.upgrade_s
     if task.compiling is not None:
         out.stats["interpreted_steps"] = run.steps_before_upgrade
-        out.stats["compile_wait_s"] = run.upgrade_s
     return within_linear_shadow(task, out)
 
 
