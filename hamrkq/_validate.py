@@ -59,6 +59,11 @@ def span(t_span: Any) -> tuple[float, float]:
 
 def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
     """A tolerance as an array of ``dim`` finite values (> 0, or >= 0 if not ``positive``)."""
+    if isinstance(value, float) or (type(value) is int and abs(value) < 2**53):
+        # one number, the common case, without the arrays below (every solve pays this)
+        number = float(value)
+        if math.isfinite(number) and (number > 0.0 if positive else number >= 0.0):
+            return np.full(dim, number)
     if isinstance(value, str | bytes):
         raise InputTypeError(f"{name} must be a number or {dim} numbers, got {value!r}")
     items = np.ravel(np.asarray(value, dtype=object)) if np.ndim(value) else [value]
