@@ -129,9 +129,12 @@ def python(
     cache: Path | None = None,
     timeout: float = 1800,
     env: dict[str, str] | None = None,
+    cwd: Path | None = None,
 ) -> tuple[float, dict]:
     """Run ``code`` in a fresh interpreter; (wall seconds including the
-    interpreter's start, the JSON object it printed last)."""
+    interpreter's start, the JSON object it printed last).  ``python -c``
+    puts its working directory first on ``sys.path``, before ``PYTHONPATH``:
+    to measure another checkout, run it in ``cwd`` away from this one."""
     environment = {**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}
     if cache is not None:
         environment["HAMRKQ_CACHE_DIR"] = str(cache)
@@ -139,6 +142,7 @@ def python(
     done = subprocess.run(
         [sys.executable, "-c", code],
         env=environment,
+        cwd=cwd,
         capture_output=True,
         text=True,
         timeout=timeout,

@@ -577,3 +577,37 @@ def test_the_projected_departure_of_a_short_fast_growing_run_is_finite():
     out = SimpleNamespace(t=t, y=np.ones((11, 4)), gamma=gamma, t_last=1.0, saturated=0.6)
     projected = projected_departure(task, out)
     assert math.isfinite(projected) and projected > 0.6 / 0.01**2
+
+
+def _component_scales_by_halves(atol, y0):
+    """component_scales as its docstring says it, half by half."""
+    size = np.abs(np.asarray(y0, dtype=float))
+    floor = np.broadcast_to(np.asarray(atol, dtype=float), size.shape)
+    d = size.shape[0]
+    halves = (slice(0, d // 2), slice(d // 2, d)) if d % 2 == 0 else (slice(0, d),)
+    scale = size.copy()
+    for half in halves:
+        top = size[half].max(initial=0.0) or size.max(initial=0.0) or 1.0
+        largest = floor[half].max(initial=0.0)
+        share = floor[half] / largest if largest > 0.0 else 1.0
+        scale[half] = np.maximum(size[half], top * share)
+    return scale
+
+
+def test_component_scales_whole_array_form_is_the_half_by_half_rule():
+    """The whole-array component_scales (every solve pays it) gives the
+    half-by-half rule's values exactly: states with zeros, odd lengths,
+    zero and per-component floors, one atol for all."""
+    from hamrkq.rkq.witness_rules import component_scales
+
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        d = int(rng.integers(1, 9))
+        y0 = rng.normal(size=d) * 10.0 ** rng.uniform(-5, 5, size=d)
+        y0[rng.random(d) < 0.3] = 0.0
+        atol = 10.0 ** rng.uniform(-20, -3, size=d)
+        atol[rng.random(d) < 0.3] = 0.0
+        given = float(atol[0]) if rng.random() < 0.3 else atol
+        np.testing.assert_array_equal(
+            component_scales(given, y0), _component_scales_by_halves(given, y0)
+        )

@@ -9,6 +9,7 @@ the same steps (``z_substeps`` quencher steps per step of the pair).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
@@ -152,7 +153,7 @@ class Member:
             return 0.0
         return float(Fraction(2**self.z_order, 2**self.z_order - 1))
 
-    @property
+    @functools.cached_property
     def stage_rounding_dominates(self) -> bool:
         """Whether the quencher's weights magnify the rounding of its stage
         values so much that the rounding witness must round them
@@ -246,6 +247,7 @@ for _spec in registry.family_members():
 Z_METHODS: dict[str, ButcherTableau] = {"dop853": DOP853_RK8, "cooper_verner": COOPER_VERNER_RK8}
 
 
+@functools.lru_cache(maxsize=256)  # members are immutable; a solve asks several times
 def get_member(name: str, z_method: str | None = None, z_substeps: int | None = None) -> Member:
     """The family member ``name`` (with its quencher replaced by ``z_method``
     and its number of quencher steps per step by ``z_substeps``).

@@ -8,6 +8,7 @@ witness").
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -118,6 +119,20 @@ def needs_witness(
     """
     if stage_rounding:
         return True
+    # By content: a solve asks this of the same arrays several times.
+    atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
+    return _tolerance_near_floor(
+        atol.shape, atol.tobytes(), rtol.shape, rtol.tobytes(), y0.shape, y0.tobytes()
+    )
+
+
+@functools.lru_cache(maxsize=32)
+def _tolerance_near_floor(atol_shape, atol, rtol_shape, rtol, y0_shape, y0) -> bool:
+    """:func:`needs_witness`'s rule on the arrays' bytes (hashable: memoised)."""
+    atol, rtol, y0 = (
+        np.frombuffer(data).reshape(shape)
+        for shape, data in ((atol_shape, atol), (rtol_shape, rtol), (y0_shape, y0))
+    )
     tolerance = component_tolerance(atol, rtol, y0)
     return bool(np.any(tolerance < WITNESS_BELOW * component_scales(atol, y0)))
 
