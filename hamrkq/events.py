@@ -175,30 +175,39 @@ def dense_output(
     t: np.ndarray,
     y: np.ndarray,
     z: np.ndarray | None = None,
+    tolerance: tuple | None = None,
 ) -> DenseOutput:
     """The continuous solution through the nodes ``(t, y)`` of a run of
     ``member`` on ``backend`` (``"numba"`` compiles the evaluation), stepped
     from the quencher track ``z`` at the same nodes where there is one
-    (:mod:`hamrkq.rkq.dense`)."""
+    (:mod:`hamrkq.rkq.dense`); ``tolerance``: the run's ``(atol, rtol,
+    rule)`` (:class:`~hamrkq.rkq.dense.DenseOutput`)."""
     tab = dense_tableaus(member)
     params = np.require(params, np.float64, ("C", "W"))
     t = np.array(t, dtype=np.float64)
     y = np.array(y, dtype=np.float64)
-    recipe = (dense_output, (ham, member, backend, params))
+    recipe = (_rebuilt, (ham, member, backend, params, tolerance))
     if backend == "numba":
         from hamrkq.backends import compiled, extras
 
         rhs = compiled.compile_system(ham).rhs
-        work = prepare_work(y.shape[1], tab)
-        args = (rhs, tab, params, t, y, y, np.zeros(1, np.int64), np.zeros(1))
-        fast = extras.compiled_helper(evaluate, ("rhs",), *args, work, np.zeros((1, y.shape[1])))
-        return DenseOutput(t, y, z, rhs, tab, params, compiled=fast, recipe=recipe)
+        d = y.shape[1]
+        work = prepare_work(d, tab)
+        args = (rhs, tab, params, t, y, y, np.zeros(1, np.int64), np.zeros(1),
+                np.ones(d), np.zeros(d), np.zeros(3), work, np.zeros((1, d)))  # fmt: skip
+        fast = extras.compiled_helper(evaluate, ("rhs",), *args)
+        return DenseOutput(t, y, z, rhs, tab, params, fast, recipe, tolerance)
     numeric = numeric_of(ham)
 
     def rhs(t, y, params, out):
         out[:] = numeric.rhs(t, y, params)
 
-    return DenseOutput(t, y, z, rhs, tab, params, recipe=recipe)
+    return DenseOutput(t, y, z, rhs, tab, params, None, recipe, tolerance)
+
+
+def _rebuilt(ham, member, backend, params, tolerance, t, y, z) -> DenseOutput:
+    """A pickled :func:`dense_output` rebuilt (its recipe)."""
+    return dense_output(ham, member, backend, params, t, y, z, tolerance)
 
 
 def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]:

@@ -35,21 +35,27 @@ import numpy as np
 from hamrkq.rkq import steps
 from hamrkq.rkq.family import Member
 from hamrkq.rkq.jit import borrow, jitable
-from hamrkq.rkq.layout import INC, ZHI, ZLO, Tableaus, allocate_work
+from hamrkq.rkq.layout import TMP, TMP2, ZHI, ZLO, Tableaus, allocate_work
 
 __all__ = ["DenseOutput", "dense_tableaus", "evaluate", "node_index", "prepare_work"]
 
 
 @jitable
-def evaluate(rhs, tab, params, t_nodes, y_nodes, z_nodes, index, tq, work, out):
+def evaluate(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
+    rhs, tab, params, t_nodes, y_nodes, z_nodes, index, tq, atol, rtol, rule, work, out
+):
     """``out[k] = y(tq[k])``: one step of ``tab``'s quencher of size
     ``tq[k] - t_nodes[index[k]]`` from ``z_nodes[index[k]]``, plus ``y - z``
-    of the two nodes around ``tq[k]`` interpolated linearly (the module
-    docstring); ``z_nodes`` is ``y_nodes`` where there is no quencher track.
-    Returns the number of right-hand-side evaluations."""
+    of the two nodes around ``tq[k]`` interpolated linearly, or the
+    quencher's value alone where that difference exceeds ``theta`` times the
+    tolerance there (:func:`hamrkq.rkq.steps.dense_value`; ``rule`` is
+    ``(relative, tolerance rule, theta)``); ``z_nodes`` is ``y_nodes`` where
+    there is no quencher track.  Returns the number of right-hand-side
+    evaluations."""
     tab, work = borrow(tab), borrow(work)
     d = y_nodes.shape[1]
     last = t_nodes.shape[0] - 1
+    relative, tolerance_rule, theta = int(rule[0]), int(rule[1]), rule[2]
     nfev = 0
     for k in range(tq.shape[0]):
         j = index[k]
@@ -63,18 +69,18 @@ def evaluate(rhs, tab, params, t_nodes, y_nodes, z_nodes, index, tq, work, out):
         i = j if forward else j - 1
         i = min(max(i, 0), last - 1)
         w = (tq[k] - t_nodes[i]) / (t_nodes[i + 1] - t_nodes[i])
-        zhi, zlo, inc = work.V[ZHI], work.V[ZLO], work.V[INC]
+        zhi, zlo, gap = work.V[ZHI], work.V[ZLO], work.V[TMP]
         for c in range(d):
             zhi[c] = z_nodes[j, c]
             zlo[c] = 0.0
-        nfev += steps.explicit_increment(
-            rhs, t_nodes[j], zhi, zlo, h, tab, params, work, inc, False
-        )
-        for c in range(d):
-            gap = (1.0 - w) * (y_nodes[i, c] - z_nodes[i, c]) + w * (
+            gap[c] = (1.0 - w) * (y_nodes[i, c] - z_nodes[i, c]) + w * (
                 y_nodes[i + 1, c] - z_nodes[i + 1, c]
             )
-            out[k, c] = (z_nodes[j, c] + inc[c]) + gap
+        evaluations, _ = steps.dense_value(
+            rhs, t_nodes[j], zhi, zlo, h, tab, params, gap, atol, rtol, relative,
+            tolerance_rule, theta, work, out[k], work.V[TMP2],
+        )  # fmt: skip
+        nfev += evaluations
     return nfev
 
 
@@ -144,6 +150,11 @@ class DenseOutput:
         interpreted backend's closures do not pickle; the recipe's
         Hamiltonian and method do).  Without it the copy is rebuilt from
         ``rhs``, interpreted.
+    tolerance : tuple, optional
+        ``(atol, rtol, rule)`` of the run, ``rule`` as :func:`evaluate`
+        takes it: a value whose interpolated ``y - z`` exceeds the tolerance
+        there is the quencher's (:func:`hamrkq.rkq.steps.dense_value`).
+        Without it, never.
     """
 
     def __init__(
@@ -156,6 +167,7 @@ class DenseOutput:
         params: np.ndarray,
         compiled: Callable | None = None,
         recipe: tuple[Callable, tuple] | None = None,
+        tolerance: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     ):
         self.t = np.array(t, dtype=np.float64, order="C")
         self.y = np.array(y, dtype=np.float64, order="C")
@@ -171,6 +183,10 @@ class DenseOutput:
         self._compiled = compiled
         self._evaluate = compiled if compiled is not None else evaluate
         self._recipe = recipe
+        d = self.y.shape[1]
+        if tolerance is None:  # no quench rule: theta = inf
+            tolerance = (np.ones(d), np.zeros(d), np.array([0.0, 0.0, np.inf]))
+        self._tolerance = tuple(np.array(a, dtype=np.float64, order="C") for a in tolerance)
         self._count = threading.Lock()
         self.nfev = 0
 
@@ -178,14 +194,19 @@ class DenseOutput:
         """The same continuous extension through other nodes (a truncated
         run; ``z`` its quencher track, or None to step from ``y``)."""
         return DenseOutput(
-            t, y, z, self._rhs, self._tab, self._params, self._compiled, self._recipe
-        )
+            t, y, z, self._rhs, self._tab, self._params, self._compiled, self._recipe,
+            self._tolerance,
+        )  # fmt: skip
 
     def __reduce__(self):
         if self._recipe is not None:
             build, args = self._recipe
             return (build, (*args, self.t, self.y, self.z))
-        return (DenseOutput, (self.t, self.y, self.z, self._rhs, self._tab, self._params))
+        return (
+            DenseOutput,
+            (self.t, self.y, self.z, self._rhs, self._tab, self._params, None, None,
+             self._tolerance),
+        )  # fmt: skip
 
     def values(self, t) -> np.ndarray:
         """Time-major values: shape ``(m, 2n)`` for ``m`` times."""
@@ -199,8 +220,9 @@ class DenseOutput:
             work = prepare_work(self.y.shape[1], self._tab)
             z = self.y if self.z is None else self.z
             nfev = self._evaluate(
-                self._rhs, self._tab, self._params, self.t, self.y, z, index, tq, work, out
-            )
+                self._rhs, self._tab, self._params, self.t, self.y, z, index, tq,
+                *self._tolerance, work, out,
+            )  # fmt: skip
             with self._count:
                 self.nfev += int(nfev)
         return out

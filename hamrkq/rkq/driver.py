@@ -51,6 +51,14 @@ BUDGET = 2000
 UPGRADE_CHECK_SECONDS = 0.05
 #: The status of a run that ``stop`` ended (Status.TERMINAL_EVENT's code).
 ST_STOPPED = 8
+#: A ``t_eval`` time closer to the node a step starts from than this share of
+#: the free step is not landed on: the step passes it, and the value there is
+#: dense output (one quencher step from the nearer node,
+#: :func:`hamrkq.rkq.loop.write_dense`).  Landing on every time made as many
+#: steps as times (Kepler e = 0.6 with 50 001 output times: 50 000 steps
+#: where 402 carry the tolerance); landing on a time far into the step costs
+#: less than a dense value (``benchmarks/dense_t_eval.py`` chose the share).
+DENSE_SHARE = 0.75
 #: Output rows of the first buffer; later buffers double up to MAX_BUFFER_ROWS.
 FIRST_BUFFER_ROWS = 4096
 MAX_BUFFER_ROWS = 1 << 16
@@ -103,6 +111,9 @@ class Settings:
     #: The quencher's stages and f in double-double (GAMMA_SHADOW only; the
     #: functions' ``tangent`` is then ``rhs_dd``, hamrkq.backends.dd_printer).
     double_double: bool = False
+    #: A ``t_eval`` time closer than this share of the free step is passed,
+    #: its value from dense output (:data:`DENSE_SHARE`; 0: every time is landed on).
+    dense_share: float = DENSE_SHARE
 
 
 @dataclass(frozen=True)
@@ -226,6 +237,7 @@ class Integration:
             project_until=AUTO_PROJECT_UNTIL,
             project_limit=AUTO_PROJECT_SHARE * settings.gamma_limit,
             z_double_double=int(settings.double_double and gamma == GAMMA_SHADOW),
+            dense_share=settings.dense_share,
         )
         self.state = new_state(self.t0)
         y0 = _floats(y0)

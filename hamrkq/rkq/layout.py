@@ -91,6 +91,7 @@ CONFIG = np.dtype(
         ("project_until", _F),  # ... to this one
         ("project_limit", _F),  # abandon when the projected |Gamma| / delta exceeds this
         ("z_double_double", _I),  # 1: the quencher's stages and f in double-double
+        ("dense_share", _F),  # a t_eval time closer than this share of the free step is passed
     ]
 )
 
@@ -125,6 +126,10 @@ STATE = np.dtype(
         ("bad_component", _I),  # first non-finite component found, or -1
         ("floor_ratio", _F),  # the witness's share of the ratio that ended the run
         ("projected", _F),  # |Gamma| / delta projected to t_end when abandoned (ST_ABANDONED)
+        ("t_old", _F),  # the node before the last step, while its t_eval times are pending
+        ("t_old_lo", _F),
+        ("dense_pending", _I),  # t_eval times inside the last step are still to be written
+        ("dense_done", _I),  # ... and the step ended the run
     ]
 )
 
@@ -201,11 +206,15 @@ VECTORS = (
     ("NOISE", "rounding of this step"),
     ("TMP", "scratch"),
     ("TMP2", "scratch"),
+    ("UOLD", "the reported solution at the node before the step (t_eval times inside it)"),
+    ("ZOLD", "the quencher track there, compensated"),
+    ("ZOLDLO", ""),
+    ("GOLD", "Gamma there"),
 )
 (
     U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
     INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, WHI, WLO, NWHI, NWLO, FLOOR, NFLOOR,
-    GNEW, NOISE, TMP, TMP2,
+    GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD,
 ) = range(len(VECTORS))  # fmt: skip
 
 

@@ -37,6 +37,7 @@ from hamrkq.rkq.layout import (
     FLOOR,
     GAM,
     GNEW,
+    GOLD,
     K1,
     MIN_SUBNORMAL,
     NFLOOR,
@@ -61,11 +62,15 @@ from hamrkq.rkq.layout import (
     ST_SUCCESS,
     ST_UNATTAINABLE,
     ST_UNDERFLOW,
+    TMP,
     TMP2,
+    UOLD,
     WHI,
     WLO,
     ZHI,
     ZLO,
+    ZOLD,
+    ZOLDLO,
     U,
 )
 
@@ -231,6 +236,11 @@ def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
     s = borrow(state)[0]
     attempts = 0
     while True:
+        if s["dense_pending"]:
+            if emit_dense(rhs, problem, tab, c, s, work, out) == RET_BUFFER_FULL:
+                return RET_BUFFER_FULL
+            if s["status"] == ST_SUCCESS:
+                return RET_DONE
         if s["nout"] >= out.t.shape[0]:
             return RET_BUFFER_FULL
         if attempts >= budget:
@@ -255,10 +265,21 @@ def first_bad_derivative(K):
 
 
 @jitable
+def reaches(h, remaining, target):
+    """Whether a step ``h`` reaches ``target``, ``remaining`` away, or would
+    leave a sliver below the floor before it."""
+    return abs(h) >= abs(remaining) or (abs(remaining) - abs(h) < FLOOR_ULPS * EPS * abs(target))
+
+
+@jitable
 def plan_step(c, s, t_eval):
-    """The step to try: ``(h, h_free, clipped, target)``; ``h`` lands exactly on
-    the target (the next ``t_eval`` time or the end) when it would reach or
-    nearly reach it (``clipped``), ``h_free`` is the controller's choice."""
+    """The step to try: ``(h, h_free, clipped, target, dense)``; ``h`` lands
+    exactly on the target (the next ``t_eval`` time or the end) when it would
+    reach or nearly reach it (``clipped``), ``h_free`` is the controller's
+    choice.  A ``t_eval`` time within ``dense_share`` of the free step
+    (:data:`hamrkq.rkq.driver.DENSE_SHARE`) is passed, not landed on
+    (``dense``: the step's ``t_eval`` times are written from dense output,
+    :func:`emit_dense`), where there is a quencher track to step from."""
     t = s["t"]
     target = step_target(c, s, t_eval)
     direction = 1.0 if c["t_end"] > t else -1.0
@@ -268,12 +289,16 @@ def plan_step(c, s, t_eval):
     h_free = s["h"]
     if abs(h_free) > c["max_step"]:
         h_free = direction * c["max_step"]
-    # Land exactly on the target, and never leave a sliver below the floor.
-    if abs(h_free) >= abs(remaining) or (
-        abs(remaining) - abs(h_free) < FLOOR_ULPS * EPS * abs(target)
-    ):
-        return remaining, h_free, True, target
-    return h_free, h_free, False, target
+    if not reaches(h_free, remaining, target):
+        return h_free, h_free, False, target, False
+    if c["use_z"] and target != c["t_end"] and abs(remaining) < c["dense_share"] * abs(h_free):
+        end = c["t_end"]
+        to_end = (end - t) - s["t_lo"]
+        if reaches(h_free, to_end, end):
+            return to_end, h_free, True, end, True
+        return h_free, h_free, False, target, True
+    # Land exactly on the target.
+    return remaining, h_free, True, target, False
 
 
 @jitable
@@ -351,7 +376,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
 @jitable
 def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
     """One step attempt; returns ``RET_DONE`` when the run ended, else -1."""
-    h, h_free, clipped, target = plan_step(c, s, problem.t_eval)
+    h, h_free, clipped, target, dense = plan_step(c, s, problem.t_eval)
     if not clipped and abs(h) < max(FLOOR_ULPS * EPS * abs(s["t"]), MIN_SUBNORMAL):
         s["failed_h"] = h
         return stop(ST_NON_FINITE if s["last_nonfinite"] else ST_UNDERFLOW, work, out, s, c)
@@ -382,6 +407,8 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
         h_next = h_free  # a step clipped to land says nothing against the free step
     # 2.-5. The quencher, the quench, the promise.
     quenched = 0
+    if dense:
+        keep_old_node(s, work)
     if c["use_z"]:
         s["h"] = h_free  # what a redo retries; an accepted step sets the next one
         quenched = quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h)
@@ -394,11 +421,11 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
         # nothing about the free step; remembered, it would hold the PI
         # controller's growth back at every t_eval time.
         s["err_prev"] = err
-    return accept(c, s, work, out, problem.t_eval, h, h_next, clipped, target, quenched)
+    return accept(c, s, work, out, problem.t_eval, h, h_next, clipped, target, quenched, dense)
 
 
 @jitable
-def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched):
+def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense):  # noqa: PLR0913
     """Book-keeping of an accepted step: time, counters, the kept node, the end."""
     s["redo"] = 0
     advance_time(s, h, clipped, target)
@@ -413,8 +440,85 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched):
     s["last_quenched"] = quenched
     s["last_written"] = 0
     done = clipped and target == c["t_end"]
+    if dense:
+        # The t_eval times inside the step, then the node, then the end:
+        # written by emit_dense, which may wait for room in the buffer.
+        s["dense_pending"] = 1
+        s["dense_done"] = 1 if done else 0
+        return ST_RUNNING
     keep_node(c, s, work, out, t_eval, quenched, done)
     if done:
         s["status"] = ST_SUCCESS
         return RET_DONE
     return ST_RUNNING
+
+
+@jitable
+def keep_old_node(s, work):
+    """Keep the node a step starts from (its reported solution, quencher
+    track and Gamma), which the dense ``t_eval`` values inside the step
+    interpolate from."""
+    V = work.V
+    for new, old in ((U, UOLD), (ZHI, ZOLD), (ZLO, ZOLDLO), (GAM, GOLD)):
+        arith.copy(V[new], V[old])
+    s["t_old"] = s["t"]
+    s["t_old_lo"] = s["t_lo"]
+
+
+@jitable
+def emit_dense(rhs, problem, tab, c, s, work, out):
+    """Write the ``t_eval`` times strictly inside the last step from dense
+    output (:func:`write_dense`), then the step's own node if it is a
+    ``t_eval`` time, and end the run if the step did; ``RET_BUFFER_FULL``
+    when the buffer fills first (the rest is written on the next call)."""
+    t_eval = problem.t_eval
+    forward = s["t"] > s["t_old"]
+    while s["eval_index"] < t_eval.shape[0]:
+        p = t_eval[s["eval_index"]]
+        if not ((p < s["t"]) if forward else (p > s["t"])):
+            break
+        if s["nout"] >= out.t.shape[0]:
+            return RET_BUFFER_FULL
+        write_dense(rhs, problem, tab, c, s, work, out, p)
+        s["eval_index"] += 1
+    if s["nout"] >= out.t.shape[0]:
+        return RET_BUFFER_FULL
+    s["dense_pending"] = 0
+    done = s["dense_done"]
+    keep_node(c, s, work, out, t_eval, s["last_quenched"], done)
+    if done:
+        s["status"] = ST_SUCCESS
+    return ST_RUNNING
+
+
+@jitable
+def write_dense(rhs, problem, tab, c, s, work, out, p):
+    """Append the solution at ``p``, inside the last step, as
+    :func:`hamrkq.rkq.dense.evaluate` gives it between two nodes
+    (:func:`hamrkq.rkq.steps.dense_value`): one quencher step from the
+    quencher track at the nearer node, plus the reported solution's
+    difference to that track interpolated linearly (or not, where it exceeds
+    the tolerance there: the value is then quenched); the quencher's value
+    and Gamma (interpolated) beside it."""
+    V = work.V
+    w = (p - s["t_old"]) / (s["t"] - s["t_old"])
+    if abs(p - s["t_old"]) <= abs(s["t"] - p):
+        start, start_lo, t_start, t_start_lo = ZOLD, ZOLDLO, s["t_old"], s["t_old_lo"]
+    else:
+        start, start_lo, t_start, t_start_lo = ZHI, ZLO, s["t"], s["t_lo"]
+    gap = V[TMP]
+    for i in range(V.shape[1]):
+        gap[i] = (1.0 - w) * (V[UOLD, i] - V[ZOLD, i]) + w * (V[U, i] - V[ZHI, i])
+    n = s["nout"]
+    # from t_start + t_start_lo (compensated time) to exactly p
+    evaluations, quenched = steps.dense_value(
+        rhs, t_start, V[start], V[start_lo], (p - t_start) - t_start_lo, tab, problem.params,
+        gap, problem.atol, problem.rtol, c["relative"], c["rule"], c["theta"], work, out.y[n],
+        out.z[n],
+    )  # fmt: skip
+    s["nfev"] += evaluations
+    out.t[n] = p
+    for i in range(V.shape[1]):
+        out.gamma[n, i] = (1.0 - w) * V[GOLD, i] + w * V[GAM, i]
+    out.quenched[n] = 1 if quenched else 0
+    s["nout"] = n + 1

@@ -14,6 +14,7 @@ from hamrkq.rkq import arith, ddarith
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import (
     CAND,
+    DELTA,
     DINC,
     DY,
     ERR,
@@ -96,6 +97,31 @@ def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no o
         nfev += 1
     arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
     return nfev
+
+
+@jitable
+def dense_value(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
+    rhs, t, hi, lo, h, tab, params, gap, atol, rtol, relative, rule, theta, work, out_y, out_z
+):
+    """One value between two nodes (:mod:`hamrkq.rkq.dense`): the quencher's
+    value ``z = (hi + lo) + step(h)`` from the compensated state at ``t``
+    into ``out_z``, and ``out_y = z + gap``, ``gap`` the reported solution's
+    difference to the quencher interpolated between the nodes, or ``z``
+    itself where ``gap`` is more than ``theta`` times the tolerance at ``z``
+    (as a node is quenched).  That happens where a component passes near
+    zero under ``rtol`` between two nodes: the tolerance there is below the
+    nodes', and their differences, interpolated, were up to twice it (the
+    FPU chain at ``rtol`` 1e-6, ``tests/test_t_eval_dense.py``).  Returns
+    ``(evaluations, quenched)``."""
+    V = work.V
+    nfev = explicit_increment(rhs, t, hi, lo, h, tab, params, work, V[INC], False)
+    for i in range(out_z.shape[0]):
+        out_z[i] = (hi[i] + V[INC, i]) + lo[i]
+    arith.tolerance(atol, rtol, out_z, out_z, relative, rule, V[DELTA])
+    quenched = arith.weighted_norm(gap, V[DELTA]) > theta
+    for i in range(out_y.shape[0]):
+        out_y[i] = out_z[i] if quenched else out_z[i] + gap[i]
+    return nfev, quenched
 
 
 @jitable

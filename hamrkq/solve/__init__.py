@@ -55,6 +55,7 @@ from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
     Task,
+    dense_tolerance,
     member_of,
     resolve_backend,
     run_rk,
@@ -208,7 +209,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Keep every k-th accepted node (and the first and last).
     t_eval : array, optional
         Keep only these times (inside ``t_span``, strictly monotonic in the
-        direction of integration); steps are clipped to land on them.
+        direction of integration).  A step lands on a time far into it; a
+        time near the step's start is passed, and its value is dense output
+        (one quencher step from the nearer node, as ``sol.sol`` gives it,
+        within the same bound), so times denser than the steps cost one
+        quencher step each, not a step each (``docs/algorithm.md``).
     backend : {"auto", "numba", "python"}, default "auto"
         Where the step loop of ``rk34q8``/``rk34`` runs: ``"numba"``
         compiles it with the generated functions (cached on disk, see
@@ -451,7 +456,9 @@ def _require_double_double(ham) -> None:
 def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
     """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run."""
     member = member_of(task)
-    dense = _events.dense_output(task.ham, member, backend, task.params, sol.t, sol.y, sol.z)
+    dense = _events.dense_output(
+        task.ham, member, backend, task.params, sol.t, sol.y, sol.z, dense_tolerance(task)
+    )
     if not specs:
         return sol.replace(sol=dense)
     z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)

@@ -39,6 +39,7 @@ __all__ = [
     "TERMINAL_BUDGET",
     "MethodSpec",
     "Task",
+    "dense_tolerance",
     "integration",
     "largest_state",
     "member_of",
@@ -107,6 +108,15 @@ class MethodSpec:
 
 def member_of(task: Task):
     return task.options.member()
+
+
+def dense_tolerance(task: Task) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(atol, rtol, (relative, rule, theta))`` of a task, as its dense
+    output's quench rule takes them (:class:`hamrkq.rkq.dense.DenseOutput`,
+    the kernel's configuration for the same run)."""
+    o = task.options
+    relative = float(np.any(task.rtol > 0))
+    return task.atol, task.rtol, np.array([relative, o.codes()["rule"], o.quench_threshold])
 
 
 def uses_witness(task: Task) -> bool:

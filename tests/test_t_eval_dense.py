@@ -1,0 +1,115 @@
+"""Output times (``t_eval``) denser than the steps: passed by the steps, their
+values from dense output inside the kernel (``hamrkq.rkq.loop.emit_dense``),
+against the exact solution; the steps are the run's own."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hamrkq
+from hamrkq.rkq.driver import Integration, Settings
+from hamrkq.rkq.family import get_member
+from hamrkq.rkq.layout import GAMMA_SHADOW, QUENCH_NODE, RULE_COMPONENTWISE
+
+KEPLER_SPAN = (0.0, 20 * np.pi)
+
+
+@pytest.fixture(scope="module")
+def kepler():
+    return hamrkq.load_problem("kepler", e=0.6)
+
+
+@pytest.mark.parametrize("method", ["auto", "rk34q8", "rk45q12"])
+def test_dense_output_times_hold_the_tolerance_without_more_steps(kepler, method):
+    """5001 output times over ten orbits at 1e-9: every value within the
+    tolerance of the exact solution (Kepler's equation), and about the
+    steps of the run without them (before, a step landed on every time:
+    5000 steps for auto, whose own run takes about 400)."""
+    atol = 1e-9
+    own = hamrkq.solve(kepler, t_span=KEPLER_SPAN, method=method, atol=atol)
+    t_eval = np.linspace(*KEPLER_SPAN, 5001)
+    sol = hamrkq.solve(kepler, t_span=KEPLER_SPAN, t_eval=t_eval, method=method, atol=atol)
+    assert sol.success, sol.message
+    np.testing.assert_array_equal(sol.t, t_eval)
+    assert np.abs(sol.y - kepler.exact(sol.t)).max() <= 1.05 * atol
+    assert sol.stats["steps"] <= 1.1 * own.stats["steps"]
+    # The quencher's value beside each, and its difference is within the bound
+    assert np.abs(sol.global_error).max() <= 1.05 * atol
+
+
+def test_backward_in_time(kepler):
+    """From the exact state at t = 20 back to 0, 2001 output times."""
+    y20 = kepler.exact(np.array([20.0]))[0]
+    t_eval = np.linspace(20.0, 0.0, 2001)
+    sol = hamrkq.solve(kepler, q0=y20[:2], p0=y20[2:], t_span=(20.0, 0.0), t_eval=t_eval,
+                       method="auto", atol=1e-9)  # fmt: skip
+    assert sol.success
+    np.testing.assert_array_equal(sol.t, t_eval)
+    exact = kepler.exact(sol.t)  # the exact flow through y20 is the one from y0
+    assert np.abs(sol.y - exact).max() <= 1.05e-9
+
+
+def _integration(kepler, t_eval, buffer_rows):
+    ham = kepler.hamiltonian
+    from hamrkq.backends.first_use import kernel_functions
+
+    member = get_member("rk78q12", None, 2)
+    settings = Settings(QUENCH_NODE, RULE_COMPONENTWISE, GAMMA_SHADOW, t_eval=t_eval)
+    tolerances = (np.full(4, 1e-9), np.zeros(4))
+    run = Integration(kernel_functions(ham, "shadow"), member, np.array([0.6]), 0.0,
+                      kepler.y0, KEPLER_SPAN[1], *tolerances, settings)  # fmt: skip
+    return run.run(buffer_rows=buffer_rows)
+
+
+def test_a_full_buffer_between_dense_times_loses_nothing(kepler):
+    """Many output times inside one step, a buffer of 3 rows: the kernel
+    returns to grow it in the middle of a step's times and goes on where it
+    stopped; the same rows as with a large buffer."""
+    t_eval = np.linspace(*KEPLER_SPAN, 3001)
+    small = _integration(kepler, t_eval, 3)
+    large = _integration(kepler, t_eval, 10_000)
+    assert small.status == large.status == 0
+    for name in ("t", "y", "z", "gamma", "quenched"):
+        np.testing.assert_array_equal(getattr(small, name), getattr(large, name))
+    np.testing.assert_array_equal(small.t, t_eval)
+    assert small.stats == large.stats
+
+
+def test_python_and_numba_agree_bit_for_bit(kepler):
+    t_eval = np.linspace(0.0, 3.0, 301)
+    options = {"t_span": (0.0, 3.0), "t_eval": t_eval, "method": "auto", "atol": 1e-9}
+    runs = [hamrkq.solve(kepler, backend=backend, **options) for backend in ("numba", "python")]
+    for name in ("t", "y", "global_error", "gamma"):
+        np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
+    assert runs[0].stats["nfev"] == runs[1].stats["nfev"]
+
+
+def test_ensemble_members_are_the_single_runs(kepler):
+    """The batch loop writes the dense times as a single run does."""
+    q0 = np.array([[0.4, 0.0], [0.5, 0.0]])
+    p0 = np.array([[0.0, 2.0], [0.0, 1.7]])
+    t_eval = np.linspace(0.0, 10.0, 1001)
+    ens = hamrkq.ensemble(kepler, q0=q0, p0=p0, t_span=(0.0, 10.0), t_eval=t_eval,
+                          method="auto", atol=1e-9, workers=1)  # fmt: skip
+    for m in range(2):
+        single = hamrkq.solve(kepler, q0=q0[m], p0=p0[m], t_span=(0.0, 10.0), t_eval=t_eval,
+                              method="auto", atol=1e-9)  # fmt: skip
+        np.testing.assert_array_equal(ens.y[m], single.y)
+
+
+@pytest.mark.parametrize("method", ["auto", "rk45q8"])
+def test_under_rtol_output_times_near_a_zero_keep_their_tolerance(method):
+    """The FPU chain at rtol 1e-6: an output time where a component passes
+    near zero inside a step got y - z interpolated from the nodes, twice
+    its tolerance there (tests/test_rounding_floor.py found it); it is now
+    the quencher's value, quenched."""
+    fpu = hamrkq.load_problem("fpu")
+    times = np.linspace(0.0, 60.0, 601)[1:]
+    reference = hamrkq.solve(fpu, t_span=(0.0, 60.0), method="rk78q12", atol=1e-11,
+                             quencher_precision="double-double", t_eval=times)  # fmt: skip
+    sol = hamrkq.solve(fpu, t_span=(0.0, 60.0), method=method, atol=1e-9, rtol=1e-6,
+                       t_eval=times)  # fmt: skip
+    assert sol.success and reference.success
+    delta = np.maximum(1e-9, 1e-6 * np.abs(reference.y))
+    assert np.max(np.abs(sol.y - reference.y) / delta) <= 1.05
