@@ -16,7 +16,8 @@ nodes; the dense output should keep it.
 
 ``--before``: the same runs with the checkout at CHECKOUT, side by side.
 Writes ``benchmarks/dense_error.json`` and ``benchmarks/dense_error.md``
-(docs/events.md quotes the table).
+(docs/events.md quotes the table), or ``--out NAME``'s: the run beside
+297e777, before the rule for rtol between nodes, is ``dense_error_rtol``.
 """
 
 from __future__ import annotations
@@ -156,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", type=Path, help="a checkout from before the change")
     parser.add_argument("--before-label", help="what the table calls it (its commit)")
+    parser.add_argument("--out", default="dense_error", help="name of the .json and .md")
     parser.add_argument("--rows-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.rows_only:
@@ -167,9 +169,9 @@ def main(argv: list[str] | None = None) -> int:
         results["before"] = args.before_label or str(args.before)
         results["rows_before"] = _elsewhere(args.before.resolve())
     results = measure.end_record(results)
-    (HERE / "dense_error.json").write_text(json.dumps(results, indent=1) + "\n")
+    (HERE / f"{args.out}.json").write_text(json.dumps(results, indent=1) + "\n")
     text = table(results)
-    (HERE / "dense_error.md").write_text(text)
+    (HERE / f"{args.out}.md").write_text(text)
     print(text)
     return 0
 

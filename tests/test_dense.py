@@ -57,8 +57,8 @@ def test_dense_output_keeps_the_difference_to_the_quencher_between_nodes():
 def test_under_rtol_a_component_near_zero_between_nodes_keeps_its_tolerance(method):
     """The FPU chain at rtol 1e-6 (atol 1e-9) over [0, 60]: where a component
     passes near zero between two nodes its tolerance there falls to atol,
-    below the nodes'; y - z interpolated from the nodes was up to 8 (rk34q8)
-    to 56 (auto) times it.  Such a value is now the quencher's, as a node
+    below the nodes'; y - z interpolated from the nodes was up to 10 (rk34q8)
+    to 46 (auto) times it (benchmarks/dense_error_rtol.md).  Such a value is now the quencher's, as a node
     whose difference exceeds its tolerance is quenched.  Against the
     quencher in double-double at 1e-11, at 4000 random times."""
     fpu = load_problem("fpu")
