@@ -110,8 +110,9 @@ def dense_value(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
     itself where ``gap`` is more than ``theta`` times the tolerance at ``z``
     (as a node is quenched).  That happens where a component passes near
     zero under ``rtol`` between two nodes: the tolerance there is below the
-    nodes', and their differences, interpolated, were up to twice it (the
-    FPU chain at ``rtol`` 1e-6, ``tests/test_t_eval_dense.py``).  Returns
+    nodes', and their differences, interpolated, were up to 46 times it
+    (the FPU chain at ``rtol`` 1e-6, ``benchmarks/dense_error_rtol.md``;
+    2 times at an output time of ``t_eval``).  Returns
     ``(evaluations, quenched)``."""
     V = work.V
     nfev = explicit_increment(rhs, t, hi, lo, h, tab, params, work, V[INC], False)
