@@ -57,10 +57,11 @@ def test_dense_output_keeps_the_difference_to_the_quencher_between_nodes():
 def test_under_rtol_a_component_near_zero_between_nodes_keeps_its_tolerance(method):
     """The FPU chain at rtol 1e-6 (atol 1e-9) over [0, 60]: where a component
     passes near zero between two nodes its tolerance there falls to atol,
-    below the nodes'; y - z interpolated from the nodes was up to 10 (rk34q8)
-    to 46 (auto) times it (benchmarks/dense_error_rtol.md).  Such a value is now the quencher's, as a node
-    whose difference exceeds its tolerance is quenched.  Against the
-    quencher in double-double at 1e-11, at 4000 random times."""
+    below the nodes'; y - z interpolated from the nodes was up to 10
+    (rk34q8) to 46 (auto) times it (benchmarks/dense_error_rtol.md).  Such
+    a value is now the quencher's, as a node whose difference exceeds its
+    tolerance is quenched.  Against the quencher in double-double at
+    1e-11, at 4000 random times."""
     fpu = load_problem("fpu")
     span = (0.0, 60.0)
     reference = hamrkq.solve(fpu, t_span=span, method="rk78q12", atol=1e-11,
