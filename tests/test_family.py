@@ -380,6 +380,37 @@ def _henon_heiles_chaotic():
     return hamrkq.load_problem("henon_heiles"), [0.0, q2], [p1, 0.0]
 
 
+def test_output_times_already_past_the_shadows_saturation_certify_nothing():
+    """rk78q12 with eight quencher steps on the chaotic Henon-Heiles orbit
+    (its shadow saturates by t = 177, below) asked for t = 500 and 1000
+    only: the first returned row was beyond the saturation already, which
+    the cut skipped, and the run returned SUCCESS; now it keeps no node."""
+    problem, q0, p0 = _henon_heiles_chaotic()
+    sol = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, 1000), method="rk78q12",
+                       z_substeps=8, atol=1e-8, t_eval=[500.0, 1000.0])  # fmt: skip
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.t.size == 0
+    assert sol.message.startswith("By the first output time the shadow track")
+
+
+def test_an_exponential_reading_always_measures_the_rounding():
+    """Henon-Heiles at E = 1/6 (chaotic) with auto at 1e-8: the run with four
+    quencher steps read a 53-fold growth of Gamma, the law for the rounding
+    after a run put it at 0.03 of the tolerance, and no witness ran; the
+    quencher was 0.92 of the tolerance off (0.008 in double-double), the
+    nodes up to 1.53.  Now every exponential reading runs again with the
+    witness, which finds the floor, and the quencher goes to double-double.
+    Against the quencher in double-double at 1e-12 on the same nodes."""
+    problem, q0, p0 = _henon_heiles_chaotic()
+    sol = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, 300), method="auto", atol=1e-8)
+    assert sol.options["quencher_precision"] == "double-double"
+    reference = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, sol.t[-1]), method="rk78q12",
+                             quencher_precision="double-double", z_substeps=4, atol=1e-12,
+                             t_eval=sol.t)  # fmt: skip
+    assert reference.success
+    assert np.abs(sol.y - reference.y).max() <= 1.05e-8
+
+
 @pytest.mark.parametrize("atol", [1e-6, 1e-8])
 def test_auto_does_not_certify_a_chaotic_orbit_beyond_what_double_precision_holds(atol):
     # Before, auto met each stop with more quencher steps (2, 3, ..., 9 or

@@ -241,12 +241,19 @@ def witness_rerun_needed(
         return False
     if task.options.gamma_name == "tangent":
         return state_outgrew_its_start(task.atol, task.rtol, y0, y_size)
+    if factor > EXPONENTIAL_GROWTH:
+        # Gamma's growth understates the rounding's on a chaotic orbit:
+        # Henon-Heiles at E = 1/6 with auto at 1e-8 read 53-fold, the law
+        # (needs_witness_after_run) put the amplified rounding at 0.03 of
+        # the tolerance, and the quencher was 0.92 of it off (0.008 in
+        # double-double): nodes of 1.53 delta.  So every exponential reading
+        # is measured (tests/test_family.py).
+        return True
     # A growth below EXPONENTIAL_GROWTH is a regular orbit's, read noisily
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
     # and would have run again for nothing).
-    exponential = factor if factor > EXPONENTIAL_GROWTH else 1.0
-    return needs_witness_after_run(task.atol, task.rtol, y0, exponential, steps, y_size)
+    return needs_witness_after_run(task.atol, task.rtol, y0, 1.0, steps, y_size)
 
 
 def reruns_with_witness(task: Task) -> bool:

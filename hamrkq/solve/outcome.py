@@ -228,8 +228,10 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     """The message for a run ended where its shadow track left the linear
     regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`)."""
     member = member_of(task)
+    # With no node kept, the first output time was beyond already.
+    when = f"After t = {float(out.t_last)!r}" if out.t.shape[0] else "By the first output time"
     text = (
-        f"After t = {float(out.t_last)!r} the shadow track behind the estimate of the "
+        f"{when} the shadow track behind the estimate of the "
         f"quencher's global error (Gamma: the quencher in one step a step, whose error is "
         f"{member.z_substeps}^{member.z_order} times the quencher's) had moved "
         f"{out.saturated:.3g} of the orbit's size away from the quencher, more than "
