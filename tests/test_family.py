@@ -393,6 +393,23 @@ def test_output_times_already_past_the_shadows_saturation_certify_nothing():
     assert sol.message.startswith("By the first output time the shadow track")
 
 
+@pytest.mark.parametrize("atol", [1e-6, 1e-8])
+def test_output_times_far_apart_do_not_hide_an_exponential_growth(atol):
+    """The chaotic Henon-Heiles orbit asked for t = 150 and 300 only: the
+    rules after a run read Gamma's growth from the two returned rows (none)
+    and auto returned SUCCESS 94 (1e-6) and 9633 (1e-8) times the tolerance
+    off (heyoka in long double); the run with every node stops by t = 162.
+    Now they read the kernel's maxima over every node, and so does the
+    ensemble's batch loop."""
+    problem, q0, p0 = _henon_heiles_chaotic()
+    options = {"t_span": (0, 300), "method": "auto", "atol": atol, "t_eval": [150.0, 300.0]}
+    sol = hamrkq.solve(problem, q0=q0, p0=p0, **options)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    ens = hamrkq.ensemble(problem, q0=np.array([q0]), p0=np.array([p0]), workers=1, **options)
+    assert ens.status[0] == hamrkq.Status.TOLERANCE_UNATTAINABLE.code
+    assert np.isnan(ens.y[0, -1]).all()
+
+
 def test_an_exponential_reading_always_measures_the_rounding():
     """Henon-Heiles at E = 1/6 (chaotic) with auto at 1e-8: the run with four
     quencher steps read a 53-fold growth of Gamma, the law for the rounding
@@ -613,7 +630,9 @@ def test_the_projected_departure_of_a_short_fast_growing_run_is_finite():
     gamma = np.zeros((11, 4))
     gamma[:6] = 1e-20
     gamma[6:] = 1e-15  # 1e5-fold over the second half
-    out = SimpleNamespace(t=t, y=np.ones((11, 4)), gamma=gamma, t_last=1.0, saturated=0.6)
+    out = SimpleNamespace(
+        t=t, y=np.ones((11, 4)), gamma=gamma, t_last=1.0, saturated=0.6, thinned=False, y_max=None
+    )
     projected = projected_departure(task, out)
     assert math.isfinite(projected) and projected > 0.6 / 0.01**2
 

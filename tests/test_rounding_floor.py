@@ -212,12 +212,14 @@ def test_after_exponential_growth_the_witness_runs_where_amplified_rounding_coul
     # rk45q12 over three periods: 66 500-fold (true error 42 x 1e-8 before
     # the witness ran)
     assert needs_witness_after_run(atol(1e-6), rtol, arenstorf.y0, 66_500.0, 700)
-    # The run at 1e-6 is not made again: the same nodes, its quencher's true
-    # error a thousandth of the tolerance; against rk34q8 at 1e-10.
+    # The law above is no longer what decides after an exponential reading
+    # (on a chaotic orbit it understated the rounding 28-fold,
+    # tests/test_family.py): the run at 1e-6 is made again with the witness,
+    # and returns nodes within the tolerance; against rk34q8 at 1e-10.
     times = np.linspace(*arenstorf.t_span, 201)[1:]
     sol = hamrkq.solve(arenstorf, method="auto", atol=1e-6, t_eval=times)
-    assert sol.success and "discarded_evaluations" not in sol.stats
-    assert sol.options["rounding_witness"] is False
+    assert sol.success and sol.stats["discarded_evaluations"] > 0
+    assert sol.options["rounding_witness"] is True
     tight = hamrkq.solve(arenstorf, method="rk34q8", atol=1e-10, t_eval=times)
     n = min(sol.t.size, tight.t.size)
     assert n >= times.size - 2  # rk34q8 at 1e-10 stops just before the end

@@ -23,11 +23,15 @@ from hamrkq.rkq import arith
 from hamrkq.rkq.auto_rules import middle_of
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
+    CHECKPOINTS,
+    CHK0,
+    GMAX,
     RET_DONE,
     SHI,
     ST_RUNNING,
     STATE,
     WHI,
+    YMAX,
     ZHI,
     Output,
     U,
@@ -131,6 +135,8 @@ def load_member(problem, state, work, batch, m):
     work.JM[:, :] = 0.0
     for row in (U, ZHI, SHI, WHI):
         arith.copy(batch.y0[m], work.V[row])
+    for i in range(work.V.shape[1]):
+        work.V[YMAX, i] = abs(batch.y0[m, i])
     arith.copy(batch.params[m], problem.params)
     arith.nudge(problem.params, problem.witness_params)
 
@@ -172,6 +178,33 @@ def fold_nodes(energy, params, c, s, batch, m, kept):
 
 
 @jitable
+def fold_every_node(c, s, work, batch, m):
+    """Fold the kernel's maxima over every node of member ``m`` (kept or
+    not: with ``t_eval`` the rows are only the output times) into its
+    largest ``|y|`` and ``|Gamma|``, up to the middle by the last checkpoint
+    at or before it (a smaller maximum there: a growth at least as large;
+    :func:`hamrkq.solve.auto.growth` reads a single run's alike)."""
+    V = work.V
+    span = c["t_end"] - c["t_start"]
+    middle = (batch.middle[0] - c["t_start"]) / span if span != 0.0 else 1.0
+    row = -1
+    for k in range(s["checkpoint"]):  # the checkpoints passed, ascending
+        if 2.0 ** -(CHECKPOINTS - 1 - k) <= middle:
+            row = CHK0 + k
+    reached_middle = (s["t"] - c["t_start"]) / span > middle if span != 0.0 else True
+    for i in range(V.shape[1]):
+        batch.y_size[m, i] = nan_max(batch.y_size[m, i], V[YMAX, i])
+        batch.gamma_to_end[m, i] = nan_max(batch.gamma_to_end[m, i], V[GMAX, i])
+        if not reached_middle:
+            up_to_middle = V[GMAX, i]
+        elif row >= 0:
+            up_to_middle = V[row, i]
+        else:
+            up_to_middle = 0.0
+        batch.gamma_to_middle[m, i] = nan_max(batch.gamma_to_middle[m, i], up_to_middle)
+
+
+@jitable
 def run_members(rhs, tangent, jac, energy, problem, tab, cfg, state, work, batch):
     """Integrate every member of ``batch`` (see the module docstring) with
     the shared ``problem`` (its ``params`` row is overwritten per member),
@@ -191,6 +224,8 @@ def run_members(rhs, tangent, jac, energy, problem, tab, cfg, state, work, batch
                 status = s["status"]
             kept = fold_nodes(energy, problem.params, c, s, batch, m, kept)
         kept = fold_nodes(energy, problem.params, c, s, batch, m, kept)
+        if c["use_t_eval"] and c["use_z"]:
+            fold_every_node(c, s, work, batch, m)
         if kept == 0:
             batch.energy0[m] = np.nan
         batch.status[m] = status

@@ -21,14 +21,18 @@ from hamrkq.rkq import arith, loop
 from hamrkq.rkq.auto_rules import AUTO_PROJECT_FROM, AUTO_PROJECT_SHARE, AUTO_PROJECT_UNTIL
 from hamrkq.rkq.family import Member
 from hamrkq.rkq.layout import (
+    CHECKPOINTS,
+    CHK0,
     GAMMA_OFF,
     GAMMA_PAPER,
     GAMMA_SHADOW,
     GAMMA_TANGENT,
+    GMAX,
     RET_BUFFER_FULL,
     RET_DONE,
     ST_INTERRUPTED,
     ST_RUNNING,
+    YMAX,
     Inputs,
     Output,
     U,
@@ -138,6 +142,15 @@ class RunOutput:
     #: ended the run (hamrkq.rkq.auto_rules.SHADOW_SATURATION), or 0.
     saturated: float = 0.0
     saturated_step: float = 0.0  # the run's mean step where ``saturated`` ended it
+    #: Each component's largest ``|y|`` and ``|Gamma|`` over every node of the
+    #: run, kept or not, and the largest ``|Gamma|`` up to each checkpoint
+    #: (rows by ``hamrkq.rkq.layout.checkpoint_fractions``; those the run did
+    #: not pass are NaN): what the rules after a run read when the returned
+    #: rows are thinned (``thinned``: ``t_eval`` or ``keep_every``).
+    y_max: np.ndarray | None = None
+    gamma_max: np.ndarray | None = None
+    gamma_checkpoints: np.ndarray | None = None
+    thinned: bool = False
 
     @property
     def at_rounding_floor(self) -> bool:
@@ -376,7 +389,16 @@ class Integration:
             bad_component=int(s["bad_component"]),
             stats=self.stats(),
             projected=float(s["projected"]),
+            y_max=self.work.V[YMAX].copy(),
+            gamma_max=self.work.V[GMAX].copy() if use_z else None,
+            gamma_checkpoints=self._checkpoints() if use_z else None,
+            thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
         )
+
+    def _checkpoints(self) -> np.ndarray:
+        rows = self.work.V[CHK0 : CHK0 + CHECKPOINTS].copy()
+        rows[int(self.record["checkpoint"]) :] = np.nan  # not passed
+        return rows
 
 
 def _filled(out: Output, n: int) -> tuple[np.ndarray, ...]:

@@ -130,6 +130,7 @@ STATE = np.dtype(
         ("t_old_lo", _F),
         ("dense_pending", _I),  # t_eval times inside the last step are still to be written
         ("dense_done", _I),  # ... and the step ended the run
+        ("checkpoint", _I),  # the next row CHK0 + k whose time is still ahead
     ]
 )
 
@@ -210,12 +211,27 @@ VECTORS = (
     ("ZOLD", "the quencher track there, compensated"),
     ("ZOLDLO", ""),
     ("GOLD", "Gamma there"),
+    ("YMAX", "each component's largest |u| over every node (kept or not)"),
+    ("GMAX", "each component's largest |Gamma| over every node"),
+    *((f"CHK{k}", "GMAX when t passed checkpoint k (checkpoint_fractions)") for k in range(16)),
 )
 (
     U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
     INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, WHI, WLO, NWHI, NWLO, FLOOR, NFLOOR,
-    GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD,
-) = range(len(VECTORS))  # fmt: skip
+    GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD, YMAX, GMAX,
+) = range(len(VECTORS) - 16)  # fmt: skip
+#: Rows ``CHK0 .. CHK0 + CHECKPOINTS - 1``: the largest ``|Gamma|`` over the
+#: nodes up to the fractions ``2^-(CHECKPOINTS - 1), ..., 1/4, 1/2, 1`` of
+#: the interval, so that the rules after a run read how Gamma grew over the
+#: second half of it from every node, not only from the kept ones
+#: (``t_eval``, ``keep_every``; :func:`checkpoint_fractions`).
+CHECKPOINTS = 16
+CHK0 = GMAX + 1
+
+
+def checkpoint_fractions() -> np.ndarray:
+    """The fractions of the interval of the rows ``CHK0 ...``, ascending."""
+    return 2.0 ** -np.arange(CHECKPOINTS - 1, -1, -1, dtype=np.float64)
 
 
 class Work(NamedTuple):
@@ -256,6 +272,7 @@ def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
     )
     for row in (U, ZHI, SHI, WHI):
         work.V[row] = y0
+    work.V[YMAX] = np.abs(y0)
     return work
 
 

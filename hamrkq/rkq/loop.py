@@ -32,10 +32,13 @@ from hamrkq.rkq import arith, steps
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
     CAND,
+    CHECKPOINTS,
+    CHK0,
     DELTA,
     ERR,
     FLOOR,
     GAM,
+    GMAX,
     GNEW,
     GOLD,
     K1,
@@ -67,6 +70,7 @@ from hamrkq.rkq.layout import (
     UOLD,
     WHI,
     WLO,
+    YMAX,
     ZHI,
     ZLO,
     ZOLD,
@@ -429,6 +433,7 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense)
     """Book-keeping of an accepted step: time, counters, the kept node, the end."""
     s["redo"] = 0
     advance_time(s, h, clipped, target)
+    track_maxima(c, s, work)
     s["h"] = h_next
     s["steps"] += 1
     fsal = c["fsal"] and not quenched
@@ -451,6 +456,28 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense)
         s["status"] = ST_SUCCESS
         return RET_DONE
     return ST_RUNNING
+
+
+@jitable
+def track_maxima(c, s, work):
+    """Fold the new node into ``V[YMAX]`` and ``V[GMAX]``, after keeping
+    ``V[GMAX]`` as it was before it in the rows of the checkpoints the step
+    passed: the largest ``|Gamma|`` up to the fraction ``2^-j`` of the
+    interval is the largest over the nodes at or before it."""
+    V = work.V
+    span = c["t_end"] - c["t_start"]
+    rows = CHECKPOINTS
+    while s["checkpoint"] < rows:
+        k = s["checkpoint"]
+        fraction = 2.0 ** -(rows - 1 - k)
+        reached = (s["t"] - c["t_start"]) / span
+        if not reached > fraction:
+            break
+        arith.copy(V[GMAX], V[CHK0 + k])
+        s["checkpoint"] = k + 1
+    for i in range(V.shape[1]):
+        V[YMAX, i] = arith.fmax(V[YMAX, i], abs(V[U, i]))
+        V[GMAX, i] = arith.fmax(V[GMAX, i], abs(V[GAM, i]))
 
 
 @jitable

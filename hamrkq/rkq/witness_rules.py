@@ -202,7 +202,11 @@ def needs_witness_after_run(
     tolerance off by t = 1.7e5, Gamma reading 3.5e-12, the quencher's true
     error 2.3e-8 (rounding: in double-double 1e-11).
 
-    The growth, measured (``benchmarks/witness_after_growth.md``,
+    :func:`hamrkq.solve.auto.witness_rerun_needed` asks it for regular
+    runs only (``growth`` 1): after an exponential reading the witness runs
+    whatever the law says, since on the chaotic Henon-Heiles orbit the
+    estimate's growth (53-fold) put the rounding at 0.03 of the tolerance
+    where it was 0.92.  The growth, measured (``benchmarks/witness_after_growth.md``,
     ``method="auto"`` on the catalogue at eight tolerances): made again every
     time, the witness run returned the same nodes on the Arenstorf orbit at
     1e-4 and 1e-6 (240- to 280-fold at its close approach, the quencher's

@@ -239,11 +239,14 @@ def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.n
 
 
 def largest_state(out: RunOutput) -> np.ndarray:
-    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none):
-    the size the rules after a run measure against."""
-    if out.y.shape[0] == 0:
-        return np.zeros(out.y.shape[1])
-    return np.abs(out.y).max(axis=0)
+    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none;
+    over every node of the run where the returned rows are thinned): the
+    size the rules after a run measure against."""
+    kept = np.abs(out.y).max(axis=0) if out.y.shape[0] else np.zeros(out.y.shape[1])
+    if out.thinned and out.y_max is not None:
+        # the kernel's maximum over every node, kept or not
+        return np.maximum(kept, out.y_max)
+    return kept
 
 
 def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
