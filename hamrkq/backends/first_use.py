@@ -158,9 +158,8 @@ def double_double_functions(
     """The compiled kernel's functions for a run with the quencher in
     double-double: the shadow estimate's, with ``rhs_dd`` (f in
     double-double) in the tangent's place.  ``rhs_dd`` is compiled on its
-    first use (for a large system, longer than the rest of the system: 13 s
-    for eight bodies in space); a wait longer than :data:`ANNOUNCE_AFTER`
-    is announced as :func:`warm_up`'s."""
+    first use (seconds for a system of a few dozen state variables); a wait
+    longer than :data:`ANNOUNCE_AFTER` is announced as :func:`warm_up`'s."""
     system = compiled.compile_system(ham)
 
     def begin() -> str:

@@ -23,7 +23,6 @@ from hamrkq.rkq import arith
 from hamrkq.rkq.auto_rules import middle_of
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
-    CHECKPOINTS,
     CHK0,
     GMAX,
     RET_DONE,
@@ -35,6 +34,7 @@ from hamrkq.rkq.layout import (
     ZHI,
     Output,
     U,
+    checkpoint_fraction,
 )
 from hamrkq.rkq.loop import advance
 from hamrkq.rkq.start import begin
@@ -189,7 +189,7 @@ def fold_every_node(c, s, work, batch, m):
     middle = (batch.middle[0] - c["t_start"]) / span if span != 0.0 else 1.0
     row = -1
     for k in range(s["checkpoint"]):  # the checkpoints passed, ascending
-        if 2.0 ** -(CHECKPOINTS - 1 - k) <= middle:
+        if checkpoint_fraction(k) <= middle:
             row = CHK0 + k
     reached_middle = (s["t"] - c["t_start"]) / span > middle if span != 0.0 else True
     for i in range(V.shape[1]):

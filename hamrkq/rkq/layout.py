@@ -22,6 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hamrkq.rkq.jit import jitable
+
 __all__ = [
     "CONFIG",
     "STATE",
@@ -129,7 +131,6 @@ STATE = np.dtype(
         ("t_old", _F),  # the node before the last step, while its t_eval times are pending
         ("t_old_lo", _F),
         ("dense_pending", _I),  # t_eval times inside the last step are still to be written
-        ("dense_done", _I),  # ... and the step ended the run
         ("checkpoint", _I),  # the next row CHK0 + k whose time is still ahead
     ]
 )
@@ -167,6 +168,13 @@ class Inputs(NamedTuple):
     t_eval: np.ndarray
     witness_params: np.ndarray
 
+
+#: Rows ``CHK0 .. CHK0 + CHECKPOINTS - 1`` of :attr:`Work.V`: the largest
+#: ``|Gamma|`` over the nodes up to the fractions ``2^-(CHECKPOINTS - 1), ...,
+#: 1/4, 1/2, 1`` of the interval, so that the rules after a run read how Gamma
+#: grew over the second half of it from every node, not only from the kept
+#: ones (``t_eval``, ``keep_every``; :func:`checkpoint_fraction`).
+CHECKPOINTS = 16
 
 #: The rows of :attr:`Work.V`, each a vector of ``d`` components.  Rows of
 #: one matrix rather than separate arrays, because numba passes every array
@@ -213,25 +221,27 @@ VECTORS = (
     ("GOLD", "Gamma there"),
     ("YMAX", "each component's largest |u| over every node (kept or not)"),
     ("GMAX", "each component's largest |Gamma| over every node"),
-    *((f"CHK{k}", "GMAX when t passed checkpoint k (checkpoint_fractions)") for k in range(16)),
+    *((f"CHK{k}", "GMAX when t passed checkpoint_fraction(k)") for k in range(CHECKPOINTS)),
 )
 (
     U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
     INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, WHI, WLO, NWHI, NWLO, FLOOR, NFLOOR,
     GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD, YMAX, GMAX,
-) = range(len(VECTORS) - 16)  # fmt: skip
-#: Rows ``CHK0 .. CHK0 + CHECKPOINTS - 1``: the largest ``|Gamma|`` over the
-#: nodes up to the fractions ``2^-(CHECKPOINTS - 1), ..., 1/4, 1/2, 1`` of
-#: the interval, so that the rules after a run read how Gamma grew over the
-#: second half of it from every node, not only from the kept ones
-#: (``t_eval``, ``keep_every``; :func:`checkpoint_fractions`).
-CHECKPOINTS = 16
+) = range(len(VECTORS) - CHECKPOINTS)  # fmt: skip
 CHK0 = GMAX + 1
 
 
+@jitable
+def checkpoint_fraction(k):
+    """The fraction of the interval of the row ``CHK0 + k``: ``2^-(CHECKPOINTS
+    - 1 - k)``, ascending in ``k`` to 1 (the kernel calls it; numba compiles
+    it)."""
+    return 2.0 ** -(CHECKPOINTS - 1 - k)
+
+
 def checkpoint_fractions() -> np.ndarray:
-    """The fractions of the interval of the rows ``CHK0 ...``, ascending."""
-    return 2.0 ** -np.arange(CHECKPOINTS - 1, -1, -1, dtype=np.float64)
+    """:func:`checkpoint_fraction` of every checkpoint row, ascending."""
+    return np.array([checkpoint_fraction(k) for k in range(CHECKPOINTS)])
 
 
 class Work(NamedTuple):

@@ -76,6 +76,7 @@ from hamrkq.rkq.layout import (
     ZOLD,
     ZOLDLO,
     U,
+    checkpoint_fraction,
 )
 
 # Step-size control (Hairer, Norsett & Wanner, Solving ODEs I, II.4).
@@ -449,7 +450,6 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense)
         # The t_eval times inside the step, then the node, then the end:
         # written by emit_dense, which may wait for room in the buffer.
         s["dense_pending"] = 1
-        s["dense_done"] = 1 if done else 0
         return ST_RUNNING
     keep_node(c, s, work, out, t_eval, quenched, done)
     if done:
@@ -465,16 +465,10 @@ def track_maxima(c, s, work):
     passed: the largest ``|Gamma|`` up to the fraction ``2^-j`` of the
     interval is the largest over the nodes at or before it."""
     V = work.V
-    span = c["t_end"] - c["t_start"]
-    rows = CHECKPOINTS
-    while s["checkpoint"] < rows:
-        k = s["checkpoint"]
-        fraction = 2.0 ** -(rows - 1 - k)
-        reached = (s["t"] - c["t_start"]) / span
-        if not reached > fraction:
-            break
-        arith.copy(V[GMAX], V[CHK0 + k])
-        s["checkpoint"] = k + 1
+    reached = (s["t"] - c["t_start"]) / (c["t_end"] - c["t_start"])
+    while s["checkpoint"] < CHECKPOINTS and reached > checkpoint_fraction(s["checkpoint"]):
+        arith.copy(V[GMAX], V[CHK0 + s["checkpoint"]])
+        s["checkpoint"] += 1
     for i in range(V.shape[1]):
         V[YMAX, i] = arith.fmax(V[YMAX, i], abs(V[U, i]))
         V[GMAX, i] = arith.fmax(V[GMAX, i], abs(V[GAM, i]))
@@ -511,7 +505,7 @@ def emit_dense(rhs, problem, tab, c, s, work, out):
     if s["nout"] >= out.t.shape[0]:
         return RET_BUFFER_FULL
     s["dense_pending"] = 0
-    done = s["dense_done"]
+    done = s["t"] == c["t_end"]  # a step that reaches the end lands on it exactly
     keep_node(c, s, work, out, t_eval, s["last_quenched"], done)
     if done:
         s["status"] = ST_SUCCESS

@@ -174,26 +174,17 @@ def needs_witness_after_run(
     atol: np.ndarray,
     rtol: np.ndarray,
     y0: np.ndarray,
-    growth: float,
     steps: int,
     size: np.ndarray | None = None,
 ) -> bool:
-    """Whether a run without the witness, whose estimate of Gamma grew
-    ``growth``-fold over the second half of its ``steps`` steps (an
-    exponential growth; 1, or anything up to 4, for a regular orbit), from
-    ``y0``, whose components reached ``size`` (the largest ``|y_k|`` over
-    the run, ``y0`` by default), must run again with it: its quencher's
-    rounding, amplified by the orbit over the run's length and grown with
-    the state, could reach the tolerance, which the shadow estimate does not
-    see.
-
-    An error that grows like ``exp(lambda t)`` grows by ``g`` over the second
-    half of a run and by ``g^2`` over all of it, the quencher's rounding
-    alike; on a regular orbit by ``4`` and ``16``.  So the rounding can reach
-    ``(g / 4)^2`` times what it reaches on a regular orbit of as many steps,
-    which is :func:`length_factor` times what it reaches in
-    :data:`WITNESS_REFERENCE_STEPS`; the witness runs where
-    :func:`needs_witness`'s threshold, scaled by both, is above some
+    """Whether a run of ``steps`` steps without the witness, on a regular
+    orbit, from ``y0``, whose components reached ``size`` (the largest
+    ``|y_k|`` over the run, ``y0`` by default), must run again with it: its
+    quencher's rounding, amplified by the orbit over the run's length and
+    grown with the state, could reach the tolerance, which the shadow
+    estimate does not see.  The rounding reaches :func:`length_factor` times
+    what it reaches in :data:`WITNESS_REFERENCE_STEPS`; the witness runs
+    where :func:`needs_witness`'s threshold, scaled by it, is above some
     component's tolerance.
 
     The length alone: prentice2011 to t = 1e6 at atol 1e-8 with
@@ -202,22 +193,14 @@ def needs_witness_after_run(
     tolerance off by t = 1.7e5, Gamma reading 3.5e-12, the quencher's true
     error 2.3e-8 (rounding: in double-double 1e-11).
 
-    :func:`hamrkq.solve.auto.witness_rerun_needed` asks it for regular
-    runs only (``growth`` 1): after an exponential reading the witness runs
-    whatever the law says, since on the chaotic Henon-Heiles orbit the
-    estimate's growth (53-fold) put the rounding at 0.03 of the tolerance
-    where it was 0.92.  The growth, measured (``benchmarks/witness_after_growth.md``,
-    ``method="auto"`` on the catalogue at eight tolerances): made again every
-    time, the witness run returned the same nodes on the Arenstorf orbit at
-    1e-4 and 1e-6 (240- to 280-fold at its close approach, the quencher's
-    true error a thousandth of the tolerance), the FPU chain at 1e-4 and
-    1e-6 and the Pleiades at 1e-4, for 2.6 times the evaluations; at 1e-8 on
-    the Arenstorf orbit it still runs.  A member whose quencher has no
-    truncation error left (``rk45q12`` over three Arenstorf periods at 1e-8,
-    66 500-fold) needs it: its true error was 42 times the tolerance
-    (``benchmarks/error_growth.txt``).
+    After an exponential growth of the estimate the witness runs whatever
+    this says (:func:`hamrkq.solve.auto.witness_rerun_needed`).  This rule
+    scaled the threshold by ``(g / 4)^2`` for a growth ``g`` over the second
+    half of the run (``benchmarks/witness_after_growth.md``), which on the
+    chaotic Henon-Heiles orbit (53-fold) put the rounding at 0.03 of the
+    tolerance where it was 0.92.
     """
-    ratio = max(1.0, growth / 4.0) ** 2 * length_factor(steps)
+    ratio = length_factor(steps)
     # The tolerance at y0, as the rule at the start (with rtol, a component
     # that is 0 there has atol, as it has wherever it crosses zero); the
     # rounding at the run's largest state (it grows with |y|).
@@ -255,5 +238,5 @@ def state_outgrew_its_start(
     grew = float(np.max(component_scales(atol, np.maximum(np.abs(y0), size)) / start))
     if not grew > STATE_GROWTH:  # the common case, decided without the rules (every call pays)
         return False
-    at_size = needs_witness_after_run(atol, rtol, y0, 1.0, WITNESS_REFERENCE_STEPS, size)
-    return at_size and not needs_witness_after_run(atol, rtol, y0, 1.0, WITNESS_REFERENCE_STEPS)
+    at_size = needs_witness_after_run(atol, rtol, y0, WITNESS_REFERENCE_STEPS, size)
+    return at_size and not needs_witness_after_run(atol, rtol, y0, WITNESS_REFERENCE_STEPS)

@@ -276,7 +276,7 @@ def witness_rerun_needed(
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
     # and would have run again for nothing).
-    return needs_witness_after_run(task.atol, task.rtol, y0, 1.0, steps, y_size)
+    return needs_witness_after_run(task.atol, task.rtol, y0, steps, y_size)
 
 
 def reruns_with_witness(task: Task) -> bool:
