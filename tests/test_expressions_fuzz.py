@@ -28,6 +28,9 @@ FUZZ = settings(
     max_examples=300,
     deadline=None,
     database=None,
+    # a fixed sequence of examples: a random one hung CI (SymPy reducing a
+    # tan argument modulo pi at huge precision), see the note on the issue
+    derandomize=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
 
