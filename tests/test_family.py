@@ -216,6 +216,23 @@ def test_auto_rerun_rule_grows_the_quenchers_steps_only_for_its_truncation_error
     assert auto_retry_substeps(3, 12, 1e9, 0.05, 1e-6) == AUTO_MAX_SUBSTEPS
 
 
+def test_auto_rerun_rule_after_an_exponential_growth_projects_it_to_the_end():
+    from hamrkq.rkq.auto_rules import auto_retry_substeps
+
+    # The Arenstorf orbit at rtol 1e-6: 3 steps stopped at 0.99998 of the
+    # period, the estimate at 0.321 delta against a limit of 0.05, grown
+    # 770-fold: 770^(2 x 2e-5) is 1.0003, so 3 (2 x 6.42 x 1.0003)^(1/12) =
+    # 3.71, and 4 steps (which reach the end).
+    assert auto_retry_substeps(3, 12, 0.321, 0.05, 0.99998, growth=770.0) == 4
+    # the Henon-Heiles chaotic orbit stopped at t = 162 of 1000, 53-fold: the
+    # projection is 53^10.3 times the limit, beyond any quencher steps
+    assert auto_retry_substeps(2, 12, 0.05, 0.05, 0.162, growth=53.0) is None
+    # halfway, 60-fold: 60^2 x 2 = 7200, 2 x 7200^(1/12) = 4.2 -> 5
+    assert auto_retry_substeps(2, 12, 0.05, 0.05, 0.5, growth=60.0) == 5
+    # a growth whose power overflows a float is refused, not raised
+    assert auto_retry_substeps(2, 12, 0.05, 0.05, 1e-6, growth=1e300) is None
+
+
 def test_auto_abandon_rule_grows_the_quenchers_steps_by_the_projection():
     from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_abandon_substeps
 
@@ -416,16 +433,19 @@ def test_an_exponential_reading_always_measures_the_rounding():
     after a run put it at 0.03 of the tolerance, and no witness ran; the
     quencher was 0.92 of the tolerance off (0.008 in double-double), the
     nodes up to 1.53.  Now every exponential reading runs again with the
-    witness, which finds the floor, and the quencher goes to double-double.
-    Against the quencher in double-double at 1e-12 on the same nodes."""
+    witness, which finds the floor, and the quencher goes to double-double
+    (in eight steps a step and shorter steps, it reaches t = 300, where the
+    orbit has amplified errors some 10^7-fold).  Against heyoka in 160-bit
+    floats on the same nodes (in long double its own error is 1.4e-7 at
+    t = 300)."""
+    from helpers import multiprecision_states
+
     problem, q0, p0 = _henon_heiles_chaotic()
     sol = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, 300), method="auto", atol=1e-8)
     assert sol.options["quencher_precision"] == "double-double"
-    reference = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, sol.t[-1]), method="rk78q12",
-                             quencher_precision="double-double", z_substeps=4, atol=1e-12,
-                             t_eval=sol.t)  # fmt: skip
-    assert reference.success
-    assert np.abs(sol.y - reference.y).max() <= 1.05e-8
+    params = list(sol.options["parameters"].values())
+    reference = multiprecision_states(problem.hamiltonian, params, sol.y[0], sol.t)
+    assert np.abs(sol.y - reference).max() <= 1.05e-8
 
 
 @pytest.mark.parametrize("atol", [1e-6, 1e-8])
@@ -465,6 +485,22 @@ def test_auto_on_the_arenstorf_orbit_stops_where_its_error_can_no_longer_be_cert
     common = min(auto.t.size, tight.t.size)
     assert common > 20
     assert np.abs(auto.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)
+
+
+def test_auto_reaches_the_end_of_an_arenstorf_period_at_rtol_1e_6():
+    # Before: TOLERANCE_UNATTAINABLE at t = 17.0648 of 17.0652: the estimate
+    # grew 770-fold through the close approach to the Moon, which read as an
+    # unstable orbit twice, and auto ran no more quencher steps; four a step
+    # reach the end.
+    problem = hamrkq.load_problem("arenstorf")
+    atol, rtol = 1e-9, 1e-6
+    sol = hamrkq.solve(problem, method="auto", atol=atol, rtol=rtol)
+    assert sol.status is hamrkq.Status.SUCCESS and sol.t[-1] == problem.t_span[1]
+    assert sol.options["z_substeps"] == 4
+    ref = hamrkq.solve(problem, method="auto", atol=1e-12, rtol=0.0, t_eval=sol.t)
+    assert ref.status is hamrkq.Status.SUCCESS
+    delta = np.maximum(atol, rtol * np.abs(ref.y))
+    assert (np.abs(sol.y - ref.y) / delta).max() <= 1.05
 
 
 @pytest.mark.parametrize("method", ["rk45q12", "rk56q12"])

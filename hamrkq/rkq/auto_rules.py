@@ -105,7 +105,12 @@ AUTO_MAX_SUBSTEPS = 12
 
 
 def auto_retry_substeps(
-    substeps: int, z_order: int, gamma_ratio: float, gamma_limit: float, reached: float
+    substeps: int,
+    z_order: int,
+    gamma_ratio: float,
+    gamma_limit: float,
+    reached: float,
+    growth: float | None = None,
 ) -> int | None:
     """Quencher steps per step for ``method="auto"``'s next run, or None.
 
@@ -117,7 +122,15 @@ def auto_retry_substeps(
     quencher's error falls like ``m^-z``; on a periodic orbit its phase error
     grows like ``t^2``, so to reach the end with half the limit to spare the
     error must fall by ``r = 2 (gamma_ratio / gamma_limit) / reached^2`` and
-    ``m`` grows to ``ceil(m r^(1/z))``, at least by one.
+    ``m`` grows to ``ceil(m r^(1/z))``, at least by one.  Where the estimate
+    grew exponentially (``growth``-fold over the second half of the interval
+    reached), it is projected to grow by that factor every half of that
+    interval to the end, and a run that :data:`AUTO_MAX_SUBSTEPS` would not
+    carry there gets None: more quencher steps only delay the stop of an
+    unstable orbit.  A stop close to the end still runs again: the Arenstorf
+    orbit at rtol 1e-6 stopped at 0.99998 of its period (its estimate grew
+    770-fold through the close approach to the Moon) and reaches the end
+    with one quencher step more.
 
     Parameters
     ----------
@@ -131,17 +144,30 @@ def auto_retry_substeps(
         The run's ``gamma_limit``.
     reached : float
         ``(t_last - t0) / (t_end - t0)``, in (0, 1).
+    growth : float, optional
+        The estimate's growth over the second half of the interval reached
+        where it was exponential (above :data:`EXPONENTIAL_GROWTH`); None on
+        a regular orbit.
 
     Returns
     -------
     int or None
         None when the stop was not the quencher's truncation error (its
         estimate is below half the limit: rounding stopped it, and more
-        quencher steps do not help) or when ``AUTO_MAX_SUBSTEPS`` is reached.
+        quencher steps do not help), when ``AUTO_MAX_SUBSTEPS`` is reached,
+        or, for an exponential growth, when it would not reach the end.
     """
     if not (0.0 < reached < 1.0) or not gamma_ratio >= 0.5 * gamma_limit:
         return None
-    return _grown_substeps(substeps, z_order, gamma_ratio / reached**2, gamma_limit)
+    if growth is None:
+        return _grown_substeps(substeps, z_order, gamma_ratio / reached**2, gamma_limit)
+    # in logarithms: a fast growth over a long remainder overflows a power
+    halves_left = 2.0 * (1.0 - reached) / reached
+    log_needed = math.log(2.0 * gamma_ratio / gamma_limit) + halves_left * math.log(growth)
+    if math.log(substeps) + log_needed / z_order > math.log(AUTO_MAX_SUBSTEPS):
+        return None
+    projected = 0.5 * gamma_limit * math.exp(log_needed)  # _grown_substeps doubles it back
+    return _grown_substeps(substeps, z_order, projected, gamma_limit)
 
 
 def _grown_substeps(substeps: int, z_order: int, projected: float, gamma_limit: float):

@@ -179,7 +179,12 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             f" The estimate grew {factor:.3g}-fold over the second half of the "
             "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
             "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
-            "like exp(lambda t); more quencher steps only delay the stop."
+            "like exp(lambda t)"
+        )
+        text += (
+            "; more quencher steps only delay the stop."
+            if _retry_substeps(out, task, factor) is None
+            else "."
         )
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
@@ -189,7 +194,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             "looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
-    return text + " What helps: " + "; ".join(_remedies(out, task, exponential)) + "."
+    return text + " What helps: " + "; ".join(_remedies(out, task, factor)) + "."
 
 
 #: A component whose tolerance at the last node is below this fraction of its
@@ -284,27 +289,44 @@ def _double_double_available(task: Task) -> bool:
     return not codegen.double_double_unsupported(task.ham)
 
 
-def _remedies(out: RunOutput, task: Task, exponential: bool = False) -> list[str]:
+def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
+    """The quencher steps per step that carry a run stopped on its
+    quencher's truncation error to its end (the rule auto's reruns use,
+    :func:`hamrkq.rkq.auto_rules.auto_retry_substeps`, with the estimate's
+    growth ``factor`` where it is exponential), or None."""
+    member = member_of(task)
+    if task.options.gamma_name != "shadow":
+        return None
+    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
+    return auto_retry_substeps(
+        member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio,
+        task.options.gamma_limit, reached,
+        growth=factor if factor > EXPONENTIAL_GROWTH else None,
+    )  # fmt: skip
+
+
+def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
     """What carries the quencher further when its truncation error stopped
-    the run, the most specific first (``exponential``: the estimate grew
-    exponentially, and more quencher steps are no remedy)."""
+    the run, the most specific first (``factor``: the estimate's growth; an
+    exponential one makes more quencher steps no remedy, unless the stop
+    was close to the end)."""
     o = task.options
     member = member_of(task)
+    exponential = factor > EXPONENTIAL_GROWTH
     remedies = []
     if exponential:
         remedies.append("a looser tolerance or a shorter interval")
-    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
-    substeps = None
-    if o.gamma_name == "shadow" and not exponential:  # the rule auto's reruns use
-        substeps = auto_retry_substeps(
-            member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio, o.gamma_limit,
-            reached,
-        )  # fmt: skip
+    substeps = _retry_substeps(out, task, factor)
     if substeps is not None:
+        how = (
+            "if its error keeps growing as it did over the second half of the run"
+            if exponential
+            else "if its error keeps growing like t^2, as on a periodic orbit"
+        )
         remedies.append(
             f"z_substeps={substeps} (quencher steps per step, {member.z_substeps} in this run: "
             f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
-            "if its error keeps growing like t^2, as on a periodic orbit)"
+            f"{how})"
         )
     if o.method != "auto" and not exponential:
         remedies.append(
@@ -401,7 +423,7 @@ def rerun_note(
                 f"; the estimate had grown {factor:.3g}-fold over the second half of its "
                 "interval, faster than a periodic orbit's t^2: where that is exponential "
                 "growth, the rounding grows alike, which the shadow estimate does not see (the "
-                "witness measures it), and more quencher steps only delay the stop"
+                "witness measures it)"
             )
         elif reruns_for_rounding(earlier, run, factor):
             what += (
