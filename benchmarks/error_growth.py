@@ -8,7 +8,9 @@ estimate of the quencher's error (the running largest ``|Gamma| / delta``)
 grew over the second half of the interval it covered
 (:func:`hamrkq.rkq.auto_rules.error_growth`).  Above
 :data:`hamrkq.rkq.auto_rules.EXPONENTIAL_GROWTH` auto measures the rounding
-(the witness) instead of adding quencher steps.
+(the witness), and adds quencher steps only where the growth, projected to
+``t_end``, leaves the end within reach
+(:func:`hamrkq.rkq.auto_rules.auto_retry_substeps`).
 
 Part 2: on the unstable orbits, what auto (and two members run as given)
 returns (status, last node) and
@@ -189,8 +191,9 @@ def table(results: dict) -> str:
         "",
         "## 1. The growth of the estimate over the second half of each run auto abandons or stops",
         "",
-        f"Above {EXPONENTIAL_GROWTH:g}, auto runs again once with the rounding witness "
-        "instead of more quencher steps.",
+        f"Above {EXPONENTIAL_GROWTH:g}, auto runs again once with the rounding witness, "
+        "and with more quencher steps only where the growth, projected to t_end, leaves "
+        "the end within reach.",
         "",
         "| orbit | case | runs: quencher steps, growth (w: with the witness, dd: in "
         "double-double) | auto's result |",
