@@ -287,7 +287,7 @@ class _Builder:
                         **self.where,
                     ) from None
                 argument = self.parse(text[call.end() : -1].strip(), depth + 1)
-                return FUNCTIONS[name][0](argument)
+                return self.apply(FUNCTIONS[name][0], [argument])
             if split is None:
                 raise ExpressionError(
                     "expression cannot be parsed", piece=text[:60], **self.where
@@ -381,7 +381,14 @@ class _Builder:
                 f"{ident} takes {arity} argument{'s' if arity > 1 else ''}, got {len(node.args)}",
                 node,
             )
-        args = [self.build(arg, depth + 1) for arg in node.args]
+        return self.apply(function, [self.build(arg, depth + 1) for arg in node.args])
+
+    def apply(self, function: Callable[..., sp.Expr], args: list[sp.Expr]) -> sp.Expr:
+        """``function(*args)``, once each constant argument is known to be a
+        finite real double: SymPy's atan2 of an imaginary number,
+        ``atan2(acos(27), acos(27))``, never returned."""
+        for arg in args:
+            check_constants(arg, self.where)
         return function(*args)
 
     def check_power(self, base: sp.Expr, exponent: sp.Expr, node: ast.AST) -> None:
