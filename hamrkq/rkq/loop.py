@@ -144,11 +144,13 @@ def growth_factor(cfg, state, err):
 
 
 @jitable
-def attainability(work, problem, cfg, unew):
-    """max_k (|Gamma_k| + rho_k + eps |z_k| + floor_k) / delta_k at the
-    candidate node: the quencher's estimated error, its accumulated rounding
-    (modelled, and measured by the witness when it runs) and the rounding of
-    the stored value, against the tolerance at the new solution ``unew``."""
+def attainability(work, problem, cfg, unew, t_lo, h):
+    """max_k (|Gamma_k| + rho_k + eps |z_k| + floor_k + tau_k) / delta_k at
+    the candidate node: the quencher's estimated error, its accumulated
+    rounding (modelled, and measured by the witness when it runs), the
+    rounding of the stored value and that of the node's time
+    (:func:`time_rounding`), against the tolerance at the new solution
+    ``unew``, reached by a step of ``h`` whose time has the low word ``t_lo``."""
     V = work.V
     delta = V[DELTA]
     arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
@@ -156,11 +158,31 @@ def attainability(work, problem, cfg, unew):
     for i in range(unew.shape[0]):
         rho = math.sqrt(V[RHO2, i] + V[NOISE, i])
         value = (((rho + abs(V[NHI, i]) * EPS) + abs(V[GNEW, i])) + V[NFLOOR, i]) / delta[i]
+        value += time_rounding(work, unew, i, t_lo, h) / delta[i]
         if value != value:
             return value
         if value > top:
             top = value
     return top
+
+
+@jitable
+def time_rounding(work, unew, i, t_lo, h):
+    """How far component ``i`` of the exact solution moves between the new
+    node's reported time, a double, and the time of its state, ``t_lo``
+    later (the low word of the compensated time after the step,
+    :func:`time_low_word`): ``|t_lo|`` times the component's rate of change
+    at the new node, the step's mean slope or, where larger, that slope
+    extrapolated from the slope at the step's start.  Zero where the step
+    lands on a double (:func:`representable_step`), as nearly every step
+    does; what a step longer than ``t`` or a clipped one leaves is counted
+    here, against the tolerance, with the quencher's own errors."""
+    if t_lo == 0.0:
+        return 0.0
+    V = work.V
+    slope = (unew[i] - V[U, i]) / h
+    rate = max(abs(slope), abs(2.0 * slope - V[K1, i]))
+    return abs(t_lo) * rate
 
 
 @jitable
@@ -199,17 +221,54 @@ def commit_quencher(work, cfg, state):
 
 @jitable
 def advance_time(state, h, clipped, target):
-    """t + h by compensated summation, or exactly the target of a clipped step."""
-    t = state["t"]
+    """The compensated time ``t + t_lo`` moved by ``h`` (:func:`time_sum`);
+    a clipped step's node is reported at its target, its state's time
+    being the target plus the new low word."""
+    t, t_lo = time_sum(state["t"], state["t_lo"], h)
     if clipped:
-        state["t"] = target
-        state["t_lo"] = 0.0
-        return
-    b = h + state["t_lo"]
-    t_new = t + b
-    bb = t_new - t
-    state["t_lo"] = (t - (t_new - bb)) + (b - bb)
-    state["t"] = t_new
+        t_lo += t - target  # an ulp at most: exact (Sterbenz)
+        t = target
+    state["t"] = t
+    state["t_lo"] = t_lo
+
+
+@jitable
+def time_low_word(state, h):
+    """The low word of the compensated time after a step of ``h``
+    (:func:`advance_time`): zero where the step lands on a double."""
+    return time_sum(state["t"], state["t_lo"], h)[1]
+
+
+@jitable
+def time_sum(t, t_lo, h):
+    """``(t + t_lo) + h`` as a double and its low word, exact but for the
+    rounding of the low word itself: TwoSum of ``t`` and ``h``, its error
+    added to ``t_lo``, and renormalised.  (``t + (h + t_lo)``, as before,
+    lost the rounding of ``h + t_lo``: a few 1e-18 over a run, which near a
+    collision's ``dp/dt`` of 1e9 put the tracks 1e-8 off the exact solution
+    at their reported times.)"""
+    s = t + h
+    back = s - t
+    lo = ((t - (s - back)) + (h - back)) + t_lo
+    hi = s + lo
+    return hi, lo - (hi - s)
+
+
+@jitable
+def representable_step(t, t_lo, h):
+    """A step as near ``h`` as an ulp of ``t`` that lands the compensated
+    time ``t + t_lo`` on a double, ``fl(t + t_lo + h)``: every node's time is
+    then exact (no low word), so a node reports the solution at the time it
+    names.  With ``t + h`` rounded, the tracks arrive up to half an ulp of t
+    away from the reported time: ``|f|`` x 2.3e-13 at t = 4000, a fifth of a
+    tolerance of 1e-12 (docs/algorithm.md).  Exact whenever ``|h| <= |t|``
+    (Sterbenz's lemma) and the low word is above an ulp of ``h``; the low
+    word keeps what is left (:func:`time_rounding`).  (``fl(t + h) - t``,
+    as before, kept a low word left by the first steps, where ``h > t``,
+    for the whole run: 7e-18 on the way to a collision, where ``dp/dt``
+    reached 1e9, put the tracks 1e-8 off at their reported times.)"""
+    t_new = t + (h + t_lo)
+    return (t_new - t) - t_lo
 
 
 @jitable
@@ -295,13 +354,13 @@ def plan_step(c, s, t_eval):
     if abs(h_free) > c["max_step"]:
         h_free = direction * c["max_step"]
     if not reaches(h_free, remaining, target):
-        return h_free, h_free, False, target, False
+        return representable_step(t, s["t_lo"], h_free), h_free, False, target, False
     if c["use_z"] and target != c["t_end"] and abs(remaining) < c["dense_share"] * abs(h_free):
         end = c["t_end"]
         to_end = (end - t) - s["t_lo"]
         if reaches(h_free, to_end, end):
             return to_end, h_free, True, end, True
-        return h_free, h_free, False, target, True
+        return representable_step(t, s["t_lo"], h_free), h_free, False, target, True
     # Land exactly on the target.
     return remaining, h_free, True, target, False
 
@@ -356,7 +415,9 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     # The promise must hold at the new node: where the quencher can no longer
     # be trusted to within gamma_limit of the tolerance, the run ends at t,
     # the last node where it held.
-    ratio = attainability(work, problem, c, nhi if quench else cand)
+    unew = nhi if quench else cand
+    t_lo = time_low_word(s, h)
+    ratio = attainability(work, problem, c, unew, t_lo, h)
     if ratio > s["max_ratio"] or ratio != ratio:
         s["max_ratio"] = ratio
     if not ratio <= c["gamma_limit"]:
@@ -385,13 +446,6 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
     if not clipped and abs(h) < max(FLOOR_ULPS * EPS * abs(s["t"]), MIN_SUBNORMAL):
         s["failed_h"] = h
         return stop(ST_NON_FINITE if s["last_nonfinite"] else ST_UNDERFLOW, work, out, s, c)
-    if not clipped:
-        # The step that ends on a double: every node's time is then exact (no
-        # low word), so a node reports the solution at the time it names.
-        # With t + h rounded instead, the tracks arrive up to half an ulp of t
-        # away from the reported time: |f| x 2.3e-13 at t = 4000, a fifth of
-        # a tolerance of 1e-12 (docs/algorithm.md).
-        h = (s["t"] + h) - s["t"]
     if not s["k1_valid"]:
         rhs(s["t"], work.V[U], problem.params, work.V[K1])
         s["nfev"] += 1
