@@ -93,7 +93,7 @@ class SolveOptions:
     :func:`hamrkq.solve` against the state).  See :func:`hamrkq.solve` for
     what each means."""
 
-    method: str = "rk34q8"
+    method: str = "auto"
     quench: str = "node"
     quench_threshold: float = 1.0
     safety: float = 0.9

@@ -108,7 +108,7 @@ def test_implicit_methods_get_the_symbolic_jacobian(name, monkeypatch):
 
 
 def test_scipy_rk34q8_through_solve_is_rk34q8(kepler):
-    rkq = hamrkq.solve(kepler, t_span=ONE_PERIOD)
+    rkq = hamrkq.solve(kepler, method="rk34q8", t_span=ONE_PERIOD)
     via = hamrkq.solve(kepler, method="scipy:RK34Q8", t_span=ONE_PERIOD)
     assert np.array_equal(via.t, rkq.t) and np.array_equal(via.y, rkq.y)
     assert np.array_equal(via.z, rkq.z) and np.array_equal(via.gamma, rkq.gamma)

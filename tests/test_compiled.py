@@ -320,7 +320,8 @@ CHAIN_SCRIPT = textwrap.dedent(
     H = sum(x**2 / 2 for x in p) + sum(x**4 / 4 for x in q)
     H += sum((q[i] - q[i + 1]) ** 2 / 2 for i in range(5))
     ham = hamrkq.Hamiltonian(H, q=list(q), p=list(p))
-    out = hamrkq.solve(ham, [0.1] * 6, [0.0] * 6, (0.0, 2.0), atol=1e-8, backend="numba")
+    out = hamrkq.solve(ham, [0.1] * 6, [0.0] * 6, (0.0, 2.0), atol=1e-8, backend="numba",
+                       method="rk34q8")
     print(json.dumps({"compiled": compiled.COMPILE_COUNT, "stats": compiled.stats(),
                       "status": out.status.name}))
     """

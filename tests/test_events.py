@@ -204,7 +204,8 @@ def test_a_terminal_event_ends_the_integration_itself_not_only_the_output():
     full = hamrkq.solve(ham, [1.0], [0.0], (0.0, 1000.0), atol=1e-10)
     assert sol.status is hamrkq.Status.TERMINAL_EVENT
     assert abs(sol.t[-1] - np.pi / 2) < 1e-9
-    assert sol.stats["steps"] < 0.01 * full.stats["steps"]
+    # pi/2 is 0.16 % of the interval; auto's first steps are short (64 of 4055)
+    assert sol.stats["steps"] < 0.05 * full.stats["steps"]
 
 
 def test_the_run_summary_lists_each_event_functions_roots(tmp_path, capsys):

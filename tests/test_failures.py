@@ -184,7 +184,7 @@ def test_step_limit_keeps_every_node_and_they_are_right():
 def test_interrupt_from_the_progress_callback_keeps_a_prefix_of_the_full_run():
     # progress is called between chunks of 2000 step attempts: a run of
     # about 4900 steps is interrupted at its second call.
-    full = solve_quietly(HARMONIC, [0.0], [1.0], (0, 100), atol=1e-8)
+    full = solve_quietly(HARMONIC, [0.0], [1.0], (0, 100), atol=1e-8, method="rk34q8")
     seen = []
 
     def progress(fraction, t):
@@ -192,7 +192,9 @@ def test_interrupt_from_the_progress_callback_keeps_a_prefix_of_the_full_run():
         if len(seen) == 2:
             raise KeyboardInterrupt
 
-    sol = solve_quietly(HARMONIC, [0.0], [1.0], (0, 100), atol=1e-8, progress=progress)
+    sol = solve_quietly(
+        HARMONIC, [0.0], [1.0], (0, 100), atol=1e-8, progress=progress, method="rk34q8"
+    )
     assert sol.status is Status.INTERRUPTED and sol.partial
     assert "Interrupted (KeyboardInterrupt)" in sol.message
     assert f"t = {seen[-1]!r}" in sol.message and sol.t[-1] == seen[-1]
@@ -209,7 +211,7 @@ def test_interrupt_in_the_middle_of_a_step_drops_only_that_step(monkeypatch):
     # already complete, bit for bit.
     ham = hamrkq.Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
     # The interpreted loop: only there does Python run inside a step.
-    full = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python")
+    full = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python", method="rk34q8")
     numeric = numeric_of(ham)
     original = numeric.rhs
     calls = []
@@ -221,7 +223,7 @@ def test_interrupt_in_the_middle_of_a_step_drops_only_that_step(monkeypatch):
         return original(t, y, params)
 
     monkeypatch.setattr(numeric, "rhs", rhs)
-    sol = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python")
+    sol = solve_quietly(ham, [0.0], [1.0], (0, 50), atol=1e-8, backend="python", method="rk34q8")
     assert sol.status is Status.INTERRUPTED and sol.partial
     assert len(sol) == 101  # the initial node and the 100 complete steps
     np.testing.assert_array_equal(sol.t, full.t[:101])
@@ -294,7 +296,7 @@ def test_a_stop_where_rtol_shrinks_a_crossing_components_tolerance_says_so():
     members and step sizes.  The nodes kept are still within the tolerance
     of the state as a whole (against the exact solution)."""
     kepler = hamrkq.load_problem("kepler")
-    sol = hamrkq.solve(kepler, t_span=(0, 100), rtol=1e-8, atol=1e-20)
+    sol = hamrkq.solve(kepler, t_span=(0, 100), rtol=1e-8, atol=1e-20, method="rk34q8")
     assert sol.status is Status.TOLERANCE_UNATTAINABLE and sol.t[-1] < 100
     crossing = sol.names.index("q1")
     assert abs(sol.y[-1, crossing]) < 0.01  # q1 is crossing zero at the stop

@@ -279,7 +279,7 @@ def test_the_papers_method_runs_again_with_the_witness_where_the_state_grew():
     pendulum = hamrkq.load_problem("pendulum")
     times = np.linspace(0.0, 5000.0, 501)
     sol = hamrkq.solve(pendulum, [0.0], [3.0], (0.0, 5000.0), atol=1e-9, t_eval=times,
-                       max_steps=10**7)  # fmt: skip
+                       max_steps=10**7, method="rk34q8")  # fmt: skip
     assert sol.method == "rk34q8" and sol.options["rounding_witness"]
     assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
     assert "This is rk34q8's second run" in sol.message and "floor" in sol.message

@@ -81,7 +81,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
     p.add_argument(
         "--method", metavar="M", help=f"integration method ({', '.join(METHOD_NAMES)}); "
-        "default: the problem's"
+        "default: the problem's, else auto"
     )  # fmt: skip
     p.add_argument(
         "--atol", action="append", default=[], metavar="A|NAME=A",
@@ -294,7 +294,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.param:
         problem = problem.with_parameters(**parse_parameters(args.param))
     kwargs = solve_arguments(args, problem)
-    method = kwargs.get("method", problem.integration.get("method", "rk34q8"))
+    method = kwargs.get("method", problem.integration.get("method", "auto"))
     reference = resolve_reference(args.reference, problem, method)
     check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)

@@ -114,7 +114,7 @@ class Collector:
             failed=failed,
             messages=tuple(self.messages[int(i)] for i in failed),
             names=r.ham.names,
-            method=str(r.options.get("method", "rk34q8")),
+            method=str(r.options.get("method", "auto")),
             t_span=r.t_span,
             parameters={name: r.params[:, j] for j, name in enumerate(names)},
             stats={name: self.stats[:, k] for k, name in enumerate(STATS)},

@@ -127,15 +127,20 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
         t0`` returns the single initial node.
     method : str
-        ``"rk34q8"`` (default): Prentice's RKQ.  ``"auto"``: the RKQ family's
-        member for tight tolerances and long runs, Verner's 7(6) pair with
-        Verner's 9th-order quencher (``"rk67q9"``) at tolerances of 1e-7
+        ``"auto"`` (default): the RKQ family's member for the tolerance and
+        the dimension (4 to 12 times fewer evaluations than ``"rk34q8"`` at
+        1e-6 to 1e-9, and it certifies 1e-10 to 1e-12, where ``"rk34q8"``
+        cannot; ``docs/algorithm.md``, "Why auto is the default"):
+        Verner's 7(6) pair with Verner's 9th-order quencher (``"rk67q9"``) at tolerances of 1e-7
         or looser and from 12 state variables on, Verner's 8(7) with
         Feagin's 12th-order quencher (``"rk78q12"``) for smaller systems at
         tighter tolerances, whose quencher steps per step
         (``z_substeps``) are learned from the run: it starts with 2 and runs
         again with more when its projection or its stop says so
-        (``docs/algorithm.md``, "The RKQ family and method='auto'").  Other
+        (``docs/algorithm.md``, "The RKQ family and method='auto'").
+        ``"rk34q8"``: Prentice's RKQ as the paper ran it (RK3/RK4 with local
+        extrapolation, DOP853 as the quencher, Gamma by the tangent flow;
+        ``hamrkq reproduce`` and the catalogue's prentice2011 run it).  Other
         family members ``"rk{r}{v}q{z}"`` (``"rk45q12"``, ``"rk67q9"``, ...;
         :data:`hamrkq.rkq.family.MEMBERS`) pair an embedded r(v) method with
         a quencher of order z.  ``"rk34"``: RK3/RK4 local
