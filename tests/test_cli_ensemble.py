@@ -42,6 +42,8 @@ def test_grid_members_equal_the_library_call(tmp_path, capsys):
     np.testing.assert_array_equal(ens.y, api.y)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["members"] == 6 and summary["failed"] == 0
+    # the method that ran, named where the file names none (the default)
+    assert summary["method"] == api.method == "auto"
     assert summary["max_energy_drift"] == float(api.energy_drift.max())
     assert sorted(summary["files"]) == sorted(
         ["ensemble.npz", "ensemble_map.png", "ensemble_orbits.png", "summary.json"]

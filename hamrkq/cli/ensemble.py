@@ -212,6 +212,7 @@ def _summary(args, problem, ens: EnsembleSolution, axes, wall: float, out, notes
         "failed_members": ens.failed[:100].tolist(),
         "t_span": list(ens.t_span),
         "samples": int(ens.t.size),
+        "method": ens.method,  # the file's or the default (auto), which options may not name
         "options": dict(ens.options),
         "parameters": dict(problem.parameters),
         "workers": args.workers,
