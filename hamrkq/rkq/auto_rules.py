@@ -45,9 +45,12 @@ __all__ = [
 AUTO_MEMBER = "rk78q12"
 #: ... and Verner's 7(6) pair with Verner's 9th-order quencher from
 #: :data:`AUTO_LARGE_DIM` on: fewer evaluations on every large catalogue
-#: problem at 1e-6 to 1e-9 (the outer solar system 11 to 17 %, the Pleiades 6
-#: to 65 %, the FPU chain 6 to 23 %; ``benchmarks/auto_member.md``; at 1e-10
-#: the outer solar system takes 20 % more and the FPU chain 79 %).  Small
+#: problem at 1e-6 to 1e-9 when first measured (the outer solar system 11 to
+#: 17 %, the Pleiades 6 to 65 %, the FPU chain 6 to 23 %); remeasured after
+#: every exponential reading ran the witness (``benchmarks/auto_member.md``)
+#: a tie, six cases each way (the Pleiades now cheaper with ``rk78q12`` at
+#: every tolerance, the outer solar system with ``rk67q9``), 6.5 % fewer
+#: summed over the twelve with ``rk67q9``, so the rule stands.  Small
 #: systems are split: fewer on most short runs, but up to 53 % more on
 #: prentice2011 (7 to 53 % at 1e-8 to 1e-10), whose 600 periods need the
 #: 12th-order quencher, so they keep :data:`AUTO_MEMBER`.  What decides is
