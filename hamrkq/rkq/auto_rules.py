@@ -59,7 +59,7 @@ AUTO_LARGE_MEMBER = "rk67q9"
 AUTO_LARGE_DIM = 12
 #: ... and at tolerances of 1e-7 or looser (:func:`auto_tolerance`) for every
 #: dimension: at atol 1e-4 to 1e-7 ``rk67q9`` needs fewer evaluations than
-#: ``rk78q12`` in 40 of 44 cases (every small system, prentice2011 9 to 75 %
+#: ``rk78q12`` in 40 of 44 cases (every small system, prentice2011 7 to 75 %
 #: fewer, the Arenstorf orbit half; the Pleiades at 1e-5 to 1e-7 and the FPU
 #: chain at 1e-6 take more, where ``rk67q9`` runs again with the witness;
 #: ``benchmarks/auto_member_loose.md``).  Its
