@@ -113,3 +113,26 @@ def test_under_rtol_output_times_near_a_zero_keep_their_tolerance(method):
     assert sol.success and reference.success
     delta = np.maximum(1e-9, 1e-6 * np.abs(reference.y))
     assert np.max(np.abs(sol.y - reference.y) / delta) <= 1.05
+
+
+@pytest.mark.parametrize("method", ["rk78q12", "rk67q10", "auto"])
+def test_under_rtol_an_output_time_at_a_zero_checks_the_quenchers_error_there(method):
+    """Kepler at rtol 1e-6 (atol 1e-9), asked for 201 times among which the
+    pericentres, where p1 = 0 and its tolerance is atol: the output times
+    inside a step were written without the check the nodes get (the
+    quencher's Gamma and rounding against gamma_limit of the tolerance
+    there), and rk78q12 returned the value at t = 18 pi 1.63 tolerances
+    off, rk67q10 4.30 at t = 10 pi.  Now such a run ends before the time
+    where the promise cannot be kept; auto runs again with more quencher
+    steps and reaches the end."""
+    kepler = hamrkq.load_problem("kepler")
+    grid = np.linspace(*kepler.t_span, 201)
+    sol = hamrkq.solve(kepler, method=method, atol=1e-9, rtol=1e-6, t_eval=grid)
+    truth = kepler.exact(sol.t)
+    delta = np.maximum(1e-9, 1e-6 * np.abs(truth))
+    assert np.max(np.abs(sol.y - truth) / delta) <= 1.05
+    if method == "auto":
+        assert sol.status is hamrkq.Status.SUCCESS
+    else:
+        assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+        assert sol.t[-1] < sol.options["t_span"][1]

@@ -156,9 +156,38 @@ def attainability(work, problem, cfg, unew, t_lo, h):
     arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
     top = -math.inf
     for i in range(unew.shape[0]):
-        rho = math.sqrt(V[RHO2, i] + V[NOISE, i])
-        value = (((rho + abs(V[NHI, i]) * EPS) + abs(V[GNEW, i])) + V[NFLOOR, i]) / delta[i]
-        value += time_rounding(work, unew, i, t_lo, h) / delta[i]
+        value = quencher_share(V[RHO2, i] + V[NOISE, i], V[NHI, i], V[GNEW, i], V[NFLOOR, i])
+        value = (value + time_rounding(work, unew, i, t_lo, h)) / delta[i]
+        if value != value:
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+@jitable
+def quencher_share(rho2, z, gamma, floor):
+    """``|Gamma| + rho + eps |z| + floor`` of one component: what the
+    quencher's value may be off by (its estimated error, its rounding,
+    modelled and measured, and the rounding of the stored value)."""
+    return ((math.sqrt(rho2) + abs(z) * EPS) + abs(gamma)) + floor
+
+
+@jitable
+def dense_attainability(work, z, gamma):
+    """:func:`attainability` at a dense value between two nodes (``z`` the
+    quencher's value there, ``gamma`` its Gamma interpolated), against the
+    tolerance at ``z`` that :func:`hamrkq.rkq.steps.dense_value` left in
+    ``V[DELTA]``: where a component passes near zero under ``rtol``, that
+    tolerance falls below the nodes' on either side, which the check at the
+    nodes does not see.  Kepler at ``rtol`` 1e-6 (``atol`` 1e-9) with
+    ``rk78q12``, asked for the pericentre times: the value there, where
+    ``p1 = 0`` and the tolerance is ``atol``, was 1.63 tolerances off, the
+    quencher's own error, where the run with those times as nodes stopped."""
+    V = work.V
+    top = -math.inf
+    for i in range(z.shape[0]):
+        value = quencher_share(V[RHO2, i], z[i], gamma[i], V[FLOOR, i]) / V[DELTA, i]
         if value != value:
             return value
         if value > top:
@@ -301,9 +330,10 @@ def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
     attempts = 0
     while True:
         if s["dense_pending"]:
-            if emit_dense(rhs, problem, tab, c, s, work, out) == RET_BUFFER_FULL:
+            emitted = emit_dense(rhs, problem, tab, c, s, work, out)
+            if emitted == RET_BUFFER_FULL:
                 return RET_BUFFER_FULL
-            if s["status"] == ST_SUCCESS:
+            if emitted == RET_DONE or s["status"] == ST_SUCCESS:
                 return RET_DONE
         if s["nout"] >= out.t.shape[0]:
             return RET_BUFFER_FULL
@@ -554,7 +584,8 @@ def emit_dense(rhs, problem, tab, c, s, work, out):
             break
         if s["nout"] >= out.t.shape[0]:
             return RET_BUFFER_FULL
-        write_dense(rhs, problem, tab, c, s, work, out, p)
+        if not write_dense(rhs, problem, tab, c, s, work, out, p):
+            return RET_DONE
         s["eval_index"] += 1
     if s["nout"] >= out.t.shape[0]:
         return RET_BUFFER_FULL
@@ -596,4 +627,16 @@ def write_dense(rhs, problem, tab, c, s, work, out, p):
     for i in range(V.shape[1]):
         out.gamma[n, i] = (1.0 - w) * V[GOLD, i] + w * V[GAM, i]
     out.quenched[n] = 1 if quenched else 0
+    ratio = dense_attainability(work, out.z[n], out.gamma[n])
+    if ratio > s["max_ratio"] or ratio != ratio:
+        s["max_ratio"] = ratio
+    if not ratio <= c["gamma_limit"]:
+        # The promise cannot be kept at p: the run ends before it, reported
+        # where it failed (the step's node, beyond p, is not returned).
+        s["floor_ratio"] = arith.weighted_norm(V[FLOOR], V[DELTA])
+        s["t"] = p
+        s["t_lo"] = 0.0
+        s["status"] = ST_UNATTAINABLE
+        return False
     s["nout"] = n + 1
+    return True
