@@ -152,17 +152,12 @@ def attainability(work, problem, cfg, unew, t_lo, h):
     (:func:`time_rounding`), against the tolerance at the new solution
     ``unew``, reached by a step of ``h`` whose time has the low word ``t_lo``."""
     V = work.V
-    delta = V[DELTA]
+    delta, ratios = V[DELTA], V[TMP2]
     arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
-    top = -math.inf
     for i in range(unew.shape[0]):
         value = quencher_share(V[RHO2, i] + V[NOISE, i], V[NHI, i], V[GNEW, i], V[NFLOOR, i])
-        value = (value + time_rounding(work, unew, i, t_lo, h)) / delta[i]
-        if value != value:
-            return value
-        if value > top:
-            top = value
-    return top
+        ratios[i] = (value + time_rounding(work, unew, i, t_lo, h)) / delta[i]
+    return arith.vmax(ratios)
 
 
 @jitable
@@ -185,14 +180,10 @@ def dense_attainability(work, z, gamma):
     ``p1 = 0`` and the tolerance is ``atol``, was 1.63 tolerances off, the
     quencher's own error, where the run with those times as nodes stopped."""
     V = work.V
-    top = -math.inf
+    ratios = V[TMP2]
     for i in range(z.shape[0]):
-        value = quencher_share(V[RHO2, i], z[i], gamma[i], V[FLOOR, i]) / V[DELTA, i]
-        if value != value:
-            return value
-        if value > top:
-            top = value
-    return top
+        ratios[i] = quencher_share(V[RHO2, i], z[i], gamma[i], V[FLOOR, i]) / V[DELTA, i]
+    return arith.vmax(ratios)
 
 
 @jitable
