@@ -66,7 +66,9 @@ __all__ = [
 ]
 
 #: The modules whose functions make up the compiled kernel (their text keys its cache).
-KERNEL_MODULES = ("jit", "layout", "arith", "ddarith", "steps", "loop", "start", "batch")
+KERNEL_MODULES = (
+    "jit", "layout", "arith", "ddarith", "steps", "clock", "certify", "loop", "start", "batch",
+)  # fmt: skip
 
 _KERNEL: dict[str, Any] = {}
 

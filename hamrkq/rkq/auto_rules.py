@@ -2,7 +2,7 @@
 quencher steps per step, and when a run is abandoned on its projection or
 run again with more steps.
 
-The kernel applies the projection (:func:`hamrkq.rkq.loop.projected_ratio`,
+The kernel applies the projection (:func:`hamrkq.rkq.certify.projected_ratio`,
 with the fractions and share below in its configuration);
 :mod:`hamrkq.solve.auto` runs again with what these rules say.  The
 measurements behind the numbers are in ``benchmarks/family.md`` and
@@ -207,7 +207,7 @@ def auto_abandon_substeps(
     The quencher's truncation error grows like ``t^2`` on a periodic orbit
     (its phase error), so ``max |Gamma| / delta / reached^2`` at a node that
     covered the fraction ``reached`` of the interval projects it to ``t_end``
-    (``hamrkq.rkq.loop.projected_ratio``).  A run whose projection exceeds
+    (``hamrkq.rkq.certify.projected_ratio``).  A run whose projection exceeds
     :data:`AUTO_PROJECT_SHARE` of ``gamma_limit`` at a node between :data:`AUTO_PROJECT_FROM` and
     :data:`AUTO_PROJECT_UNTIL` of the interval is abandoned there and run
     again with the quencher steps :func:`auto_retry_substeps` would choose at

@@ -25,10 +25,10 @@ run (the state's counters carry across calls).
 
 from __future__ import annotations
 
-import math
-
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
+from hamrkq.rkq.certify import attainability, dense_attainability, projected_ratio, record_ratio
+from hamrkq.rkq.clock import advance_time, representable_step, time_low_word
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
     CAND,
@@ -144,87 +144,6 @@ def growth_factor(cfg, state, err):
 
 
 @jitable
-def attainability(work, problem, cfg, unew, t_lo, h):
-    """max_k (|Gamma_k| + rho_k + eps |z_k| + floor_k + tau_k) / delta_k at
-    the candidate node: the quencher's estimated error, its accumulated
-    rounding (modelled, and measured by the witness when it runs), the
-    rounding of the stored value and that of the node's time
-    (:func:`time_rounding`), against the tolerance at the new solution
-    ``unew``, reached by a step of ``h`` whose time has the low word ``t_lo``."""
-    V = work.V
-    delta, ratios = V[DELTA], V[TMP2]
-    arith.tolerance(problem.atol, problem.rtol, unew, unew, cfg["relative"], cfg["rule"], delta)
-    for i in range(unew.shape[0]):
-        value = quencher_share(V[RHO2, i] + V[NOISE, i], V[NHI, i], V[GNEW, i], V[NFLOOR, i])
-        ratios[i] = (value + time_rounding(work, unew, i, t_lo, h)) / delta[i]
-    return arith.vmax(ratios)
-
-
-@jitable
-def quencher_share(rho2, z, gamma, floor):
-    """``|Gamma| + rho + eps |z| + floor`` of one component: what the
-    quencher's value may be off by (its estimated error, its rounding,
-    modelled and measured, and the rounding of the stored value)."""
-    return ((math.sqrt(rho2) + abs(z) * EPS) + abs(gamma)) + floor
-
-
-@jitable
-def dense_attainability(work, z, gamma):
-    """:func:`attainability` at a dense value between two nodes (``z`` the
-    quencher's value there, ``gamma`` its Gamma interpolated), against the
-    tolerance at ``z`` that :func:`hamrkq.rkq.steps.dense_value` left in
-    ``V[DELTA]``: where a component passes near zero under ``rtol``, that
-    tolerance falls below the nodes' on either side, which the check at the
-    nodes does not see.  Kepler at ``rtol`` 1e-6 (``atol`` 1e-9) with
-    ``rk78q12``, asked for the pericentre times: the value there, where
-    ``p1 = 0`` and the tolerance is ``atol``, was 1.63 tolerances off, the
-    quencher's own error, where the run with those times as nodes stopped."""
-    V = work.V
-    ratios = V[TMP2]
-    for i in range(z.shape[0]):
-        ratios[i] = quencher_share(V[RHO2, i], z[i], gamma[i], V[FLOOR, i]) / V[DELTA, i]
-    return arith.vmax(ratios)
-
-
-@jitable
-def time_rounding(work, unew, i, t_lo, h):
-    """How far component ``i`` of the exact solution moves between the new
-    node's reported time, a double, and the time of its state, ``t_lo``
-    later (the low word of the compensated time after the step,
-    :func:`time_low_word`): ``|t_lo|`` times the component's rate of change
-    at the new node, the step's mean slope or, where larger, that slope
-    extrapolated from the slope at the step's start.  Zero where the step
-    lands on a double (:func:`representable_step`), as nearly every step
-    does; what a step longer than ``t`` or a clipped one leaves is counted
-    here, against the tolerance, with the quencher's own errors."""
-    if t_lo == 0.0:
-        return 0.0
-    V = work.V
-    slope = (unew[i] - V[U, i]) / h
-    rate = max(abs(slope), abs(2.0 * slope - V[K1, i]))
-    return abs(t_lo) * rate
-
-
-@jitable
-def projected_ratio(work, cfg, t_new):
-    """``max_k |Gamma_k| / delta_k`` at the candidate node projected to
-    ``t_end`` as growing like ``t^2`` (a periodic orbit's phase error), from
-    a node between ``project_from`` and ``project_until`` of the interval;
-    -1 elsewhere (:func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`).  Uses
-    ``V[DELTA]`` as :func:`attainability` left it."""
-    reached = (t_new - cfg["t_start"]) / (cfg["t_end"] - cfg["t_start"])
-    if not (cfg["project_from"] <= reached <= cfg["project_until"]):
-        return -1.0
-    V = work.V
-    top = 0.0
-    for i in range(V.shape[1]):
-        value = abs(V[GNEW, i]) / V[DELTA, i]
-        if value > top:
-            top = value
-    return top / (reached * reached)
-
-
-@jitable
 def commit_quencher(work, cfg, state):
     """The quencher's candidate becomes the current track."""
     V = work.V
@@ -237,58 +156,6 @@ def commit_quencher(work, cfg, state):
         V[RHO2, i] += V[NOISE, i]
     state["roundoff_steps"] += state["cached_roundoff"]
     state["z_cached"] = 0
-
-
-@jitable
-def advance_time(state, h, clipped, target):
-    """The compensated time ``t + t_lo`` moved by ``h`` (:func:`time_sum`);
-    a clipped step's node is reported at its target, its state's time
-    being the target plus the new low word."""
-    t, t_lo = time_sum(state["t"], state["t_lo"], h)
-    if clipped:
-        t_lo += t - target  # an ulp at most: exact (Sterbenz)
-        t = target
-    state["t"] = t
-    state["t_lo"] = t_lo
-
-
-@jitable
-def time_low_word(state, h):
-    """The low word of the compensated time after a step of ``h``
-    (:func:`advance_time`): zero where the step lands on a double."""
-    return time_sum(state["t"], state["t_lo"], h)[1]
-
-
-@jitable
-def time_sum(t, t_lo, h):
-    """``(t + t_lo) + h`` as a double and its low word, exact but for the
-    rounding of the low word itself: TwoSum of ``t`` and ``h``, its error
-    added to ``t_lo``, and renormalised.  (``t + (h + t_lo)``, as before,
-    lost the rounding of ``h + t_lo``: a few 1e-18 over a run, which near a
-    collision's ``dp/dt`` of 1e9 put the tracks 1e-8 off the exact solution
-    at their reported times.)"""
-    s = t + h
-    back = s - t
-    lo = ((t - (s - back)) + (h - back)) + t_lo
-    hi = s + lo
-    return hi, lo - (hi - s)
-
-
-@jitable
-def representable_step(t, t_lo, h):
-    """A step as near ``h`` as an ulp of ``t`` that lands the compensated
-    time ``t + t_lo`` on a double, ``fl(t + t_lo + h)``: every node's time is
-    then exact (no low word), so a node reports the solution at the time it
-    names.  With ``t + h`` rounded, the tracks arrive up to half an ulp of t
-    away from the reported time: ``|f|`` x 2.3e-13 at t = 4000, a fifth of a
-    tolerance of 1e-12 (docs/algorithm.md).  Exact whenever ``|h| <= |t|``
-    (Sterbenz's lemma) and the low word is above an ulp of ``h``; the low
-    word keeps what is left (:func:`time_rounding`).  (``fl(t + h) - t``,
-    as before, kept a low word left by the first steps, where ``h > t``,
-    for the whole run: 7e-18 on the way to a collision, where ``dp/dt``
-    reached 1e9, put the tracks 1e-8 off at their reported times.)"""
-    t_new = t + (h + t_lo)
-    return (t_new - t) - t_lo
 
 
 @jitable
@@ -439,10 +306,7 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     unew = nhi if quench else cand
     t_lo = time_low_word(s, h)
     ratio = attainability(work, problem, c, unew, t_lo, h)
-    if ratio > s["max_ratio"] or ratio != ratio:
-        s["max_ratio"] = ratio
-    if not ratio <= c["gamma_limit"]:
-        s["floor_ratio"] = arith.weighted_norm(V[NFLOOR], V[DELTA])
+    if not record_ratio(s, c, ratio, V[NFLOOR], V[DELTA]):
         stop(ST_UNATTAINABLE, work, out, s, c)
         return -1 - RET_DONE
     if c["project"]:
@@ -619,12 +483,9 @@ def write_dense(rhs, problem, tab, c, s, work, out, p):
         out.gamma[n, i] = (1.0 - w) * V[GOLD, i] + w * V[GAM, i]
     out.quenched[n] = 1 if quenched else 0
     ratio = dense_attainability(work, out.z[n], out.gamma[n])
-    if ratio > s["max_ratio"] or ratio != ratio:
-        s["max_ratio"] = ratio
-    if not ratio <= c["gamma_limit"]:
+    if not record_ratio(s, c, ratio, V[FLOOR], V[DELTA]):
         # The promise cannot be kept at p: the run ends before it, reported
         # where it failed (the step's node, beyond p, is not returned).
-        s["floor_ratio"] = arith.weighted_norm(V[FLOOR], V[DELTA])
         s["t"] = p
         s["t_lo"] = 0.0
         s["status"] = ST_UNATTAINABLE
