@@ -223,10 +223,8 @@ def substep_shortfall(h, hs, m):
     exactly (TwoSum) and ``h`` minus it exact by Sterbenz's lemma."""
     hi, lo = hs, 0.0
     for _ in range(m - 1):
-        total = hi + hs
-        back = total - hi
-        lo += (hi - (total - back)) + (hs - back)
-        hi = total
+        hi, error = ddarith.two_sum(hi, hs)
+        lo += error
     return (h - hi) - lo
 
 

@@ -60,6 +60,7 @@ __all__ = [
     "rerun",
     "reruns_for_rounding",
     "reruns_with_witness",
+    "retry_substeps",
     "witness_rerun_needed",
 ]
 
@@ -140,9 +141,6 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         return None
     if out.gamma is None:
         return None
-    # The ratio that stopped the run, less the rounding the witness measured
-    # (the last node kept may be an earlier t_eval time, with a smaller Gamma).
-    ratio = out.max_ratio - out.floor_ratio
     # (no node kept: the run stopped before the first output time)
     last = out.y[-1] if out.y.shape[0] else largest_state(out)
     if float(np.max(EPS * np.abs(last) / component_tolerance(task.atol, task.rtol, last))) >= (
@@ -160,14 +158,26 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # Unless the stop was close enough to the end that the growth, projected,
     # leaves it within reach (the Arenstorf orbit at rtol 1e-6, stopped at
     # 0.99998 of its period).
-    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
-    substeps = auto_retry_substeps(
-        member.z_substeps, member.z_order, ratio, task.options.gamma_limit, reached,
-        growth=factor if unstable else None,
-    )  # fmt: skip
+    substeps = retry_substeps(out, task, growth=factor if unstable else None)
     if substeps is None:
         return None
     return _with_substeps(requested, task, substeps)
+
+
+def retry_substeps(out: Any, task: Task, growth: float | None = None) -> int | None:
+    """The quencher steps per step that carry a run of ``task`` stopped on
+    its quencher's truncation error to its end
+    (:func:`hamrkq.rkq.auto_rules.auto_retry_substeps`, with ``growth`` where
+    the estimate grew exponentially), or None: what auto runs again with,
+    and what the message of a stopped run offers.  The ratio that stopped
+    the run counts less the rounding the witness measured (the last node
+    kept may be an earlier t_eval time, with a smaller Gamma)."""
+    member = member_of(task)
+    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
+    return auto_retry_substeps(
+        member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio,
+        task.options.gamma_limit, reached, growth=growth,
+    )  # fmt: skip
 
 
 def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:

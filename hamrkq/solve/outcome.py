@@ -16,11 +16,11 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
-from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, auto_retry_substeps
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.solve.auto import growth, reruns_for_rounding
+from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
 
 __all__ = ["solution"]
@@ -294,15 +294,9 @@ def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
     quencher's truncation error to its end (the rule auto's reruns use,
     :func:`hamrkq.rkq.auto_rules.auto_retry_substeps`, with the estimate's
     growth ``factor`` where it is exponential), or None."""
-    member = member_of(task)
     if task.options.gamma_name != "shadow":
         return None
-    reached = (out.t_last - task.t0) / (task.t_end - task.t0)
-    return auto_retry_substeps(
-        member.z_substeps, member.z_order, out.max_ratio - out.floor_ratio,
-        task.options.gamma_limit, reached,
-        growth=factor if factor > EXPONENTIAL_GROWTH else None,
-    )  # fmt: skip
+    return retry_substeps(out, task, growth=factor if factor > EXPONENTIAL_GROWTH else None)
 
 
 def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
