@@ -11,6 +11,11 @@ events=)`` adds to a finished run.
 - :func:`locate` finds every root: ``g`` on all nodes, sign changes in the
   requested direction bracketed, each root refined by
   :func:`scipy.optimize.brentq` on ``g(t, sol(t))`` to a few ulps of ``t``.
+- :func:`attainability` measures the quencher's estimated error at each
+  event state against the tolerance there, as the kernel does at a node and
+  at an output time (:mod:`hamrkq.rkq.certify`): under ``rtol`` an event
+  where a component crosses zero sits where that component's tolerance is
+  ``atol`` alone, far below the nodes' on either side.
 - :func:`apply` puts ``t_events``/``y_events``/``event_bound`` and ``sol``
   on the :class:`~hamrkq.result.Solution` and, for a terminal event, ends it
   there (``Status.TERMINAL_EVENT``).
@@ -35,12 +40,27 @@ from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.result import Solution, Status
+from hamrkq.rkq import arith
 from hamrkq.rkq.dense import DenseOutput, dense_tableaus, evaluate, prepare_work
 from hamrkq.rkq.family import Member
 from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["EventSpec", "apply", "dense_output", "event_specs", "locate", "terminal_watch"]
+__all__ = [
+    "EventSpec",
+    "Found",
+    "apply",
+    "attainability",
+    "dense_output",
+    "event_specs",
+    "locate",
+    "locate_all",
+    "terminal_watch",
+]
+
+#: Each event function's roots along a run: ``(times, states)``, in the order
+#: of the specifications (:func:`locate_all`).
+Found = list[tuple[np.ndarray, np.ndarray]]
 
 
 @dataclass(frozen=True)
@@ -282,6 +302,69 @@ def _bound(sol: Solution, states: np.ndarray) -> np.ndarray:
     return component_tolerance(sol.atol, sol.rtol, states)
 
 
+def locate_all(specs: list[EventSpec], dense: DenseOutput) -> tuple[Found, int]:
+    """Every root of every event function along ``dense`` (:func:`locate`),
+    those after the terminal event that ends the run left out, and the index
+    of that event function (-1: none ends it)."""
+    found = [locate(spec, dense) for spec in specs]
+    key = 1.0 if dense.t[-1] >= dense.t[0] else -1.0
+    stop_at, stop_by = math.inf, -1
+    for k, (spec, (times, _)) in enumerate(zip(specs, found, strict=True)):
+        if spec.terminal and times.size >= spec.terminal:
+            at = key * times[spec.terminal - 1]
+            if at < stop_at:
+                stop_at, stop_by = at, k
+    if stop_by >= 0:
+        found = [
+            (times[key * times <= stop_at], states[key * times <= stop_at])
+            for times, states in found
+        ]
+    return found, stop_by
+
+
+def attainability(
+    times: np.ndarray,
+    states: np.ndarray,
+    t_nodes: np.ndarray,
+    gamma: np.ndarray,
+    tolerance: tuple,
+    rounding: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For each event state ``states[j]`` at ``times[j]``: ``max_k (|Gamma_k|
+    + rho_k + eps |y_k|) / delta_k``, Gamma the quencher's estimated error
+    interpolated linearly between the nodes ``t_nodes`` around the event (as
+    the kernel interpolates it at an output time inside a step,
+    :func:`hamrkq.rkq.certify.dense_attainability`), ``rho`` the quencher's
+    rounding, modelled and measured, at the later of the two nodes
+    (``rounding``, per node; it only grows along a run), ``delta`` the
+    tolerance at the state (``tolerance``: the run's ``(atol, rtol,
+    (relative, rule, theta, m))``).  The promise holds at the event where
+    this is at most ``gamma_limit``.  Also the rounding's part of each
+    ratio, ``(rho_k + eps |y_k|) / delta_k`` at the same component."""
+    if times.size == 0:
+        return np.empty(0), np.empty(0)
+    atol, rtol, rule = tolerance
+    forward = t_nodes[-1] >= t_nodes[0]
+    s, x = (t_nodes, times) if forward else (-t_nodes, -times)
+    i = np.clip(np.searchsorted(s, x, side="right") - 1, 0, max(t_nodes.size - 2, 0))
+    after = np.minimum(i + 1, t_nodes.size - 1)
+    span = s[after] - s[i]
+    w = np.divide(x - s[i], span, out=np.zeros_like(x), where=span != 0)[:, None]
+    share = EPS * np.abs(states)
+    if rounding is not None:
+        share += np.maximum(rounding[i], rounding[after])
+    estimate = np.abs((1.0 - w) * gamma[i] + w * gamma[after]) + share
+    ratios, rounding_ratios = np.empty(times.size), np.empty(times.size)
+    delta = np.empty(states.shape[1])
+    relative, rule_code = int(rule[0]), int(rule[1])
+    for j, y in enumerate(states):
+        arith.tolerance(atol, rtol, y, y, relative, rule_code, delta)
+        k = int(np.argmax(estimate[j] / delta))
+        ratios[j] = estimate[j, k] / delta[k]
+        rounding_ratios[j] = share[j, k] / delta[k]
+    return ratios, rounding_ratios
+
+
 def apply(
     sol: Solution,
     specs: list[EventSpec],
@@ -289,24 +372,16 @@ def apply(
     energy: Callable[[np.ndarray, np.ndarray], np.ndarray],
     z_dense: DenseOutput | None,
     keep_dense: bool,
+    located: tuple[Found, int] | None = None,
 ) -> Solution:
-    """Events (and ``sol``) on the solution; a terminal event ends it."""
-    found = [locate(spec, dense) for spec in specs]
-    forward = sol.t[-1] >= sol.t[0]
-    key = 1.0 if forward else -1.0
-    stop_at, stop_by = math.inf, -1
-    for k, (spec, (times, _)) in enumerate(zip(specs, found, strict=True)):
-        if spec.terminal and times.size >= spec.terminal:
-            at = key * times[spec.terminal - 1]
-            if at < stop_at:
-                stop_at, stop_by = at, k
+    """Events (and ``sol``) on the solution; a terminal event ends it.
+    ``located``: :func:`locate_all` on ``dense`` already."""
+    found, stop_by = located if located is not None else locate_all(specs, dense)
     changes: dict[str, Any] = {}
     if stop_by >= 0:
-        t_stop = key * stop_at
-        found = [
-            (times[key * times <= stop_at], states[key * times <= stop_at])
-            for times, states in found
-        ]
+        t_stop = found[stop_by][0][specs[stop_by].terminal - 1]
+        key = 1.0 if dense.t[-1] >= dense.t[0] else -1.0
+        stop_at = key * t_stop
         keep = key * sol.t < stop_at
         y_stop = dense.values([t_stop])
         t_new = np.append(sol.t[keep], t_stop)

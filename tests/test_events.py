@@ -225,3 +225,74 @@ def test_the_run_summary_lists_each_event_functions_roots(tmp_path, capsys):
     shown = [float(x) for x in times.removesuffix(", ...").split(", ")]
     assert shown == pytest.approx([math.pi * k for k in range(1, 5)], rel=5e-6)  # 6 digits
     assert times.endswith(", ...")
+
+
+def _event_state_ratio(problem, sol):
+    """The largest true error of an event state over its bound, against
+    heyoka in 113-bit floats at the event times."""
+    from helpers import multiprecision_states
+
+    times = sol.t_events[0]
+    grid = np.concatenate([[0.0], times])
+    reference = multiprecision_states(
+        problem.hamiltonian, problem.parameter_array, problem.y0, grid, bits=113
+    )[1:]
+    return float(np.max(np.abs(sol.y_events[0] - reference) / sol.event_bound[0]))
+
+
+@pytest.mark.parametrize(("name", "event"), [("pendulum", "q"), ("toda", "p1")])
+def test_event_states_where_a_component_crosses_zero_keep_the_promise(name, event):
+    """Under rtol, an event where a component crosses zero sits where that
+    component's tolerance is atol alone (1e-12 here, against rtol |y| ~ 1e-7
+    at the nodes around it).  Before, nothing checked the event states: auto
+    returned them up to 135 (pendulum: the quencher's own error, 1e-11 at
+    t = 20) and 8.7 (Toda: the dense value's one quencher step over half a
+    step that the quencher had taken in six) times their bound."""
+    problem = load_problem(name)
+    sol = hamrkq.solve(problem, method="auto", events=event, atol=1e-12, rtol=1e-6)
+    assert sol.status is Status.SUCCESS
+    assert sol.t_events[0].size > 10
+    assert _event_state_ratio(problem, sol) <= 1.05  # measured 0.018 and 0.001
+    # auto ran again: the first run stopped before an event state
+    assert "stopped before the state of event" in sol.message
+
+
+def test_a_member_stops_before_an_event_state_it_cannot_certify():
+    """A named member does not run again: it ends at the last node before
+    the event state whose estimated error exceeds gamma_limit of the
+    tolerance there, and says so, and which component passes zero."""
+    problem = load_problem("pendulum")
+    sol = hamrkq.solve(problem, method="rk78q12", events="q", atol=1e-12, rtol=1e-6)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    t_fail = float(sol.message.split("at t = ")[1].split(" ")[0])
+    assert sol.t[-1] < t_fail
+    assert np.all(sol.t_events[0] < t_fail)
+    assert "At the state of event 'q'" in sol.message
+    assert "passes zero at the event" in sol.message and "atol = 1e-12" in sol.message
+    # the first zero of q, the pendulum's quarter period (3.3715 for this amplitude)
+    assert t_fail == pytest.approx(3.3715, abs=1e-4)
+    # with the certificate off, the same run goes to the end
+    off = hamrkq.solve(
+        problem, method="rk78q12", events="q", atol=1e-12, rtol=1e-6, gamma_limit=np.inf
+    )
+    assert off.status is Status.SUCCESS
+
+
+def test_dense_values_take_the_quenchers_own_steps():
+    """sol.sol(t) steps the quencher from the nearer node in steps no longer
+    than the run's own: with six quencher steps a step, one step over half a
+    step was (3)^13 times a quencher step's truncation error."""
+    problem = load_problem("toda")
+    sol = hamrkq.solve(
+        problem, method="rk78q12", z_substeps=6, atol=1e-12, rtol=1e-6, dense_output=True
+    )
+    from helpers import multiprecision_states
+
+    mid = 0.5 * (sol.t[:-1] + sol.t[1:])[::4]
+    reference = multiprecision_states(
+        problem.hamiltonian, problem.parameter_array, problem.y0, np.concatenate([[0.0], mid]),
+        bits=113,
+    )[1:]  # fmt: skip
+    z_dense = sol.sol.through(sol.t, sol.z, None)
+    error = np.max(np.abs(z_dense.values(mid) - reference))
+    assert error < 1e-14  # measured 1.1e-15; 1e-11 with one quencher step

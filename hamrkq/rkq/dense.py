@@ -1,12 +1,14 @@
 """Dense output by re-stepping: the solution between nodes from one quencher step.
 
-For ``t_i <= t <= t_{i+1}``, ``y(t)`` is one step of the member's quencher
-tableau (order 8-12; the pair's high-order method for a member without one)
-of size ``t - t_j`` from the quencher track's node ``z_j`` nearer to ``t``
-(backward from ``t_{i+1}`` in the second half of the interval), plus the
-difference ``y - z`` of the two nodes interpolated linearly:
+For ``t_i <= t <= t_{i+1}``, ``y(t)`` is the member's quencher tableau
+(order 8-12; the pair's high-order method for a member without one) over
+``t - t_j`` from the quencher track's node ``z_j`` nearer to ``t``
+(backward from ``t_{i+1}`` in the second half of the interval), in steps
+no longer than the run's quencher took there
+(:func:`hamrkq.rkq.steps.dense_substeps`), plus the difference ``y - z``
+of the two nodes interpolated linearly:
 
-    y(t) = z_j + step(z_j, t - t_j) + (1 - w) (y_i - z_i) + w (y_{i+1} - z_{i+1}),
+    y(t) = z_j + steps(z_j, t - t_j) + (1 - w) (y_i - z_i) + w (y_{i+1} - z_{i+1}),
     w = (t - t_i) / (t_{i+1} - t_i),
 
 and ``y_j`` itself at a node.  No state is added to the kernel: every node
@@ -44,18 +46,20 @@ __all__ = ["DenseOutput", "dense_tableaus", "evaluate", "node_index", "prepare_w
 def evaluate(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
     rhs, tab, params, t_nodes, y_nodes, z_nodes, index, tq, atol, rtol, rule, work, out
 ):
-    """``out[k] = y(tq[k])``: one step of ``tab``'s quencher of size
-    ``tq[k] - t_nodes[index[k]]`` from ``z_nodes[index[k]]``, plus ``y - z``
+    """``out[k] = y(tq[k])``: ``tab``'s quencher over ``tq[k] -
+    t_nodes[index[k]]`` from ``z_nodes[index[k]]``, in steps no longer than
+    the run's (``rule[3]`` quencher steps per step of the pair,
+    :func:`hamrkq.rkq.steps.dense_substeps`), plus ``y - z``
     of the two nodes around ``tq[k]`` interpolated linearly, or the
     quencher's value alone where that difference exceeds ``theta`` times the
     tolerance there (:func:`hamrkq.rkq.steps.dense_value`; ``rule`` is
-    ``(relative, tolerance rule, theta)``); ``z_nodes`` is ``y_nodes`` where
+    ``(relative, tolerance rule, theta, m)``); ``z_nodes`` is ``y_nodes`` where
     there is no quencher track.  Returns the number of right-hand-side
     evaluations."""
     tab, work = borrow(tab), borrow(work)
     d = y_nodes.shape[1]
     last = t_nodes.shape[0] - 1
-    relative, tolerance_rule, theta = int(rule[0]), int(rule[1]), rule[2]
+    relative, tolerance_rule, theta, m = int(rule[0]), int(rule[1]), rule[2], int(rule[3])
     nfev = 0
     for k in range(tq.shape[0]):
         j = index[k]
@@ -76,8 +80,9 @@ def evaluate(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
             gap[c] = (1.0 - w) * (y_nodes[i, c] - z_nodes[i, c]) + w * (
                 y_nodes[i + 1, c] - z_nodes[i + 1, c]
             )
+        substeps = steps.dense_substeps(h, t_nodes[i + 1] - t_nodes[i], m)
         evaluations, _ = steps.dense_value(
-            rhs, t_nodes[j], zhi, zlo, h, tab, params, gap, atol, rtol, relative,
+            rhs, t_nodes[j], zhi, zlo, h, substeps, tab, params, gap, atol, rtol, relative,
             tolerance_rule, theta, work, out[k], work.V[TMP2],
         )  # fmt: skip
         nfev += evaluations
@@ -184,8 +189,8 @@ class DenseOutput:
         self._evaluate = compiled if compiled is not None else evaluate
         self._recipe = recipe
         d = self.y.shape[1]
-        if tolerance is None:  # no quench rule: theta = inf
-            tolerance = (np.ones(d), np.zeros(d), np.array([0.0, 0.0, np.inf]))
+        if tolerance is None:  # no quench rule (theta = inf), one quencher step a step
+            tolerance = (np.ones(d), np.zeros(d), np.array([0.0, 0.0, np.inf, 1.0]))
         self._tolerance = tuple(np.array(a, dtype=np.float64, order="C") for a in tolerance)
         self._count = threading.Lock()
         self.nfev = 0

@@ -151,6 +151,12 @@ class RunOutput:
     gamma_max: np.ndarray | None = None
     gamma_checkpoints: np.ndarray | None = None
     thinned: bool = False
+    #: Where the run's promise failed at an event state, which ended it
+    #: (:class:`hamrkq.solve.event_check.EventFailure`), or None.
+    event_failure: object | None = None
+    #: The quencher's rounding at each returned node, modelled and measured
+    #: (:attr:`hamrkq.rkq.layout.Output.rounding`), or None.
+    rounding: np.ndarray | None = None
 
     @property
     def at_rounding_floor(self) -> bool:
@@ -373,7 +379,7 @@ class Integration:
     def _output(self, chunks, status: int) -> RunOutput:
         s = self.record
         use_z = self.member.use_z
-        t, y, z, gam, q = (np.concatenate([c[i] for c in chunks]) for i in range(5))
+        t, y, z, gam, q, rounding = (np.concatenate([c[i] for c in chunks]) for i in range(6))
         return RunOutput(
             t=t,
             y=y,
@@ -393,6 +399,7 @@ class Integration:
             gamma_max=self.work.V[GMAX].copy() if use_z else None,
             gamma_checkpoints=self._checkpoints() if use_z else None,
             thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
+            rounding=rounding if use_z else None,
         )
 
     def _checkpoints(self) -> np.ndarray:
@@ -409,4 +416,5 @@ def _filled(out: Output, n: int) -> tuple[np.ndarray, ...]:
         out.z[:nz].copy(),
         out.gamma[:nz].copy(),
         out.quenched[:nz].copy(),
+        out.rounding[:nz].copy(),
     )

@@ -219,6 +219,8 @@ VECTORS = (
     ("ZOLD", "the quencher track there, compensated"),
     ("ZOLDLO", ""),
     ("GOLD", "Gamma there"),
+    ("DHI", "a dense value's quencher state between its substeps, compensated"),
+    ("DLO", ""),
     ("YMAX", "each component's largest |u| over every node (kept or not)"),
     ("GMAX", "each component's largest |Gamma| over every node"),
     *((f"CHK{k}", "GMAX when t passed checkpoint_fraction(k)") for k in range(CHECKPOINTS)),
@@ -226,7 +228,7 @@ VECTORS = (
 (
     U, ZHI, ZLO, GAM, RHO2, SHI, SLO, K1, CAND, ERR, DELTA, YT, DY, INC, INC_LO, DINC,
     INCA, INCB, MHI, MLO, NHI, NLO, NSHI, NSLO, WHI, WLO, NWHI, NWLO, FLOOR, NFLOOR,
-    GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD, YMAX, GMAX,
+    GNEW, NOISE, TMP, TMP2, UOLD, ZOLD, ZOLDLO, GOLD, DHI, DLO, YMAX, GMAX,
 ) = range(len(VECTORS) - CHECKPOINTS)  # fmt: skip
 CHK0 = GMAX + 1
 
@@ -267,6 +269,10 @@ class Output(NamedTuple):
     z: np.ndarray
     gamma: np.ndarray
     quenched: np.ndarray
+    #: the quencher's rounding at each node, modelled and measured by the
+    #: witness (``sqrt(RHO2) + FLOOR``): what checks after the run, at event
+    #: states, count beside Gamma (:func:`hamrkq.events.attainability`)
+    rounding: np.ndarray
 
 
 def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
@@ -295,6 +301,7 @@ def allocate_output(rows: int, d: int, with_z: bool) -> Output:
         z=np.empty((zrows, d)),
         gamma=np.empty((zrows, d)),
         quenched=np.zeros(zrows, dtype=np.int8),
+        rounding=np.empty((zrows, d)),
     )
 
 

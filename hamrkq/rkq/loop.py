@@ -25,6 +25,8 @@ run (the state's counters carry across calls).
 
 from __future__ import annotations
 
+import math
+
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
 from hamrkq.rkq.certify import attainability, dense_attainability, projected_ratio, record_ratio
@@ -96,9 +98,19 @@ def write_node(t, quenched, work, out, state, use_z):
         arith.copy(work.V[ZHI], out.z[n])
         arith.copy(work.V[GAM], out.gamma[n])
         out.quenched[n] = quenched
+        write_rounding(work, out.rounding[n])
     # Count the node only once it is complete: an interrupt never leaves half a row.
     state["nout"] = n + 1
     state["last_written"] = 1
+
+
+@jitable
+def write_rounding(work, row):
+    """The quencher's rounding now, modelled and measured (``sqrt(RHO2) +
+    FLOOR``), into ``row`` of :attr:`~hamrkq.rkq.layout.Output.rounding`."""
+    V = work.V
+    for i in range(row.shape[0]):
+        row[i] = math.sqrt(V[RHO2, i]) + V[FLOOR, i]
 
 
 @jitable
@@ -472,9 +484,11 @@ def write_dense(rhs, problem, tab, c, s, work, out, p):
         gap[i] = (1.0 - w) * (V[UOLD, i] - V[ZOLD, i]) + w * (V[U, i] - V[ZHI, i])
     n = s["nout"]
     # from t_start + t_start_lo (compensated time) to exactly p
+    h = (p - t_start) - t_start_lo
+    substeps = steps.dense_substeps(h, s["t"] - s["t_old"], c["z_substeps"])
     evaluations, quenched = steps.dense_value(
-        rhs, t_start, V[start], V[start_lo], (p - t_start) - t_start_lo, tab, problem.params,
-        gap, problem.atol, problem.rtol, c["relative"], c["rule"], c["theta"], work, out.y[n],
+        rhs, t_start, V[start], V[start_lo], h, substeps, tab, problem.params, gap,
+        problem.atol, problem.rtol, c["relative"], c["rule"], c["theta"], work, out.y[n],
         out.z[n],
     )  # fmt: skip
     s["nfev"] += evaluations
@@ -482,6 +496,7 @@ def write_dense(rhs, problem, tab, c, s, work, out, p):
     for i in range(V.shape[1]):
         out.gamma[n, i] = (1.0 - w) * V[GOLD, i] + w * V[GAM, i]
     out.quenched[n] = 1 if quenched else 0
+    write_rounding(work, out.rounding[n])
     ratio = dense_attainability(work, out.z[n], out.gamma[n])
     if not record_ratio(s, c, ratio, V[FLOOR], V[DELTA]):
         # The promise cannot be kept at p: the run ends before it, reported

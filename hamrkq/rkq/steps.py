@@ -9,13 +9,17 @@ evaluations they made, and the caller counts them.
 
 from __future__ import annotations
 
+import math
+
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, ddarith
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import (
     CAND,
     DELTA,
+    DHI,
     DINC,
+    DLO,
     DY,
     ERR,
     FLOOR,
@@ -100,24 +104,50 @@ def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no o
 
 
 @jitable
+def dense_substeps(h, span, m):
+    """How many quencher steps a dense value ``h`` from its node takes inside
+    an interval ``span`` between two nodes whose quencher took ``m`` steps:
+    none longer than the quencher's own (``ceil(m |h| / |span|)``, at least
+    one)."""
+    if span == 0.0:
+        return 1
+    return max(1, math.ceil(m * abs(h / span) - 1e-12))
+
+
+@jitable
 def dense_value(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
-    rhs, t, hi, lo, h, tab, params, gap, atol, rtol, relative, rule, theta, work, out_y, out_z
-):
+    rhs, t, hi, lo, h, substeps, tab, params, gap, atol, rtol, relative, rule, theta, work,
+    out_y, out_z,
+):  # fmt: skip
     """One value between two nodes (:mod:`hamrkq.rkq.dense`): the quencher's
-    value ``z = (hi + lo) + step(h)`` from the compensated state at ``t``
-    into ``out_z``, and ``out_y = z + gap``, ``gap`` the reported solution's
-    difference to the quencher interpolated between the nodes, or ``z``
-    itself where ``gap`` is more than ``theta`` times the tolerance at ``z``
-    (as a node is quenched).  That happens where a component passes near
-    zero under ``rtol`` between two nodes: the tolerance there is below the
-    nodes', and their differences, interpolated, were up to 46 times it
-    (the FPU chain at ``rtol`` 1e-6, ``benchmarks/dense_error_rtol.md``;
-    2 times at an output time of ``t_eval``).  Returns
-    ``(evaluations, quenched)``."""
+    value ``z`` from the compensated state ``(hi, lo)`` at ``t``, ``substeps``
+    steps of ``h / substeps`` (:func:`dense_substeps`), into ``out_z``, and
+    ``out_y = z + gap``, ``gap`` the reported solution's difference to the
+    quencher interpolated between the nodes, or ``z`` itself where ``gap`` is
+    more than ``theta`` times the tolerance at ``z`` (as a node is
+    quenched).  That happens where a component passes near zero under
+    ``rtol`` between two nodes: the tolerance there is below the nodes', and
+    their differences, interpolated, were up to 46 times it (the FPU chain
+    at ``rtol`` 1e-6, ``benchmarks/dense_error_rtol.md``; 2 times at an
+    output time of ``t_eval``).  The quencher's steps are no longer than its
+    own in the run: in one step over half a step of the pair, which the
+    quencher had taken in ``m`` (up to 6 after ``auto``'s reruns), the
+    value's truncation error was ``(m/2)^(z+1)`` times a quencher step's, and
+    nothing checked it (the Toda lattice at ``rtol`` 1e-6, ``atol`` 1e-12,
+    in six: event states 8.7e-12 off where the quencher's nodes were
+    1e-16).  Returns ``(evaluations, quenched)``."""
     V = work.V
-    nfev = explicit_increment(rhs, t, hi, lo, h, tab, params, work, V[INC], False)
+    dhi, dlo, inc = V[DHI], V[DLO], V[INC]
+    arith.copy(hi, dhi)
+    arith.copy(lo, dlo)
+    hs = h / substeps
+    nfev = 0
+    for k in range(substeps):
+        nfev += explicit_increment(rhs, t + k * hs, dhi, dlo, hs, tab, params, work, inc, False)
+        arith.two_sum(dhi, dlo, inc, dhi, dlo)
+    cover_shortfall(dhi, dlo, inc, substep_shortfall(h, hs, substeps), hs)
     for i in range(out_z.shape[0]):
-        out_z[i] = (hi[i] + V[INC, i]) + lo[i]
+        out_z[i] = dhi[i] + dlo[i]
     arith.tolerance(atol, rtol, out_z, out_z, relative, rule, V[DELTA])
     quenched = arith.weighted_norm(gap, V[DELTA]) > theta
     for i in range(out_y.shape[0]):

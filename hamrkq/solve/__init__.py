@@ -61,6 +61,7 @@ from hamrkq.solve.dispatch import (
     run_rk,
     start_background,
 )
+from hamrkq.solve.event_check import Located, certified_at_events
 
 __all__ = [
     "BACKENDS",
@@ -271,14 +272,14 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     with np.errstate(all="ignore"):
         started = time.perf_counter()
         try:
-            out = spec.run(task, chosen)
+            out, located = _run(prepared, task, chosen)
             # method="auto"'s runs that ran again (more quencher steps, the
             # rounding witness, or the quencher in double-double): (their task, run)
             discarded = []
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
                 discarded.append((task, out))
                 task = rerun
-                out = spec.run(task, chosen)
+                out, located = _run(prepared, task, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
                 task.progress.close()  # its own bar (not a caller's): leave it on its own line
@@ -311,8 +312,18 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
             sol = sol.replace(message=sol.message + note)
         if dense_output or prepared.events:
-            sol = _with_events(task, sol, chosen, prepared.events, dense_output)
+            sol = _with_events(task, sol, chosen, prepared.events, dense_output, located)
         return sol
+
+
+def _run(prepared: Prepared, task: Task, backend: str) -> tuple[Any, Located | None]:
+    """One run of ``task``, ended before the first event state where its
+    promise fails (:func:`hamrkq.solve.event_check.certified_at_events`),
+    and the events located on it."""
+    out = prepared.spec.run(task, backend)
+    if isinstance(out, Solution) or not prepared.events:
+        return out, None
+    return certified_at_events(task, out, prepared.events, backend)
 
 
 @dataclass(frozen=True)
@@ -424,7 +435,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     task = Task(
         ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
     )
-    task = replace(task, project=auto.projects(requested, task))
+    task = replace(task, project=auto.projects(requested, task), auto=requested.method == "auto")
     return Prepared(task, spec, chosen, compile_s, event_list, requested)
 
 
@@ -458,12 +469,20 @@ def _require_double_double(ham) -> None:
         raise OptionError(f"quencher_precision='double-double' is not available: {unsupported}")
 
 
-def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: bool) -> Solution:
-    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run."""
-    member = member_of(task)
-    dense = _events.dense_output(
-        task.ham, member, backend, task.params, sol.t, sol.y, sol.z, dense_tolerance(task)
-    )
+def _with_events(
+    task: Task, sol: Solution, backend: str, specs, keep_dense: bool, located: Located | None
+) -> Solution:
+    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run
+    (``located``: the events found on its nodes already, and the dense
+    output they were found on)."""
+    found = None
+    if located is not None:
+        dense, *found = located  # the dense output, then events.locate_all's pair
+    else:
+        dense = _events.dense_output(
+            task.ham, member_of(task), backend, task.params, sol.t, sol.y, sol.z,
+            dense_tolerance(task),
+        )  # fmt: skip
     if not specs:
         return sol.replace(sol=dense)
     z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)
@@ -471,4 +490,6 @@ def _with_events(task: Task, sol: Solution, backend: str, specs, keep_dense: boo
     def energy(t, Y):
         return numeric_of(task.ham).energy(t, Y, task.params)
 
-    return _events.apply(sol, specs, dense, energy, z_dense, keep_dense)
+    return _events.apply(
+        sol, specs, dense, energy, z_dense, keep_dense, None if found is None else tuple(found)
+    )

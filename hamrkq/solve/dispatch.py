@@ -88,6 +88,8 @@ class Task:
     #: (:func:`hamrkq.rkq.auto_rules.error_growth`); a second such run in a
     #: row makes auto measure the rounding instead of adding quencher steps.
     grew_exponentially: bool = False
+    #: Run for ``method="auto"`` (``options.method`` is the member it chose).
+    auto: bool = False
 
 
 @dataclass(frozen=True)
@@ -111,12 +113,14 @@ def member_of(task: Task):
 
 
 def dense_tolerance(task: Task) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(atol, rtol, (relative, rule, theta))`` of a task, as its dense
-    output's quench rule takes them (:class:`hamrkq.rkq.dense.DenseOutput`,
-    the kernel's configuration for the same run)."""
+    """``(atol, rtol, (relative, rule, theta, m))`` of a task, as its dense
+    output's quench rule takes them, with the quencher's steps per step of
+    the pair (:class:`hamrkq.rkq.dense.DenseOutput`, the kernel's
+    configuration for the same run)."""
     o = task.options
     relative = float(np.any(task.rtol > 0))
-    return task.atol, task.rtol, np.array([relative, o.codes()["rule"], o.quench_threshold])
+    m = float(member_of(task).z_substeps)
+    return task.atol, task.rtol, np.array([relative, o.codes()["rule"], o.quench_threshold, m])
 
 
 def uses_witness(task: Task) -> bool:
@@ -275,6 +279,7 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
         z=out.z[:kept],
         gamma=out.gamma[:kept],
         quenched=out.quenched[:kept],
+        rounding=None if out.rounding is None else out.rounding[:kept],
         status=Status.TOLERANCE_UNATTAINABLE.code,
         t_last=float(out.t[kept - 1]) if kept else task.t0,
         saturated=float(departure[kept]),

@@ -116,11 +116,15 @@ def _unattainable(out: RunOutput, task: Task) -> str:
         return _shadow_saturated(out, task)
     if not math.isfinite(out.max_ratio):
         return _estimate_diverged(out, task)
-    text = (
-        f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would reach "
-        f"{out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so the "
-        "tolerance can no longer be certified; the run ends at the last node where it held."
-    )
+    if out.event_failure is not None:
+        text = _event_failed(out, task)
+    else:
+        text = (
+            f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would "
+            f"reach {out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so "
+            "the tolerance can no longer be certified; the run ends at the last node where it "
+            "held."
+        )
     if out.y.size:
         y = np.abs(out.y[-1])
         floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))
@@ -129,7 +133,8 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 f" The tolerance is at double precision's floor for this state (the rounding "
                 f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
             )
-        text += _near_zero(out, task)
+        if out.event_failure is None:
+            text += _near_zero(out, task)
     if out.at_rounding_floor:
         text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
@@ -229,6 +234,30 @@ def _near_zero(out: RunOutput, task: Task) -> str:
     )
 
 
+def _event_failed(out: RunOutput, task: Task) -> str:
+    """The first sentences for a run ended before an event state where its
+    promise failed (:mod:`hamrkq.solve.event_check`)."""
+    failure = out.event_failure
+    k = failure.component
+    name = task.ham.names[k]
+    text = (
+        f"At the state of event {failure.label!r} at t = {failure.t!r} the quencher's "
+        f"estimated global error (Gamma, between the nodes around it) would reach "
+        f"{failure.ratio:.3g} x the tolerance there (gamma_limit = "
+        f"{task.options.gamma_limit:g}), so that state cannot be certified; the run ends at "
+        "the last node before it."
+    )
+    delta = component_tolerance(task.atol, task.rtol, failure.state)[k]
+    if task.rtol[k] > 0 and delta <= task.atol[k]:
+        text += (
+            f" There {name} = {failure.state[k]:.3g}: it passes zero at the event, where its "
+            f"tolerance max(atol, rtol |{name}|) is atol = {task.atol[k]:.3g}, far below "
+            f"the nodes' on either side; a larger atol (the error acceptable where {name} is "
+            "near zero) helps too."
+        )
+    return text
+
+
 def _shadow_saturated(out: RunOutput, task: Task) -> str:
     """The message for a run ended where its shadow track left the linear
     regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`)."""
@@ -322,7 +351,7 @@ def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
             f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
             f"{how})"
         )
-    if o.method != "auto" and not exponential:
+    if not task.auto and not exponential:
         remedies.append(
             "method='auto', which chooses a member and runs again with more quencher steps "
             "when a run stops on the quencher's truncation error"
@@ -400,6 +429,14 @@ def rerun_note(
                 f"{run.saturated:.3g} of the orbit's size from the quencher (saturated: "
                 "a smaller max_step brings it back, more quencher steps do not)"
             )
+        elif run.event_failure is not None:
+            what = (
+                f"stopped before the state of event {run.event_failure.label!r} at t = "
+                f"{run.t_last!r}, where the quencher's estimated error and rounding reached "
+                f"{run.max_ratio:.3g} x the tolerance"
+            )
+            if run.at_rounding_floor:
+                what += f" ({run.floor_ratio:.3g} of it rounding: double precision's floor)"
         elif run.at_rounding_floor:
             what = (
                 f"stopped at t = {run.t_last!r}, where the quencher's estimated error "

@@ -1,0 +1,133 @@
+"""The promise at event states: a run's events located, each state checked
+against the tolerance there, and the run ended before the first where it
+fails.
+
+An event state is a dense-output value between two nodes (:mod:`hamrkq.events`).
+Its tolerance is that of the state itself, ``max(atol, rtol |y_k|)``, and
+an event is very often where a component crosses zero (``q = 0`` on a
+Poincare section, ``p1 = 0`` at a turning point), where that is ``atol``
+alone while the nodes on either side have ``rtol |y_k|``.  The kernel
+checks nodes and ``t_eval`` times (:mod:`hamrkq.rkq.certify`); events are
+found after the run, so they are checked here, on the run's output, before
+``method="auto"`` decides whether to run again: a run that fails at an event
+ends at the last node before it, ``TOLERANCE_UNATTAINABLE``, like a run that
+fails at an output time, and auto runs again with more quencher steps (or
+the quencher in double-double) as it does there.  The pendulum at ``rtol``
+1e-6, ``atol`` 1e-12, event ``q``: the event states were up to 135 times
+their bound (the quencher's own error, 1e-11 at t = 20, against ``atol``);
+now auto runs again in four quencher steps a step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from hamrkq import events as _events
+from hamrkq._tolerance import component_tolerance
+from hamrkq.result import Status
+from hamrkq.rkq.dense import DenseOutput
+from hamrkq.rkq.driver import RunOutput
+from hamrkq.solve.dispatch import Task, dense_tolerance, member_of
+
+__all__ = ["EventFailure", "Located", "certified_at_events"]
+
+#: What :func:`certified_at_events` found along a run, for
+#: :func:`hamrkq.events.apply`: the dense output it located them on, and
+#: :func:`hamrkq.events.locate_all`'s result.
+Located = tuple[DenseOutput, _events.Found, int]
+
+
+@dataclass(frozen=True)
+class EventFailure:
+    """Where a run's promise failed at an event state: the event function's
+    ``label``, its time ``t``, the ``state`` there and ``ratio``, the
+    quencher's estimated error and rounding over the tolerance at its worst
+    ``component`` (``rounding_ratio`` the rounding's part)."""
+
+    label: str
+    t: float
+    state: np.ndarray
+    ratio: float
+    rounding_ratio: float  # the quencher's rounding's part of ``ratio``
+    component: int
+
+
+def certified_at_events(
+    task: Task, out: RunOutput, specs: list, backend: str
+) -> tuple[RunOutput, Located | None]:
+    """``out``, or its nodes before the first event state where the
+    quencher's estimated error and rounding exceed ``gamma_limit`` of the
+    tolerance
+    (:func:`hamrkq.events.attainability`): status
+    ``TOLERANCE_UNATTAINABLE``, ``t_last`` the event's time, ``max_ratio``
+    the ratio there, ``floor_ratio`` the rounding's part of it and
+    ``event_failure`` saying where.  Also the events
+    located on the run as returned (None where there is nothing to locate:
+    no events, no nodes), which :func:`hamrkq.events.apply` reuses.  Runs
+    without a quencher track or with ``gamma_limit=inf`` (the certificate
+    turned off) are returned as they are."""
+    if not specs or out.t.shape[0] < 2:
+        return out, None
+    dense = _events.dense_output(
+        task.ham, member_of(task), backend, task.params, out.t, out.y, out.z, dense_tolerance(task)
+    )
+    found, stop_by = _events.locate_all(specs, dense)
+    located = (dense, found, stop_by)
+    limit = task.options.gamma_limit
+    if out.gamma is None or not limit < math.inf:
+        return out, located
+    failure = _first_failure(task, out, specs, found, limit)
+    if failure is None:
+        return out, located
+    key = 1.0 if out.t[-1] >= out.t[0] else -1.0
+    kept = key * out.t < key * failure.t
+    truncated = replace(
+        out,
+        t=out.t[kept],
+        y=out.y[kept],
+        z=out.z[kept],
+        gamma=out.gamma[kept],
+        quenched=out.quenched[kept],
+        rounding=None if out.rounding is None else out.rounding[kept],
+        status=Status.TOLERANCE_UNATTAINABLE.code,
+        t_last=failure.t,
+        max_ratio=failure.ratio,
+        # the rounding's part: where it is most of the ratio, auto runs the
+        # quencher in double-double rather than in more steps
+        floor_ratio=failure.rounding_ratio,
+        event_failure=failure,
+    )
+    return truncated, None
+
+
+def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
+    """The earliest event state whose ratio exceeds ``limit``, or None."""
+    tolerance = dense_tolerance(task)
+    key = 1.0 if out.t[-1] >= out.t[0] else -1.0
+    first = None
+    for spec, (times, states) in zip(specs, found, strict=True):
+        ratios, rounding = _events.attainability(
+            times, states, out.t, out.gamma, tolerance, out.rounding
+        )
+        bad = np.flatnonzero(~(ratios <= limit))
+        if bad.size == 0:
+            continue
+        j = int(bad[0])
+        if first is None or key * times[j] < key * first.t:
+            state = states[j]
+            component = int(np.argmax(_share(task, out, times[j]) / component_tolerance(
+                task.atol, task.rtol, state)))  # fmt: skip
+            first = EventFailure(spec.label, float(times[j]), state, float(ratios[j]),
+                                 float(rounding[j]), component)  # fmt: skip
+    return first
+
+
+def _share(task, out, t) -> np.ndarray:
+    """Gamma and the rounding of the node nearer to ``t``: which component
+    is closest to its limit there."""
+    nearest = int(np.argmin(np.abs(out.t - t)))
+    share = np.abs(out.gamma[nearest])
+    return share if out.rounding is None else share + out.rounding[nearest]
