@@ -11,11 +11,6 @@ events=)`` adds to a finished run.
 - :func:`locate` finds every root: ``g`` on all nodes, sign changes in the
   requested direction bracketed, each root refined by
   :func:`scipy.optimize.brentq` on ``g(t, sol(t))`` to a few ulps of ``t``.
-- :func:`attainability` measures the quencher's estimated error at each
-  event state against the tolerance there, as the kernel does at a node and
-  at an output time (:mod:`hamrkq.rkq.certify`): under ``rtol`` an event
-  where a component crosses zero sits where that component's tolerance is
-  ``atol`` alone, far below the nodes' on either side.
 - :func:`apply` puts ``t_events``/``y_events``/``event_bound`` and ``sol``
   on the :class:`~hamrkq.result.Solution` and, for a terminal event, ends it
   there (``Status.TERMINAL_EVENT``).
@@ -40,7 +35,6 @@ from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.result import Solution, Status
-from hamrkq.rkq import arith
 from hamrkq.rkq.dense import DenseOutput, dense_tableaus, evaluate, prepare_work
 from hamrkq.rkq.family import Member
 from hamrkq.symbolic.expressions import parse_expression
@@ -50,7 +44,6 @@ __all__ = [
     "EventSpec",
     "Found",
     "apply",
-    "attainability",
     "dense_output",
     "event_specs",
     "locate",
@@ -196,12 +189,14 @@ def dense_output(
     y: np.ndarray,
     z: np.ndarray | None = None,
     tolerance: tuple | None = None,
+    certificate: tuple | None = None,
 ) -> DenseOutput:
     """The continuous solution through the nodes ``(t, y)`` of a run of
     ``member`` on ``backend`` (``"numba"`` compiles the evaluation), stepped
     from the quencher track ``z`` at the same nodes where there is one
     (:mod:`hamrkq.rkq.dense`); ``tolerance``: the run's ``(atol, rtol,
-    rule)`` (:class:`~hamrkq.rkq.dense.DenseOutput`)."""
+    rule)``, ``certificate`` its ``(gamma, rounding, gamma_limit)``
+    (:class:`~hamrkq.rkq.dense.DenseOutput`)."""
     tab = dense_tableaus(member)
     params = np.require(params, np.float64, ("C", "W"))
     t = np.array(t, dtype=np.float64)
@@ -216,18 +211,18 @@ def dense_output(
         args = (rhs, tab, params, t, y, y, np.zeros(1, np.int64), np.zeros(1),
                 np.ones(d), np.zeros(d), np.zeros(3), work, np.zeros((1, d)))  # fmt: skip
         fast = extras.compiled_helper(evaluate, ("rhs",), *args)
-        return DenseOutput(t, y, z, rhs, tab, params, fast, recipe, tolerance)
+        return DenseOutput(t, y, z, rhs, tab, params, fast, recipe, tolerance, certificate)
     numeric = numeric_of(ham)
 
     def rhs(t, y, params, out):
         out[:] = numeric.rhs(t, y, params)
 
-    return DenseOutput(t, y, z, rhs, tab, params, None, recipe, tolerance)
+    return DenseOutput(t, y, z, rhs, tab, params, None, recipe, tolerance, certificate)
 
 
-def _rebuilt(ham, member, backend, params, tolerance, t, y, z) -> DenseOutput:
+def _rebuilt(ham, member, backend, params, tolerance, t, y, z, certificate=None) -> DenseOutput:
     """A pickled :func:`dense_output` rebuilt (its recipe)."""
-    return dense_output(ham, member, backend, params, t, y, z, tolerance)
+    return dense_output(ham, member, backend, params, t, y, z, tolerance, certificate)
 
 
 def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]:
@@ -249,13 +244,13 @@ def locate(spec: EventSpec, dense: DenseOutput) -> tuple[np.ndarray, np.ndarray]
             continue
 
         def f(s: float) -> float:
-            return spec.scalar(s, dense(s))
+            return spec.scalar(s, dense.values_unchecked(s)[0])
 
         # brentq's smallest relative tolerance (4 eps); the absolute one only
         # matters for a root at t = 0.
         roots.append(brentq(f, a, b, xtol=1e-300, rtol=4 * EPS, maxiter=200))
     times = np.array(roots, dtype=float)
-    states = dense.values(times) if times.size else np.empty((0, y.shape[1]))
+    states = dense.values_unchecked(times) if times.size else np.empty((0, y.shape[1]))
     return times, states
 
 
@@ -297,6 +292,19 @@ def terminal_watch(specs: list[EventSpec]) -> Callable[[np.ndarray, np.ndarray],
     return stop
 
 
+def _cut(certificate: tuple | None, keep: np.ndarray) -> tuple | None:
+    """A dense output's certificate for its nodes ``keep`` and a terminal
+    event's state after them (Gamma and rounding of the last node kept,
+    carried, as the solution's ``gamma``)."""
+    if certificate is None:
+        return None
+    gamma, rounding, limit = certificate
+    gamma = np.vstack([gamma[keep], gamma[keep][-1:]])
+    if rounding is not None:
+        rounding = np.vstack([rounding[keep], rounding[keep][-1:]])
+    return gamma, rounding, limit
+
+
 def _bound(sol: Solution, states: np.ndarray) -> np.ndarray:
     """RKQ's promise at the event states: delta_k = max(atol_k, rtol_k |y_k|)."""
     return component_tolerance(sol.atol, sol.rtol, states)
@@ -322,49 +330,6 @@ def locate_all(specs: list[EventSpec], dense: DenseOutput) -> tuple[Found, int]:
     return found, stop_by
 
 
-def attainability(
-    times: np.ndarray,
-    states: np.ndarray,
-    t_nodes: np.ndarray,
-    gamma: np.ndarray,
-    tolerance: tuple,
-    rounding: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """For each event state ``states[j]`` at ``times[j]``: ``max_k (|Gamma_k|
-    + rho_k + eps |y_k|) / delta_k``, Gamma the quencher's estimated error
-    interpolated linearly between the nodes ``t_nodes`` around the event (as
-    the kernel interpolates it at an output time inside a step,
-    :func:`hamrkq.rkq.certify.dense_attainability`), ``rho`` the quencher's
-    rounding, modelled and measured, at the later of the two nodes
-    (``rounding``, per node; it only grows along a run), ``delta`` the
-    tolerance at the state (``tolerance``: the run's ``(atol, rtol,
-    (relative, rule, theta, m))``).  The promise holds at the event where
-    this is at most ``gamma_limit``.  Also the rounding's part of each
-    ratio, ``(rho_k + eps |y_k|) / delta_k`` at the same component."""
-    if times.size == 0:
-        return np.empty(0), np.empty(0)
-    atol, rtol, rule = tolerance
-    forward = t_nodes[-1] >= t_nodes[0]
-    s, x = (t_nodes, times) if forward else (-t_nodes, -times)
-    i = np.clip(np.searchsorted(s, x, side="right") - 1, 0, max(t_nodes.size - 2, 0))
-    after = np.minimum(i + 1, t_nodes.size - 1)
-    span = s[after] - s[i]
-    w = np.divide(x - s[i], span, out=np.zeros_like(x), where=span != 0)[:, None]
-    share = EPS * np.abs(states)
-    if rounding is not None:
-        share += np.maximum(rounding[i], rounding[after])
-    estimate = np.abs((1.0 - w) * gamma[i] + w * gamma[after]) + share
-    ratios, rounding_ratios = np.empty(times.size), np.empty(times.size)
-    delta = np.empty(states.shape[1])
-    relative, rule_code = int(rule[0]), int(rule[1])
-    for j, y in enumerate(states):
-        arith.tolerance(atol, rtol, y, y, relative, rule_code, delta)
-        k = int(np.argmax(estimate[j] / delta))
-        ratios[j] = estimate[j, k] / delta[k]
-        rounding_ratios[j] = share[j, k] / delta[k]
-    return ratios, rounding_ratios
-
-
 def apply(
     sol: Solution,
     specs: list[EventSpec],
@@ -383,12 +348,12 @@ def apply(
         key = 1.0 if dense.t[-1] >= dense.t[0] else -1.0
         stop_at = key * t_stop
         keep = key * sol.t < stop_at
-        y_stop = dense.values([t_stop])
+        y_stop = dense.values_unchecked([t_stop])
         t_new = np.append(sol.t[keep], t_stop)
         y_new = np.vstack([sol.y[keep], y_stop])
         changes.update(t=t_new, y=y_new, energy=energy(t_new, y_new))
         if sol.z is not None and z_dense is not None:
-            z_new = np.vstack([sol.z[keep], z_dense.values([t_stop])])
+            z_new = np.vstack([sol.z[keep], z_dense.values_unchecked([t_stop])])
             changes.update(z=z_new, global_error=y_new - z_new)
         if sol.gamma is not None:
             # Gamma is not re-stepped: the last node's estimate, carried.
@@ -403,7 +368,7 @@ def apply(
             ),
         )
         if keep_dense:
-            dense = dense.through(t_new, y_new, changes.get("z"))
+            dense = dense.through(t_new, y_new, changes.get("z"), _cut(dense.certificate, keep))
     changes.update(
         t_events=[times for times, _ in found],
         y_events=[states for _, states in found],

@@ -34,12 +34,21 @@ from collections.abc import Callable
 
 import numpy as np
 
+from hamrkq._floats import EPS
+from hamrkq.errors import warn
 from hamrkq.rkq import steps
 from hamrkq.rkq.family import Member
 from hamrkq.rkq.jit import borrow, jitable
-from hamrkq.rkq.layout import TMP, TMP2, ZHI, ZLO, Tableaus, allocate_work
+from hamrkq.rkq.layout import RULE_PRENTICE, TMP, TMP2, ZHI, ZLO, Tableaus, allocate_work
 
-__all__ = ["DenseOutput", "dense_tableaus", "evaluate", "node_index", "prepare_work"]
+__all__ = [
+    "DenseOutput",
+    "attainability",
+    "dense_tableaus",
+    "evaluate",
+    "node_index",
+    "prepare_work",
+]
 
 
 @jitable
@@ -106,6 +115,57 @@ def prepare_work(d: int, tab: Tableaus):
     return allocate_work(np.zeros(d), tab.b.shape[0], tab.bz.shape[0])
 
 
+def attainability(
+    times: np.ndarray,
+    values: np.ndarray,
+    t_nodes: np.ndarray,
+    gamma: np.ndarray,
+    tolerance: tuple,
+    rounding: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For each dense value ``values[j]`` at ``times[j]`` (an event state,
+    a value of ``sol.sol``): ``max_k (|Gamma_k| + rho_k + eps |y_k|) /
+    delta_k``, Gamma the quencher's estimated error interpolated linearly
+    between the nodes ``t_nodes`` around the time (as the kernel
+    interpolates it at an output time inside a step,
+    :func:`hamrkq.rkq.certify.dense_attainability`), ``rho`` the quencher's
+    rounding, modelled and measured, at the later of the two nodes
+    (``rounding``, per node; it only grows along a run), ``delta`` the
+    tolerance at the value (``tolerance``: the run's ``(atol, rtol,
+    (relative, rule, theta, m))``).  The promise holds at the value where
+    this is at most ``gamma_limit``.  Also the rounding's part of each
+    ratio, ``(rho_k + eps |y_k|) / delta_k`` at the same component.  Under
+    ``rtol`` a value where a component crosses zero sits where that
+    component's tolerance is ``atol`` alone, far below the nodes' on either
+    side, which is why the nodes' check does not cover it."""
+    if times.size == 0:
+        return np.empty(0), np.empty(0)
+    atol, rtol, rule = tolerance
+    forward = t_nodes[-1] >= t_nodes[0]
+    s, x = (t_nodes, times) if forward else (-t_nodes, -times)
+    i = np.clip(np.searchsorted(s, x, side="right") - 1, 0, max(t_nodes.size - 2, 0))
+    after = np.minimum(i + 1, t_nodes.size - 1)
+    span = s[after] - s[i]
+    w = np.divide(x - s[i], span, out=np.zeros_like(x), where=span != 0)[:, None]
+    share = EPS * np.abs(values)
+    if rounding is not None:
+        share += np.maximum(rounding[i], rounding[after])
+    estimate = np.abs((1.0 - w) * gamma[i] + w * gamma[after]) + share
+    # arith.tolerance, row by row: max(atol, rtol |y|) (atol alone without
+    # rtol); the paper's scalar rule takes the smallest component's
+    delta = (
+        np.maximum(atol, rtol * np.abs(values)) if rule[0] else np.broadcast_to(atol, values.shape)
+    )
+    if int(rule[1]) == RULE_PRENTICE:
+        delta = np.broadcast_to(delta.min(axis=1, keepdims=True), values.shape)
+    ratio = estimate / delta
+    k = np.argmax(ratio, axis=1)[:, None]
+    return (
+        np.take_along_axis(ratio, k, axis=1)[:, 0],
+        np.take_along_axis(share / delta, k, axis=1)[:, 0],
+    )
+
+
 def node_index(t_nodes: np.ndarray, tq: np.ndarray, nearest: bool = True) -> np.ndarray:
     """For each query time the node it is stepped from: the nearer of the two
     nodes around it (``nearest``; a step backward from the later one, so that
@@ -160,6 +220,14 @@ class DenseOutput:
         takes it: a value whose interpolated ``y - z`` exceeds the tolerance
         there is the quencher's (:func:`hamrkq.rkq.steps.dense_value`).
         Without it, never.
+    certificate : tuple, optional
+        ``(gamma, rounding, gamma_limit)`` of the run: Gamma and the
+        quencher's rounding at each node (``rounding`` may be None) and the
+        limit the run held them to.  With it, :meth:`values` (and calling
+        the object) checks each value as the run checks an output time
+        (:func:`attainability`) and warns (``HamrkqWarning``) where that
+        fails: under ``rtol``, where a component passes zero between two
+        nodes, its tolerance is ``atol`` alone, below the nodes'.
     """
 
     def __init__(
@@ -173,6 +241,7 @@ class DenseOutput:
         compiled: Callable | None = None,
         recipe: tuple[Callable, tuple] | None = None,
         tolerance: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        certificate: tuple | None = None,
     ):
         self.t = np.array(t, dtype=np.float64, order="C")
         self.y = np.array(y, dtype=np.float64, order="C")
@@ -194,27 +263,67 @@ class DenseOutput:
         self._tolerance = tuple(np.array(a, dtype=np.float64, order="C") for a in tolerance)
         self._count = threading.Lock()
         self.nfev = 0
+        self._certificate = certificate
 
-    def through(self, t: np.ndarray, y: np.ndarray, z: np.ndarray | None) -> DenseOutput:
+    def through(
+        self, t: np.ndarray, y: np.ndarray, z: np.ndarray | None, certificate: tuple | None = None
+    ) -> DenseOutput:
         """The same continuous extension through other nodes (a truncated
-        run; ``z`` its quencher track, or None to step from ``y``)."""
+        run; ``z`` its quencher track, or None to step from ``y``;
+        ``certificate`` for those nodes, or None: no check)."""
         return DenseOutput(
             t, y, z, self._rhs, self._tab, self._params, self._compiled, self._recipe,
-            self._tolerance,
+            self._tolerance, certificate,
         )  # fmt: skip
+
+    @property
+    def certificate(self) -> tuple | None:
+        """``(gamma, rounding, gamma_limit)`` the values are checked against, or None."""
+        return self._certificate
 
     def __reduce__(self):
         if self._recipe is not None:
             build, args = self._recipe
-            return (build, (*args, self.t, self.y, self.z))
+            return (build, (*args, self.t, self.y, self.z, self._certificate))
         return (
             DenseOutput,
             (self.t, self.y, self.z, self._rhs, self._tab, self._params, None, None,
-             self._tolerance),
+             self._tolerance, self._certificate),
         )  # fmt: skip
 
     def values(self, t) -> np.ndarray:
-        """Time-major values: shape ``(m, 2n)`` for ``m`` times."""
+        """Time-major values: shape ``(m, 2n)`` for ``m`` times.  Warns
+        (``HamrkqWarning``) where a value cannot be certified (the
+        ``certificate``)."""
+        tq = np.array(np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel(), order="C")
+        out = self.values_unchecked(tq)
+        if self._certificate is not None:
+            self._check(tq, out)
+        return out
+
+    def _check(self, tq: np.ndarray, out: np.ndarray) -> None:
+        gamma, rounding, limit = self._certificate
+        if not limit < np.inf or self.t.size < 2:
+            return
+        ratios, _ = attainability(tq, out, self.t, gamma, self._tolerance, rounding)
+        bad = np.flatnonzero(~(ratios <= limit))
+        if bad.size == 0:
+            return
+        first = int(bad[0])
+        warn(
+            f"sol.sol: {bad.size} of {tq.size} values cannot be certified (the first at "
+            f"t = {float(tq[first])!r}: the quencher's estimated error and rounding there are "
+            f"{float(ratios[first]):.3g} x the tolerance at the value, above gamma_limit = "
+            f"{limit:g}; under rtol a component passing zero between two nodes has the "
+            "tolerance atol alone there, below the nodes'). Ask for these times with t_eval, "
+            "which the run checks (and auto runs again where needed), or give atol the size "
+            "of the error acceptable near zero."
+        )
+
+    def values_unchecked(self, t) -> np.ndarray:
+        """:meth:`values` without the certificate's check (the event states,
+        checked on their own by :mod:`hamrkq.solve.event_check`, and the
+        points a root finder tries)."""
         tq = np.array(np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel(), order="C")
         out = np.empty((tq.size, self.y.shape[1]))
         if tq.size:

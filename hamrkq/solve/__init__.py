@@ -61,7 +61,7 @@ from hamrkq.solve.dispatch import (
     run_rk,
     start_background,
 )
-from hamrkq.solve.event_check import Located, certified_at_events
+from hamrkq.solve.event_check import Located, certificate, certified_at_events
 
 __all__ = [
     "BACKENDS",
@@ -312,7 +312,9 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
             sol = sol.replace(message=sol.message + note)
         if dense_output or prepared.events:
-            sol = _with_events(task, sol, chosen, prepared.events, dense_output, located)
+            sol = _with_events(
+                task, sol, chosen, prepared.events, dense_output, located, certificate(task, out)
+            )
         return sol
 
 
@@ -470,18 +472,25 @@ def _require_double_double(ham) -> None:
 
 
 def _with_events(
-    task: Task, sol: Solution, backend: str, specs, keep_dense: bool, located: Located | None
+    task: Task,
+    sol: Solution,
+    backend: str,
+    specs,
+    keep_dense: bool,
+    located: Located | None,
+    checked: tuple | None,
 ) -> Solution:
     """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run
     (``located``: the events found on its nodes already, and the dense
-    output they were found on)."""
+    output they were found on; ``checked``: the certificate its values are
+    checked against, :func:`~hamrkq.solve.event_check.certificate`)."""
     found = None
     if located is not None:
         dense, *found = located  # the dense output, then events.locate_all's pair
     else:
         dense = _events.dense_output(
             task.ham, member_of(task), backend, task.params, sol.t, sol.y, sol.z,
-            dense_tolerance(task),
+            dense_tolerance(task), checked,
         )  # fmt: skip
     if not specs:
         return sol.replace(sol=dense)

@@ -28,11 +28,11 @@ import numpy as np
 from hamrkq import events as _events
 from hamrkq._tolerance import component_tolerance
 from hamrkq.result import Status
-from hamrkq.rkq.dense import DenseOutput
+from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.solve.dispatch import Task, dense_tolerance, member_of
 
-__all__ = ["EventFailure", "Located", "certified_at_events"]
+__all__ = ["EventFailure", "Located", "certificate", "certified_at_events"]
 
 #: What :func:`certified_at_events` found along a run, for
 #: :func:`hamrkq.events.apply`: the dense output it located them on, and
@@ -61,7 +61,7 @@ def certified_at_events(
     """``out``, or its nodes before the first event state where the
     quencher's estimated error and rounding exceed ``gamma_limit`` of the
     tolerance
-    (:func:`hamrkq.events.attainability`): status
+    (:func:`hamrkq.rkq.dense.attainability`): status
     ``TOLERANCE_UNATTAINABLE``, ``t_last`` the event's time, ``max_ratio``
     the ratio there, ``floor_ratio`` the rounding's part of it and
     ``event_failure`` saying where.  Also the events
@@ -72,8 +72,9 @@ def certified_at_events(
     if not specs or out.t.shape[0] < 2:
         return out, None
     dense = _events.dense_output(
-        task.ham, member_of(task), backend, task.params, out.t, out.y, out.z, dense_tolerance(task)
-    )
+        task.ham, member_of(task), backend, task.params, out.t, out.y, out.z,
+        dense_tolerance(task), certificate(task, out),
+    )  # fmt: skip
     found, stop_by = _events.locate_all(specs, dense)
     located = (dense, found, stop_by)
     limit = task.options.gamma_limit
@@ -103,15 +104,22 @@ def certified_at_events(
     return truncated, None
 
 
+def certificate(task: Task, out: RunOutput) -> tuple | None:
+    """What ``sol.sol``'s values are checked against (the run's Gamma and
+    rounding at its nodes, and ``gamma_limit``;
+    :class:`hamrkq.rkq.dense.DenseOutput`), or None: no quencher track."""
+    if out.gamma is None:
+        return None
+    return out.gamma, out.rounding, task.options.gamma_limit
+
+
 def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
     """The earliest event state whose ratio exceeds ``limit``, or None."""
     tolerance = dense_tolerance(task)
     key = 1.0 if out.t[-1] >= out.t[0] else -1.0
     first = None
     for spec, (times, states) in zip(specs, found, strict=True):
-        ratios, rounding = _events.attainability(
-            times, states, out.t, out.gamma, tolerance, out.rounding
-        )
+        ratios, rounding = attainability(times, states, out.t, out.gamma, tolerance, out.rounding)
         bad = np.flatnonzero(~(ratios <= limit))
         if bad.size == 0:
             continue
