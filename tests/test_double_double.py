@@ -176,3 +176,26 @@ def test_compiling_f_in_double_double_is_announced(monkeypatch):
     assert functions.tangent is compiled.compile_system(ham).rhs_dd()
     said = stream.getvalue()
     assert "compiling f in double-double" in said and "compiled in" in said
+
+
+@pytest.mark.parametrize("substeps", [3, 6, 8])
+def test_the_quencher_in_double_double_has_no_floor_from_its_substeps(substeps):
+    """m substeps of fl(h/m) fall short of h by a few 1e-17 where m is not a
+    power of two; the shortfall is covered at the slope at the step's end.
+    Covered at the last substep's mean slope instead, the quencher in
+    double-double on prentice2011 to t = 1000 ended 1.5e-14 (m = 3) and
+    4.3e-15 (m = 6) off heyoka in 113-bit floats, exact to double with
+    m = 8, and Gamma (1e-16 to 1e-20) did not see it."""
+    from helpers import multiprecision_states
+
+    problem = hamrkq.load_problem("prentice2011")
+    sol = hamrkq.solve(
+        problem, method="rk78q12", z_substeps=substeps, quencher_precision="double-double",
+        atol=1e-16, rtol=1e-10, t_span=(0.0, 1000.0), gamma_limit=np.inf,
+    )  # fmt: skip
+    reference = multiprecision_states(
+        problem.hamiltonian, problem.parameter_array, problem.y0, np.array([0.0, 1000.0]), bits=113
+    )[1]
+    assert sol.t[-1] == 1000.0
+    # the stored value's own rounding (half an ulp of 2.5 is 2.2e-16); measured 1.1e-16
+    assert np.max(np.abs(sol.z[-1] - reference)) <= 3e-16
