@@ -296,3 +296,20 @@ def test_dense_values_take_the_quenchers_own_steps():
     z_dense = sol.sol.through(sol.t, sol.z, None)
     error = np.max(np.abs(z_dense.values(mid) - reference))
     assert error < 1e-14  # measured 1.1e-15; 1e-11 with one quencher step
+
+
+def test_an_event_state_below_double_precisions_floor_stops_the_run_honestly():
+    """atol 1e-16 where p2 crosses zero: the state there is stepped in double
+    from a node stored in double, an ulp of the state's size (2e-16) off
+    before any truncation.  Before, auto returned SUCCESS with such states
+    up to 2.3 (Arenstorf) and 10.8 (prentice2011) times their bound; now it
+    stops before the first, says that rounding is the limit and that a
+    larger atol is what works, and does not run again for it."""
+    kepler = load_problem("kepler")
+    sol = hamrkq.solve(kepler, method="auto", events="p2", atol=1e-16, rtol=1e-10)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.t[-1] < 0.971 and sol.t_events[0].size == 0  # p2's first zero: t = 0.9708
+    assert "is rounding" in sol.message and "A larger atol is what works" in sol.message
+    # no rerun: neither more quencher steps nor double-double go below it
+    assert "the run with" not in sol.message
+    assert "discarded_evaluations" not in sol.stats

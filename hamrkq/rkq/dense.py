@@ -119,22 +119,27 @@ def attainability(
     times: np.ndarray,
     values: np.ndarray,
     t_nodes: np.ndarray,
+    nodes: np.ndarray,
     gamma: np.ndarray,
     tolerance: tuple,
     rounding: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """For each dense value ``values[j]`` at ``times[j]`` (an event state,
-    a value of ``sol.sol``): ``max_k (|Gamma_k| + rho_k + eps |y_k|) /
+    a value of ``sol.sol``): ``max_k (|Gamma_k| + rho_k + eps u_k) /
     delta_k``, Gamma the quencher's estimated error interpolated linearly
     between the nodes ``t_nodes`` around the time (as the kernel
     interpolates it at an output time inside a step,
     :func:`hamrkq.rkq.certify.dense_attainability`), ``rho`` the quencher's
     rounding, modelled and measured, at the later of the two nodes
-    (``rounding``, per node; it only grows along a run), ``delta`` the
+    (``rounding``, per node; it only grows along a run), ``eps u_k`` the
+    value's own rounding: it is stepped in double from a node's stored
+    double (``nodes``, the quencher track at ``t_nodes``), so ``u_k`` is the
+    largest of ``|y_k|`` and the two nodes' ``|z_k|`` (an ulp of the value
+    alone says nothing where the component crosses zero); ``delta`` the
     tolerance at the value (``tolerance``: the run's ``(atol, rtol,
     (relative, rule, theta, m))``).  The promise holds at the value where
     this is at most ``gamma_limit``.  Also the rounding's part of each
-    ratio, ``(rho_k + eps |y_k|) / delta_k`` at the same component.  Under
+    ratio, ``(rho_k + eps u_k) / delta_k`` at the same component.  Under
     ``rtol`` a value where a component crosses zero sits where that
     component's tolerance is ``atol`` alone, far below the nodes' on either
     side, which is why the nodes' check does not cover it."""
@@ -147,7 +152,7 @@ def attainability(
     after = np.minimum(i + 1, t_nodes.size - 1)
     span = s[after] - s[i]
     w = np.divide(x - s[i], span, out=np.zeros_like(x), where=span != 0)[:, None]
-    share = EPS * np.abs(values)
+    share = EPS * np.maximum(np.abs(values), np.maximum(np.abs(nodes[i]), np.abs(nodes[after])))
     if rounding is not None:
         share += np.maximum(rounding[i], rounding[after])
     estimate = np.abs((1.0 - w) * gamma[i] + w * gamma[after]) + share
@@ -305,7 +310,8 @@ class DenseOutput:
         gamma, rounding, limit = self._certificate
         if not limit < np.inf or self.t.size < 2:
             return
-        ratios, _ = attainability(tq, out, self.t, gamma, self._tolerance, rounding)
+        nodes = self.y if self.z is None else self.z
+        ratios, _ = attainability(tq, out, self.t, nodes, gamma, self._tolerance, rounding)
         bad = np.flatnonzero(~(ratios <= limit))
         if bad.size == 0:
             return

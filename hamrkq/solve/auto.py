@@ -147,6 +147,9 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         0.5 * task.options.gamma_limit
     ):
         return None  # the stored values' own rounding: more substeps cannot help
+    failure = out.event_failure
+    if failure is not None and failure.stored_ratio >= 0.5 * task.options.gamma_limit:
+        return None  # the same at an event state (hamrkq.solve.event_check)
     if out.at_rounding_floor:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.

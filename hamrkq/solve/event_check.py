@@ -53,6 +53,10 @@ class EventFailure:
     ratio: float
     rounding_ratio: float  # the quencher's rounding's part of ``ratio``
     component: int
+    #: the value's own rounding alone over the tolerance (stepped in double
+    #: from a stored node): what neither more quencher steps nor the
+    #: quencher in double-double reduce
+    stored_ratio: float = 0.0
 
 
 def certified_at_events(
@@ -119,7 +123,9 @@ def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
     key = 1.0 if out.t[-1] >= out.t[0] else -1.0
     first = None
     for spec, (times, states) in zip(specs, found, strict=True):
-        ratios, rounding = attainability(times, states, out.t, out.gamma, tolerance, out.rounding)
+        ratios, rounding = attainability(
+            times, states, out.t, out.z, out.gamma, tolerance, out.rounding
+        )
         bad = np.flatnonzero(~(ratios <= limit))
         if bad.size == 0:
             continue
@@ -128,8 +134,12 @@ def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
             state = states[j]
             component = int(np.argmax(_share(task, out, times[j]) / component_tolerance(
                 task.atol, task.rtol, state)))  # fmt: skip
+            stored, _ = attainability(
+                times[j : j + 1], states[j : j + 1], out.t, out.z, np.zeros_like(out.gamma),
+                tolerance,
+            )  # fmt: skip
             first = EventFailure(spec.label, float(times[j]), state, float(ratios[j]),
-                                 float(rounding[j]), component)  # fmt: skip
+                                 float(rounding[j]), component, float(stored[0]))  # fmt: skip
     return first
 
 

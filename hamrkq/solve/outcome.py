@@ -118,6 +118,14 @@ def _unattainable(out: RunOutput, task: Task) -> str:
         return _estimate_diverged(out, task)
     if out.event_failure is not None:
         text = _event_failed(out, task)
+        if out.at_rounding_floor:
+            return text + (
+                f" Of that, {out.floor_ratio:.3g} x the tolerance is rounding: the quencher's "
+                "own, and the value's, stepped in double from the node stored in double before "
+                "it, whose last bit is an ulp of the state's size there, not of the component "
+                "near zero; more quencher steps or the quencher in double-double do not go "
+                "below it. A larger atol is what works."
+            )
     else:
         text = (
             f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would "
@@ -242,7 +250,8 @@ def _event_failed(out: RunOutput, task: Task) -> str:
     name = task.ham.names[k]
     text = (
         f"At the state of event {failure.label!r} at t = {failure.t!r} the quencher's "
-        f"estimated global error (Gamma, between the nodes around it) would reach "
+        f"estimated global error and rounding (Gamma between the nodes around it, and the "
+        f"rounding of the value) would reach "
         f"{failure.ratio:.3g} x the tolerance there (gamma_limit = "
         f"{task.options.gamma_limit:g}), so that state cannot be certified; the run ends at "
         "the last node before it."
