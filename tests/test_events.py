@@ -309,7 +309,9 @@ def test_an_event_state_below_double_precisions_floor_stops_the_run_honestly():
     sol = hamrkq.solve(kepler, method="auto", events="p2", atol=1e-16, rtol=1e-10)
     assert sol.status is Status.TOLERANCE_UNATTAINABLE
     assert sol.t[-1] < 0.971 and sol.t_events[0].size == 0  # p2's first zero: t = 0.9708
-    assert "is rounding" in sol.message and "A larger atol is what works" in sol.message
+    assert (
+        "the value's own rounding" in sol.message and "A larger atol is what works" in sol.message
+    )
     # no rerun: neither more quencher steps nor double-double go below it
     assert "the run with" not in sol.message
     assert "discarded_evaluations" not in sol.stats

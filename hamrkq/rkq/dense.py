@@ -123,7 +123,7 @@ def attainability(
     gamma: np.ndarray,
     tolerance: tuple,
     rounding: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For each dense value ``values[j]`` at ``times[j]`` (an event state,
     a value of ``sol.sol``): ``max_k (|Gamma_k| + rho_k + eps u_k) /
     delta_k``, Gamma the quencher's estimated error interpolated linearly
@@ -138,13 +138,16 @@ def attainability(
     alone says nothing where the component crosses zero); ``delta`` the
     tolerance at the value (``tolerance``: the run's ``(atol, rtol,
     (relative, rule, theta, m))``).  The promise holds at the value where
-    this is at most ``gamma_limit``.  Also the rounding's part of each
-    ratio, ``(rho_k + eps u_k) / delta_k`` at the same component.  Under
+    this is at most ``gamma_limit``.  Returns that ratio, its rounding's
+    part ``(rho_k + eps u_k) / delta_k``, the component ``k`` it is largest
+    at, and ``max_k eps u_k / delta_k``, the value's own rounding alone
+    (which neither more quencher steps nor a quencher in double-double
+    reduce), one entry per value.  Under
     ``rtol`` a value where a component crosses zero sits where that
     component's tolerance is ``atol`` alone, far below the nodes' on either
     side, which is why the nodes' check does not cover it."""
     if times.size == 0:
-        return np.empty(0), np.empty(0)
+        return np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64)
     atol, rtol, rule = tolerance
     forward = t_nodes[-1] >= t_nodes[0]
     s, x = (t_nodes, times) if forward else (-t_nodes, -times)
@@ -152,9 +155,8 @@ def attainability(
     after = np.minimum(i + 1, t_nodes.size - 1)
     span = s[after] - s[i]
     w = np.divide(x - s[i], span, out=np.zeros_like(x), where=span != 0)[:, None]
-    share = EPS * np.maximum(np.abs(values), np.maximum(np.abs(nodes[i]), np.abs(nodes[after])))
-    if rounding is not None:
-        share += np.maximum(rounding[i], rounding[after])
+    stored = EPS * np.maximum(np.abs(values), np.maximum(np.abs(nodes[i]), np.abs(nodes[after])))
+    share = stored if rounding is None else stored + np.maximum(rounding[i], rounding[after])
     estimate = np.abs((1.0 - w) * gamma[i] + w * gamma[after]) + share
     # arith.tolerance, row by row: max(atol, rtol |y|) (atol alone without
     # rtol); the paper's scalar rule takes the smallest component's
@@ -168,6 +170,8 @@ def attainability(
     return (
         np.take_along_axis(ratio, k, axis=1)[:, 0],
         np.take_along_axis(share / delta, k, axis=1)[:, 0],
+        k[:, 0],
+        np.max(stored / delta, axis=1),
     )
 
 
@@ -311,7 +315,7 @@ class DenseOutput:
         if not limit < np.inf or self.t.size < 2:
             return
         nodes = self.y if self.z is None else self.z
-        ratios, _ = attainability(tq, out, self.t, nodes, gamma, self._tolerance, rounding)
+        ratios = attainability(tq, out, self.t, nodes, gamma, self._tolerance, rounding)[0]
         bad = np.flatnonzero(~(ratios <= limit))
         if bad.size == 0:
             return

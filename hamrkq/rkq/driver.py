@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -157,6 +157,19 @@ class RunOutput:
     #: The quencher's rounding at each returned node, modelled and measured
     #: (:attr:`hamrkq.rkq.layout.Output.rounding`), or None.
     rounding: np.ndarray | None = None
+
+    def rows(self, kept: Any) -> RunOutput:
+        """The same run with only the returned nodes ``kept`` (a slice, an
+        index array or a mask): what a check after the run returns when it
+        ends the run early."""
+
+        def cut(a):
+            return None if a is None else a[kept]
+
+        return replace(
+            self, t=self.t[kept], y=self.y[kept], z=cut(self.z), gamma=cut(self.gamma),
+            quenched=cut(self.quenched), rounding=cut(self.rounding),
+        )  # fmt: skip
 
     @property
     def at_rounding_floor(self) -> bool:

@@ -111,6 +111,9 @@ def dense_substeps(h, span, m):
     one)."""
     if span == 0.0:
         return 1
+    # a value a rounding error past a whole number of quencher steps (h = span
+    # / 2 with m odd: 1.5; with m even: m / 2 exactly, or a hair above) takes
+    # no extra step for it
     return max(1, math.ceil(m * abs(h / span) - 1e-12))
 
 

@@ -34,7 +34,6 @@ import numpy as np
 from hamrkq import events as _events
 from hamrkq._progress import ProgressBar
 from hamrkq._validate import span as _span
-from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.options import (
@@ -55,13 +54,11 @@ from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
     Task,
-    dense_tolerance,
-    member_of,
     resolve_backend,
     run_rk,
     start_background,
 )
-from hamrkq.solve.event_check import Located, certificate, certified_at_events
+from hamrkq.solve.event_check import certificate, run_certified, with_events
 
 __all__ = [
     "BACKENDS",
@@ -272,14 +269,14 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     with np.errstate(all="ignore"):
         started = time.perf_counter()
         try:
-            out, located = _run(prepared, task, chosen)
+            out, located = run_certified(task, spec, prepared.events, chosen)
             # method="auto"'s runs that ran again (more quencher steps, the
             # rounding witness, or the quencher in double-double): (their task, run)
             discarded = []
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
                 discarded.append((task, out))
                 task = rerun
-                out, located = _run(prepared, task, chosen)
+                out, located = run_certified(task, spec, prepared.events, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
                 task.progress.close()  # its own bar (not a caller's): leave it on its own line
@@ -312,20 +309,10 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
             sol = sol.replace(message=sol.message + note)
         if dense_output or prepared.events:
-            sol = _with_events(
+            sol = with_events(
                 task, sol, chosen, prepared.events, dense_output, located, certificate(task, out)
             )
         return sol
-
-
-def _run(prepared: Prepared, task: Task, backend: str) -> tuple[Any, Located | None]:
-    """One run of ``task``, ended before the first event state where its
-    promise fails (:func:`hamrkq.solve.event_check.certified_at_events`),
-    and the events located on it."""
-    out = prepared.spec.run(task, backend)
-    if isinstance(out, Solution) or not prepared.events:
-        return out, None
-    return certified_at_events(task, out, prepared.events, backend)
 
 
 @dataclass(frozen=True)
@@ -469,36 +456,3 @@ def _require_double_double(ham) -> None:
     unsupported = codegen.double_double_unsupported(ham)
     if unsupported:
         raise OptionError(f"quencher_precision='double-double' is not available: {unsupported}")
-
-
-def _with_events(
-    task: Task,
-    sol: Solution,
-    backend: str,
-    specs,
-    keep_dense: bool,
-    located: Located | None,
-    checked: tuple | None,
-) -> Solution:
-    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run
-    (``located``: the events found on its nodes already, and the dense
-    output they were found on; ``checked``: the certificate its values are
-    checked against, :func:`~hamrkq.solve.event_check.certificate`)."""
-    found = None
-    if located is not None:
-        dense, *found = located  # the dense output, then events.locate_all's pair
-    else:
-        dense = _events.dense_output(
-            task.ham, member_of(task), backend, task.params, sol.t, sol.y, sol.z,
-            dense_tolerance(task), checked,
-        )  # fmt: skip
-    if not specs:
-        return sol.replace(sol=dense)
-    z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)
-
-    def energy(t, Y):
-        return numeric_of(task.ham).energy(t, Y, task.params)
-
-    return _events.apply(
-        sol, specs, dense, energy, z_dense, keep_dense, None if found is None else tuple(found)
-    )

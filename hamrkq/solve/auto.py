@@ -50,6 +50,7 @@ from hamrkq.solve.dispatch import (
     shadow_departures,
     uses_witness,
 )
+from hamrkq.solve.event_check import stored_rounding_limits
 
 __all__ = [
     "MIN_GROWTH_STEPS",
@@ -147,9 +148,8 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         0.5 * task.options.gamma_limit
     ):
         return None  # the stored values' own rounding: more substeps cannot help
-    failure = out.event_failure
-    if failure is not None and failure.stored_ratio >= 0.5 * task.options.gamma_limit:
-        return None  # the same at an event state (hamrkq.solve.event_check)
+    if stored_rounding_limits(out.event_failure, task.options.gamma_limit):
+        return None  # the same at an event state
     if out.at_rounding_floor:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.

@@ -273,13 +273,7 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     # SUCCESS 94 times the tolerance off at 1e-6), nothing is certified.
     kept = int(beyond[0])
     return replace(
-        out,
-        t=out.t[:kept],
-        y=out.y[:kept],
-        z=out.z[:kept],
-        gamma=out.gamma[:kept],
-        quenched=out.quenched[:kept],
-        rounding=None if out.rounding is None else out.rounding[:kept],
+        out.rows(slice(kept)),
         status=Status.TOLERANCE_UNATTAINABLE.code,
         t_last=float(out.t[kept - 1]) if kept else task.t0,
         saturated=float(departure[kept]),

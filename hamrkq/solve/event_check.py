@@ -1,6 +1,7 @@
-"""The promise at event states: a run's events located, each state checked
-against the tolerance there, and the run ended before the first where it
-fails.
+"""Events on a run: located, each state checked against the tolerance
+there, the run ended before the first where it fails
+(:func:`run_certified`), and the events and dense output put on the
+finished solution (:func:`with_events`).
 
 An event state is a dense-output value between two nodes (:mod:`hamrkq.events`).
 Its tolerance is that of the state itself, ``max(atol, rtol |y_k|)``, and
@@ -26,13 +27,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hamrkq import events as _events
-from hamrkq._tolerance import component_tolerance
-from hamrkq.result import Status
+from hamrkq.backends.numeric import numeric_of
+from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
-from hamrkq.solve.dispatch import Task, dense_tolerance, member_of
+from hamrkq.solve.dispatch import MethodSpec, Task, dense_tolerance, member_of
 
-__all__ = ["EventFailure", "Located", "certificate", "certified_at_events"]
+__all__ = [
+    "EventFailure",
+    "Located",
+    "certificate",
+    "certified_at_events",
+    "run_certified",
+    "stored_rounding_limits",
+    "with_events",
+]
 
 #: What :func:`certified_at_events` found along a run, for
 #: :func:`hamrkq.events.apply`: the dense output it located them on, and
@@ -56,7 +65,7 @@ class EventFailure:
     #: the value's own rounding alone over the tolerance (stepped in double
     #: from a stored node): what neither more quencher steps nor the
     #: quencher in double-double reduce
-    stored_ratio: float = 0.0
+    stored_ratio: float
 
 
 def certified_at_events(
@@ -90,13 +99,7 @@ def certified_at_events(
     key = 1.0 if out.t[-1] >= out.t[0] else -1.0
     kept = key * out.t < key * failure.t
     truncated = replace(
-        out,
-        t=out.t[kept],
-        y=out.y[kept],
-        z=out.z[kept],
-        gamma=out.gamma[kept],
-        quenched=out.quenched[kept],
-        rounding=None if out.rounding is None else out.rounding[kept],
+        out.rows(kept),
         status=Status.TOLERANCE_UNATTAINABLE.code,
         t_last=failure.t,
         max_ratio=failure.ratio,
@@ -123,7 +126,7 @@ def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
     key = 1.0 if out.t[-1] >= out.t[0] else -1.0
     first = None
     for spec, (times, states) in zip(specs, found, strict=True):
-        ratios, rounding = attainability(
+        ratios, rounding, component, stored = attainability(
             times, states, out.t, out.z, out.gamma, tolerance, out.rounding
         )
         bad = np.flatnonzero(~(ratios <= limit))
@@ -131,21 +134,60 @@ def _first_failure(task, out, specs, found, limit) -> EventFailure | None:
             continue
         j = int(bad[0])
         if first is None or key * times[j] < key * first.t:
-            state = states[j]
-            component = int(np.argmax(_share(task, out, times[j]) / component_tolerance(
-                task.atol, task.rtol, state)))  # fmt: skip
-            stored, _ = attainability(
-                times[j : j + 1], states[j : j + 1], out.t, out.z, np.zeros_like(out.gamma),
-                tolerance,
+            first = EventFailure(
+                spec.label, float(times[j]), states[j], float(ratios[j]), float(rounding[j]),
+                int(component[j]), float(stored[j]),
             )  # fmt: skip
-            first = EventFailure(spec.label, float(times[j]), state, float(ratios[j]),
-                                 float(rounding[j]), component, float(stored[0]))  # fmt: skip
     return first
 
 
-def _share(task, out, t) -> np.ndarray:
-    """Gamma and the rounding of the node nearer to ``t``: which component
-    is closest to its limit there."""
-    nearest = int(np.argmin(np.abs(out.t - t)))
-    share = np.abs(out.gamma[nearest])
-    return share if out.rounding is None else share + out.rounding[nearest]
+def stored_rounding_limits(failure: EventFailure | None, gamma_limit: float) -> bool:
+    """Whether an event state failed on its own rounding (stepped in double
+    from a node stored in double), which no rerun reduces: what ``auto``
+    does not run again for, and what the message then says."""
+    return failure is not None and failure.stored_ratio >= 0.5 * gamma_limit
+
+
+def run_certified(
+    task: Task, spec: MethodSpec, specs: list, backend: str
+) -> tuple[RunOutput | Solution, Located | None]:
+    """One run of ``task`` by ``spec``, ended before the first event state
+    where its promise fails (:func:`certified_at_events`; not the baselines,
+    which return a finished :class:`~hamrkq.result.Solution`), and the
+    events located on it."""
+    out = spec.run(task, backend)
+    if isinstance(out, Solution) or not specs:
+        return out, None
+    return certified_at_events(task, out, specs, backend)
+
+
+def with_events(
+    task: Task,
+    sol: Solution,
+    backend: str,
+    specs,
+    keep_dense: bool,
+    located: Located | None,
+    checked: tuple | None,
+) -> Solution:
+    """Dense output and events (:mod:`hamrkq.events`) on a finished RKQ run
+    (``located``: the events found on its nodes already, and the dense
+    output they were found on; ``checked``: the certificate its values are
+    checked against, :func:`certificate`)."""
+    found = None
+    if located is not None:
+        dense, roots, stop_by = located
+        found = (roots, stop_by)
+    else:
+        dense = _events.dense_output(
+            task.ham, member_of(task), backend, task.params, sol.t, sol.y, sol.z,
+            dense_tolerance(task), checked,
+        )  # fmt: skip
+    if not specs:
+        return sol.replace(sol=dense)
+    z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)
+
+    def energy(t, Y):
+        return numeric_of(task.ham).energy(t, Y, task.params)
+
+    return _events.apply(sol, specs, dense, energy, z_dense, keep_dense, found)

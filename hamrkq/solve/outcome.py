@@ -22,6 +22,7 @@ from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
+from hamrkq.solve.event_check import stored_rounding_limits
 
 __all__ = ["solution"]
 
@@ -118,10 +119,10 @@ def _unattainable(out: RunOutput, task: Task) -> str:
         return _estimate_diverged(out, task)
     if out.event_failure is not None:
         text = _event_failed(out, task)
-        if out.at_rounding_floor:
+        if stored_rounding_limits(out.event_failure, o.gamma_limit):
             return text + (
-                f" Of that, {out.floor_ratio:.3g} x the tolerance is rounding: the quencher's "
-                "own, and the value's, stepped in double from the node stored in double before "
+                f" Of that, {out.event_failure.stored_ratio:.3g} x the tolerance is the value's "
+                "own rounding: it is stepped in double from the node stored in double before "
                 "it, whose last bit is an ulp of the state's size there, not of the component "
                 "near zero; more quencher steps or the quencher in double-double do not go "
                 "below it. A larger atol is what works."
