@@ -252,7 +252,7 @@ def test_event_states_where_a_component_crosses_zero_keep_the_promise(name, even
     sol = hamrkq.solve(problem, method="auto", events=event, atol=1e-12, rtol=1e-6)
     assert sol.status is Status.SUCCESS
     assert sol.t_events[0].size > 10
-    assert _event_state_ratio(problem, sol) <= 1.05  # measured 0.018 and 0.001
+    assert _event_state_ratio(problem, sol) <= 1.05  # measured 0.018 and 0.002
     # auto ran again: the first run stopped before an event state
     assert "stopped before the state of event" in sol.message
 
