@@ -110,3 +110,44 @@ def test_indicator_of_a_finished_run_needs_every_node():
         indicator_of("lyapunov", thinned, OSC)
     with pytest.raises(ValueError, match="kind must be one of"):
         indicator_of("fli", sol, OSC)
+
+
+def test_a_backward_run_measures_the_time_reversed_orbits_exponent():
+    # (q, p, t) -> (q, -p, -t) maps the forward run of a reversible
+    # Hamiltonian onto the backward one: the same growth of |v| over the same
+    # elapsed time.  The exponent was divided by t - t0 < 0: Henon-Heiles'
+    # chaotic orbit read -0.193 backward where it reads +0.193 forward.
+    hh = load_problem("henon_heiles")
+    energy, q2 = 1 / 6, -0.25
+    p1 = math.sqrt(2 * (energy - (q2**2 / 2 - q2**3 / 3)))
+    options = {"atol": 1e-12, "gamma_limit": math.inf}
+    forward = lyapunov(hh, [0, q2], [-p1, 0], (0, 100), v0=[1, 1, 1, 1], **options)
+    backward = lyapunov(hh, [0, q2], [p1, 0], (0, -100), v0=[1, 1, -1, -1], **options)
+    assert forward.value[-1] > 0.1  # chaotic: measured 0.193
+    assert backward.value[-1] == pytest.approx(forward.value[-1], rel=1e-3)
+    y_forward = megno(hh, [0, q2], [-p1, 0], (0, 100), v0=[1, 1, 1, 1], **options)
+    y_backward = megno(hh, [0, q2], [p1, 0], (0, -100), v0=[1, 1, -1, -1], **options)
+    assert y_backward.value[-1] == pytest.approx(y_forward.value[-1], rel=1e-3)
+
+
+@pytest.mark.parametrize("v0", [[1.0, 1.0], [1, 0, 0, 0, 9], [0, 0, 0, 0], [1, np.nan, 0, 0]])
+def test_a_tangent_direction_of_the_wrong_length_or_zero_is_refused_before_the_run(v0):
+    # A short v0 was accepted, the compiled sweep wrote past its end, and
+    # the process later aborted (munmap_chunk(): invalid pointer); a long one
+    # was cut silently, a zero one gave nan.
+    hh = load_problem("henon_heiles")
+    for indicator in (lyapunov, megno):
+        with pytest.raises(hamrkq.errors.InputError, match="v0 must be"):
+            indicator(hh, t_span=(0, 20), v0=v0)
+
+
+def test_a_method_outside_the_rkq_family_is_refused_before_the_run():
+    # verlet's run has no RKQ tableau to step the tangent vector with: it
+    # ended in KeyError: 'method' after the whole orbit was integrated.
+    with pytest.raises(hamrkq.errors.OptionError, match=r"not an RKQ method.*'rk34q8'"):
+        megno(OSC, [1.0], [0.0], (0.0, 20.0), method="verlet", step=0.01)
+    from hamrkq.analysis.chaos import indicator_of
+
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 2.0), method="verlet", step=0.01)
+    with pytest.raises(hamrkq.errors.OptionError, match="the run's method 'verlet'"):
+        indicator_of("lyapunov", sol, OSC)

@@ -6,7 +6,7 @@ carry a tangent vector ``v`` along the nodes with the exact linearisation of
 the quencher's step (:mod:`hamrkq.rkq.variational`; the symbolic Jacobian gives
 ``J v``), renormalised every step.  With ``l_i = log(|v_{i+1}|/|v_i|)``:
 
-- the maximal Lyapunov exponent ``lambda(t_k) = sum_{i<k} l_i / (t_k - t0)``
+- the maximal Lyapunov exponent ``lambda(t_k) = sum_{i<k} l_i / |t_k - t0|``
   (Benettin et al. 1980), which tends to 0 like ``1/t`` on a regular orbit;
 - MEGNO ``Y(t) = (2/t) int_0^t s (v.v'/v.v) ds`` and its running mean
   ``<Y>(t) = (1/t) int_0^t Y ds`` (Cincotta & Simo 2000, the definition
@@ -16,7 +16,9 @@ the quencher's step (:mod:`hamrkq.rkq.variational`; the symbolic Jacobian gives
   tends to 0 for a harmonic (isochronous) orbit, to 2 for a quasi-periodic
   one, and grows like ``lambda t / 2`` for a chaotic one.
 
-Time is counted from ``t0``.
+Time is counted from ``t0``, as ``|t - t0|``: a run backward in time
+measures the same growth of ``|v|`` over the same elapsed time (the
+exponent of the time-reversed orbit), positive on a chaotic orbit.
 """
 
 from __future__ import annotations
@@ -26,10 +28,13 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._validate import show
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
+from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import dense_tableaus, prepare_work
+from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.variational import sweep
 from hamrkq.solve import solve
 
@@ -82,12 +87,12 @@ def tangent_growth(
 
     ham = system.hamiltonian if isinstance(system, Problem) else system
     options = sol.options
+    _check_method(options.get("method", sol.method), "the run's method")
     member = get_member(str(options["method"]), options.get("z_method"), options.get("z_substeps"))
     tab = dense_tableaus(member)
     params = np.array(list(options["parameters"].values()), dtype=np.float64)
     d = ham.dim
-    v = np.ones(d) if v0 is None else np.array(v0, dtype=np.float64)
-    v = v / np.linalg.norm(v)
+    v = tangent_direction(v0, d)
     t = np.array(sol.t, dtype=np.float64)
     y = np.array(sol.y, dtype=np.float64)
     growth = np.zeros(max(t.size - 1, 0))
@@ -112,10 +117,42 @@ def tangent_growth(
     return growth
 
 
-def _orbit(system, q0, p0, t_span, solve_options) -> Solution:
+def tangent_direction(v0: Any, dim: int) -> np.ndarray:
+    """The unit vector along ``v0`` (``dim`` finite numbers, not all zero;
+    default all components equal)."""
+    if v0 is None:
+        return np.full(dim, 1.0 / np.sqrt(dim))
+    try:
+        v = np.array(v0, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"v0 must be {dim} numbers, got {show(v0)}") from None
+    if v.shape != (dim,):
+        raise InputError(f"v0 must be {dim} numbers (one per q and p), got {show(v0)}")
+    norm = float(np.linalg.norm(v)) if np.all(np.isfinite(v)) else np.nan
+    if not (np.isfinite(norm) and norm > 0):
+        raise InputError(f"v0 must be finite and not zero, got {show(v0)}")
+    return v / norm
+
+
+def _check_method(method: Any, what: str = "method") -> None:
+    """The indicators step the tangent vector with an RKQ family member's
+    own tableau: a baseline's run (``verlet``, ``scipy:*``) has none."""
+    if method is None or method == "auto" or method in MEMBERS:
+        return
+    valid = ", ".join(repr(k) for k in ("auto", *MEMBERS))
+    raise OptionError(
+        f"{what} {method!r} is not an RKQ method: the Lyapunov exponent and MEGNO carry the "
+        f"tangent vector with the steps of the RKQ family's tableaus; valid: {valid}"
+    )
+
+
+def _orbit(system, q0, p0, t_span, v0, solve_options) -> Solution:
     for key in ("dense_output", "events", "keep_every", "t_eval"):
         if key in solve_options:
             raise TypeError(f"{key} cannot be given: the indicators need every node")
+    _check_method(solve_options.get("method"))
+    ham = system.hamiltonian if isinstance(system, Problem) else system
+    tangent_direction(v0, ham.dim)  # before the run, not after it
     return solve(system, q0, p0, t_span, **solve_options)
 
 
@@ -124,7 +161,7 @@ _NAMES = {"lyapunov": "Lyapunov exponent", "megno": "MEGNO"}
 
 
 def _indicator(kind: str, system, q0, p0, t_span, v0, solve_options) -> ChaosIndicator:
-    sol = _orbit(system, q0, p0, t_span, dict(solve_options))
+    sol = _orbit(system, q0, p0, t_span, v0, dict(solve_options))
     indicator = indicator_of(kind, sol, system, v0)
     if sol.status is Status.TOLERANCE_UNATTAINABLE and "gamma_limit" not in solve_options:
         message = sol.message + (
@@ -150,7 +187,7 @@ def indicator_of(kind: str, sol: Solution, system: Any, v0: Any = None) -> Chaos
         raise ValueError("the indicators need every node: a run without keep_every or t_eval")
     growth = tangent_growth(sol, system, v0)
     t = np.asarray(sol.t)
-    elapsed = t - t[0]
+    elapsed = np.abs(t - t[0])  # a backward run's time runs forward here
     value = np.zeros(t.size)
     with np.errstate(invalid="ignore", divide="ignore"):
         if kind == "lyapunov":
@@ -159,7 +196,8 @@ def indicator_of(kind: str, sol: Solution, system: Any, v0: Any = None) -> Chaos
             weighted = np.cumsum(growth * 0.5 * (elapsed[:-1] + elapsed[1:]))
             Y = np.zeros(t.size)
             Y[1:] = 2.0 * weighted / elapsed[1:]
-            integral = np.concatenate([[0.0], np.cumsum(0.5 * (Y[1:] + Y[:-1]) * np.diff(t))])
+            trapezoids = 0.5 * (Y[1:] + Y[:-1]) * np.diff(elapsed)
+            integral = np.concatenate([[0.0], np.cumsum(trapezoids)])
             value[1:] = integral[1:] / elapsed[1:]
     return ChaosIndicator(t=t, value=value, status=sol.status, message=sol.message, solution=sol)
 
@@ -188,7 +226,15 @@ def lyapunov(
     Returns
     -------
     ChaosIndicator
-        ``value[k] = sum_{i<k} log(|v_{i+1}|/|v_i|) / (t_k - t0)``.
+        ``value[k] = sum_{i<k} log(|v_{i+1}|/|v_i|) / |t_k - t0|``.
+
+    Raises
+    ------
+    InputError
+        ``v0`` not ``2n`` finite numbers, or zero.
+    OptionError
+        A ``method`` outside the RKQ family (the tangent vector is stepped
+        with the member's tableau).
     """
     return _indicator("lyapunov", system, q0, p0, t_span, v0, solve_options)
 
