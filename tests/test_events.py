@@ -315,3 +315,47 @@ def test_an_event_state_below_double_precisions_floor_stops_the_run_honestly():
     # no rerun: neither more quencher steps nor double-double go below it
     assert "the run with" not in sol.message
     assert "discarded_evaluations" not in sol.stats
+
+
+def _grazing_times(level: float, t_end: float) -> np.ndarray:
+    """Where q = sin t reaches ``level`` (< 1): twice near each maximum."""
+    k = np.arange(int(t_end / (2 * math.pi)) + 1)
+    times = np.concatenate(
+        [math.asin(level) + 2 * math.pi * k, math.pi - math.asin(level) + 2 * math.pi * k]
+    )
+    return np.sort(times[times <= t_end])
+
+
+@pytest.mark.parametrize("direction", [0, 1, -1])
+def test_two_crossings_inside_one_step_are_found(direction):
+    # q = sin t grazes q = 0.99 near each maximum: the two crossings, 0.28
+    # apart, often fall between the same two nodes, where g has one sign at
+    # both.  Node signs alone found 12 of the 20 at atol 1e-6.
+    t_end = 20 * math.pi
+    exact = _grazing_times(0.99, t_end)
+    sol = hamrkq.solve(OSC, [0.0], [1.0], (0.0, t_end), atol=1e-6,
+                       events={"expression": "q - 0.99", "direction": direction})  # fmt: skip
+    want = {0: exact, 1: exact[0::2], -1: exact[1::2]}[direction]
+    times = sol.t_events[0]
+    assert times.size == want.size
+    # |dg/dt| = 0.14 at the crossings: a time within delta / 0.14
+    assert np.max(np.abs(times - want)) < 2e-5
+    np.testing.assert_allclose(sol.y_events[0][:, 0], 0.99, atol=1.05e-6)
+    # ... and where the orbit turns back short of the surface, nothing.
+    short = hamrkq.solve(OSC, [0.0], [1.0], (0.0, t_end), atol=1e-6, events="q - 1.001")
+    assert short.t_events[0].size == 0
+
+
+def test_two_crossings_inside_one_step_of_a_callable_event_backward_in_time():
+    # A Python g has no symbolic derivative: dg/dt by a central difference
+    # along f.  Backward in time the roots come in the run's order.
+    def g(t, y):
+        return y[0] - 0.999
+
+    t_end = 20 * math.pi
+    exact = _grazing_times(0.999, t_end)
+    sol = hamrkq.solve(OSC, [math.sin(t_end)], [math.cos(t_end)], (t_end, 0.0), atol=1e-9,
+                       events=g)  # fmt: skip
+    times = sol.t_events[0]
+    assert times.size == exact.size  # node signs alone: 2 of 20
+    np.testing.assert_allclose(times, exact[::-1], atol=1e-6)
