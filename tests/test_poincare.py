@@ -186,3 +186,32 @@ def test_cli_poincare_rejects_hostile_energy(tmp_path):
         ["poincare", "henon_heiles", "--energy", "__import__('os')", "--out", str(tmp_path / "x")]
     )
     assert code != 0
+
+
+def test_poincare_needs_orbits():
+    hh = load_problem("henon_heiles")
+    # Before: ValueError "need at least one array to concatenate".
+    with pytest.raises(InputError, match=r"need at least one orbit, got shapes \(0, 2\)"):
+        poincare(hh, "q1 = 0", np.zeros((0, 2)), np.zeros((0, 2)), (0, 10))
+    # Before: "q0 and p0 must both be 1-D ..., got shapes () and ()".
+    with pytest.raises(InputError, match=r"needs q0 and p0 .*; q0 and p0 not given \(a Problem"):
+        poincare(hh.hamiltonian, "q1 = 0")
+    with pytest.raises(InputError, match=r"; p0 not given"):
+        poincare(hh.hamiltonian, "q1 = 0", [0.0, 0.1])
+    with pytest.raises(InputError, match="t_span must be given"):
+        poincare(hh.hamiltonian, "q1 = 0", [0.0, 0.1], [0.3, 0.0])
+
+
+def test_direction_along_a_backward_run():
+    # SciPy's convention: direction is along the integration.  Backward on
+    # q = sin t, +1 picks q = 0 where q decreases in time (p = -1), -1 where
+    # it increases; the docstring now says so.
+    h = load_problem("harmonic")
+    span = (0.0, -4 * math.pi - 0.5)
+    up = poincare(h, "q = 0", [0.0], [1.0], span, direction=1, atol=1e-10)
+    down = poincare(h, "q = 0", [0.0], [1.0], span, direction=-1, atol=1e-10)
+    np.testing.assert_allclose(up.t, [-math.pi, -3 * math.pi], atol=1e-8, rtol=0)
+    np.testing.assert_allclose(up.column("p"), -1.0, atol=1e-8)
+    np.testing.assert_allclose(down.t, [-2 * math.pi, -4 * math.pi], atol=1e-8, rtol=0)
+    np.testing.assert_allclose(down.column("p"), 1.0, atol=1e-8)
+    assert "backward run" in " ".join(poincare.__doc__.split())

@@ -120,11 +120,14 @@ def poincare(
     system : Hamiltonian or Problem
     section : str
         ``"lhs = rhs"`` in the system's names (``"q1 = 0"``), parsed safely.
-    q0, p0 : array of n, or of shape (k, n) for k orbits
-        Initial values (a Problem's by default).
+    q0, p0 : array of n, or of shape (k, n) for k >= 1 orbits
+        Initial values (a Problem's by default; required with a Hamiltonian).
     t_span : (t0, t_end)
     direction : float, default +1
-        Count crossings where ``lhs - rhs`` increases (+1), decreases (-1), or both (0).
+        Count crossings where ``lhs - rhs`` increases (+1), decreases (-1), or
+        both (0), along the direction of integration (SciPy's convention): in
+        a backward run (``t_span`` decreasing) +1 counts the crossings where
+        ``lhs - rhs`` decreases in time, -1 those where it increases.
     n_crossings : int, optional
         Stop each orbit at this many crossings (a terminal event).
     **solve_options
@@ -133,6 +136,13 @@ def poincare(
     Returns
     -------
     PoincareSection
+
+    Raises
+    ------
+    InputError
+        A bad section or ``n_crossings``; ``q0``/``p0`` missing (a
+        Hamiltonian has no initial values of its own), of mismatched shapes,
+        or with no orbit.
     """
     ham, problem = _system(system)
     expr = section_expression(ham, section)
@@ -144,6 +154,13 @@ def poincare(
     if problem is not None:
         q0 = problem.q0 if q0 is None else q0
         p0 = problem.p0 if p0 is None else p0
+    elif q0 is None or p0 is None:
+        # Else np.asarray(None) reached the shape check: "got shapes () and ()".
+        missing = " and ".join(name for name, v in (("q0", q0), ("p0", p0)) if v is None)
+        raise InputError(
+            f"poincare of a Hamiltonian needs q0 and p0 (one orbit, or one row per orbit); "
+            f"{missing} not given (a Problem supplies its own)"
+        )
     Q, P = np.asarray(q0, dtype=float), np.asarray(p0, dtype=float)
     if Q.ndim != P.ndim or Q.ndim not in (1, 2) or (Q.ndim == 2 and Q.shape[0] != P.shape[0]):
         raise InputError(
@@ -151,6 +168,9 @@ def poincare(
             f"got shapes {Q.shape} and {P.shape}"
         )
     Q, P = np.atleast_2d(Q), np.atleast_2d(P)
+    if Q.shape[0] == 0:
+        # Else np.concatenate of no crossing times: "need at least one array".
+        raise InputError(f"q0 and p0 need at least one orbit, got shapes {Q.shape} and {P.shape}")
     solutions = [
         solve(system, q, p, t_span, events=[event], **solve_options)
         for q, p in zip(Q, P, strict=True)
