@@ -188,6 +188,133 @@ def test_cli_poincare_rejects_hostile_energy(tmp_path):
     assert code != 0
 
 
+def _section_g(ham, section):
+    """The section's event function as the solver evaluates it (the path of
+    hamrkq.events' expression events: NumPy, on columns of state rows)."""
+    from hamrkq.analysis.poincare import section_expression
+
+    f = sp.lambdify(
+        (ham.t, ham.state, ham.parameters), section_expression(ham, section), modules="numpy"
+    )
+    return lambda Y: np.broadcast_to(f(np.zeros(len(Y)), list(Y.T), np.array([])), len(Y))
+
+
+@pytest.mark.parametrize("constant", ["sqrt(2)/10", "1/3", "pi/7", "0.3", "0.1 + 0.2"])
+def test_energy_orbits_start_exactly_on_the_section(constant):
+    # Before: q1 was SymPy's rounding of the constant, float(sp.N(...)), and
+    # the event NumPy's, 0.1 * sqrt(2) one ulp above SymPy's 0.1414213562373095
+    # for sqrt(2)/10: g = -2.8e-17 at the start, which counted as a crossing
+    # at t = 6e-17.
+    hh = load_problem("henon_heiles")
+    section = f"q1 = {constant}"
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 8, 3, section)
+    g = _section_g(hh.hamiltonian, section)(np.hstack([q0, p0]))
+    np.testing.assert_array_equal(g, 0.0)
+    sec = poincare(hh, section, q0, p0, (0.0, 10.0), direction=0, atol=1e-10)
+    assert np.min(sec.t) > 0.5  # the first real crossing, not the start
+    if constant == "sqrt(2)/10":
+        assert q0[0, 0] == 0.1 * math.sqrt(2) != float(sp.N(sp.sqrt(2) / 10))
+
+
+def test_cli_poincare_orbits_start_on_the_section_without_crossing_it(tmp_path):
+    # Before: 11 crossings, 3 of them the orbits' starts at t = 6e-17.
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    argv = ["poincare", "henon_heiles", "--section", "q1 = sqrt(2)/10", "--energy", "1/8",
+            "--orbits", "3", "--t-end", "20", "--no-plots", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    data = np.load(out / "section.npz")
+    hh = load_problem("henon_heiles").hamiltonian
+    g = _section_g(hh, "q1 = sqrt(2)/10")
+    np.testing.assert_array_equal(g(np.hstack([data["q0"], data["p0"]])), 0.0)
+    assert data["t"].size == 8 and np.min(data["t"]) > 6.0
+
+
+def _henon_heiles_line_roots(c, energy):
+    # H(q1 = c, q2, p = 0) = E: c**2/2 + q2**2/2 + c**2 q2 - q2**3/3 = E
+    roots = np.roots([-1 / 3, 1 / 2, c**2, c**2 / 2 - energy])
+    return np.sort(roots[np.abs(roots.imag) < 1e-12].real)
+
+
+def test_energy_orbits_where_the_other_coordinate_0_is_not_allowed():
+    # Before: "the point q = 0 on the section is above the energy 0.11"
+    # (H(0.5, 0) = 0.125), though H(q1 = 0.5, q2, p = 0) has its minimum
+    # 0.0976 at q2 = (1 - sqrt 2)/2: the interval around that minimum,
+    # -0.33553 to -0.07037, is chosen now.
+    hh = load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 0.11, 3, "q1 = 0.5")
+    lo, hi, _ = _henon_heiles_line_roots(0.5, 0.11)
+    assert lo == pytest.approx(-0.33553477, abs=1e-8) and hi == pytest.approx(
+        -0.07036785, abs=1e-8
+    )
+    np.testing.assert_allclose(q0[:, 1], np.linspace(lo, hi, 5)[1:-1], atol=1e-12, rtol=0)
+    assert np.all(q0[:, 0] == 0.5) and np.all(p0[:, 0] > 0) and np.all(p0[:, 1] == 0)
+    energies = numeric_of(hh.hamiltonian).energy(0.0, np.hstack([q0, p0]), hh.parameter_array)
+    np.testing.assert_allclose(energies, 0.11, atol=1e-14, rtol=0)
+    # No point of the line allowed: the lowest energy on it, and where.
+    with pytest.raises(InputError, match=r"lowest energy found on it is 0\.5, at q2 = 0 "):
+        energy_orbits(TWO, 0.3, 2, "q1 = 1")
+    # Below the well's minimum on the line, only the escape side is allowed.
+    with pytest.raises(
+        InputError, match=r"\(the lowest is 0\.0976311, at q2 = -0\.207107\).* from q2 = 1\.94506"
+    ):
+        energy_orbits(hh.hamiltonian, 0.05, 2, "q1 = 0.5")
+
+
+def test_cli_poincare_energy_with_the_other_coordinate_0_not_allowed(tmp_path):
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    argv = ["poincare", "henon_heiles", "--energy", "0.11", "--section", "q1 = 0.5",
+            "--orbits", "2", "--t-end", "30", "--no-plots", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    data = np.load(out / "section.npz")
+    assert data["t"].size > 0 and np.max(np.abs(data["y"][:, 0] - 0.5)) < 1e-8
+
+
+def test_energy_orbits_interval_ends_are_the_roots():
+    # Before: the ends were points of a grid of step 1e-3 (the seeds off by
+    # up to 1e-3 from evenly spread between -0.43969 and 0.67365).
+    hh = load_problem("henon_heiles")
+    q0, _ = energy_orbits(hh.hamiltonian, 1 / 8, 4)
+    lo, hi, _ = _henon_heiles_line_roots(0.0, 1 / 8)
+    np.testing.assert_allclose(q0[:, 1], np.linspace(lo, hi, 6)[1:-1], atol=1e-12, rtol=0)
+
+
+def test_energy_orbits_interval_beyond_the_first_grid_and_unbounded_ones():
+    # Before: the grid [-10, 10] cut every interval there.  A well of
+    # half-width 30 now gets seeds at -15, 0, 15 ...
+    wide = hamrkq.Hamiltonian(
+        (p1**2 + q1**2) / 2 + p2**2 / 2 + (q2 / 30) ** 2 / 2, q=[q1, q2], p=[p1, p2]
+    )
+    q0, _ = energy_orbits(wide, 0.5, 3)
+    np.testing.assert_allclose(q0[:, 1], [-15.0, 0.0, 15.0], atol=1e-12)
+    # ... and an unbounded one is refused: Henon-Heiles above its escape
+    # energy 1/6 (before: seeds at q2 = 1.2 ... 8.2, beyond the saddle at
+    # q2 = 1, whose orbits ran 27 s to MAX_STEPS with states up to 1e9).
+    hh = load_problem("henon_heiles")
+    with pytest.raises(
+        InputError, match=r"unbounded along q2: it runs from q2 = -0\.542053 up past 1e6.*escape"
+    ):
+        energy_orbits(hh.hamiltonian, 0.2, 5)
+    # the double pendulum's q2, an angle, at an energy where it goes round
+    dp = load_problem("double_pendulum")
+    with pytest.raises(InputError, match=r"unbounded along q2: it runs over the whole line"):
+        energy_orbits(dp.hamiltonian, 100.0, 5, "q1 = 0", dp.parameters)
+
+
+def test_cli_poincare_refuses_an_energy_above_the_escape_energy(tmp_path, capsys):
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    argv = ["poincare", "henon_heiles", "--energy", "0.2", "--orbits", "3", "--t-end", "50",
+            "--no-plots", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    assert "above the escape energy" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_poincare_needs_orbits():
     hh = load_problem("henon_heiles")
     # Before: ValueError "need at least one array to concatenate".
