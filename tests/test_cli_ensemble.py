@@ -98,6 +98,26 @@ def test_bad_grids_exit_2_and_name_the_grid(tmp_path, capsys, grid, match):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--grid", "q=0:1:100000000000"], "100000000000 members is more than 100000000"),
+        (
+            ["--grid", "q=0:1:3", "--samples", "100000000000"],
+            "more than half this machine's memory",
+        ),
+        (["--grid", "q=0:1:3", "--samples", "0"], "--samples must be a positive integer"),
+    ],
+)
+def test_sizes_beyond_the_machine_are_refused_before_any_array(tmp_path, capsys, extra, match):
+    # N = 1e11 asked NumPy for 745 GiB (np.linspace before the size check)
+    # and --samples had no limit: a MemoryError traceback, exit 1.
+    argv = ["ensemble", "pendulum", *extra, "--out", str(tmp_path / "x")]
+    assert main(argv) == 2
+    assert match in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
 def test_a_name_given_twice_is_refused(tmp_path, capsys):
     argv = ["ensemble", "pendulum", "--grid", "q=0:1:2", "--grid", "q=0:1:3",
             "--out", str(tmp_path / "x")]  # fmt: skip

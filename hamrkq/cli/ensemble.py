@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 from typing import Any
 
@@ -33,7 +34,7 @@ from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir
 
-__all__ = ["QUANTITIES", "ensemble_command", "parse_grid", "register"]
+__all__ = ["QUANTITIES", "check_kept_states", "ensemble_command", "parse_grid", "register"]
 
 DEFAULT_ROOT = "hamrkq-ensemble"
 #: Per-member quantities ``--quantity`` can map, with their labels and scales.
@@ -45,6 +46,9 @@ QUANTITIES = {
 }
 #: Largest grid accepted from the command line (the library takes any size).
 MAX_MEMBERS = 100_000_000
+#: The share of the machine's memory the states kept (members x samples x 2n
+#: doubles) may take: beyond it the run would fail to allocate, or swap.
+MEMORY_SHARE = 0.5
 
 
 def register(subparsers: Any) -> None:
@@ -89,7 +93,7 @@ def register(subparsers: Any) -> None:
 def parse_grid(items: list[str], known: list[str]) -> list[tuple[str, np.ndarray]]:
     """``["q=-1:1:5", ...]`` -> ``[("q", array of 5 values), ...]``; plain numbers
     only (``float``), never expressions, and each name once."""
-    axes: list[tuple[str, np.ndarray]] = []
+    parsed: list[tuple[str, float, float, int]] = []
     for item in items:
         name, sep, spec = item.partition("=")
         name = name.strip()
@@ -108,13 +112,34 @@ def parse_grid(items: list[str], known: list[str]) -> list[tuple[str, np.ndarray
                 f"--grid {item!r}: {name!r} is not a coordinate, momentum or parameter "
                 f"of the problem ({', '.join(known)})"
             )
-        if name in (a for a, _ in axes):
+        if name in (a for a, *_ in parsed):
             raise InputError(f"--grid {item!r}: {name!r} is given twice")
-        axes.append((name, np.linspace(lo, hi, count)))
-    size = math.prod(len(values) for _, values in axes)
+        parsed.append((name, lo, hi, count))
+    # The size before any array: N = 1e11 on one axis once asked NumPy for
+    # 745 GiB and ended in a MemoryError traceback.
+    size = math.prod(count for *_, count in parsed)
     if size > MAX_MEMBERS:
         raise InputError(f"--grid: {size} members is more than {MAX_MEMBERS}")
-    return axes
+    return [(name, np.linspace(lo, hi, count)) for name, lo, hi, count in parsed]
+
+
+def check_kept_states(members: int, samples: int, dim: int) -> None:
+    """Refuse ``--samples`` whose kept states (``members x samples x dim``
+    doubles, the ensemble's ``y``) would take more than :data:`MEMORY_SHARE`
+    of this machine's memory."""
+    if samples < 1:
+        raise InputError(f"--samples must be a positive integer, got {samples}")
+    needed = members * samples * dim * 8
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # no sysconf: a generous 2**40
+        memory = 1 << 40
+    if needed > MEMORY_SHARE * memory:
+        raise InputError(
+            f"--samples {samples}: {members} members x {samples} samples x {dim} numbers "
+            f"would take {needed / 2**30:.3g} GiB, more than half this machine's memory "
+            f"({memory / 2**30:.3g} GiB); keep fewer samples or members"
+        )
 
 
 def ensemble_command(args: argparse.Namespace) -> int:
@@ -125,8 +150,7 @@ def ensemble_command(args: argparse.Namespace) -> int:
     p_names = [s.name for s in ham.p]
     par_names = [s.name for s in ham.parameters]
     axes = parse_grid(args.grid, [*q_names, *p_names, *par_names])
-    if args.samples < 1:
-        raise InputError(f"--samples must be a positive integer, got {args.samples}")
+    check_kept_states(math.prod(len(values) for _, values in axes), args.samples, ham.dim)
     if args.dpi < 10:
         raise InputError(f"--dpi must be at least 10, got {args.dpi}")
     mesh = np.meshgrid(*(values for _, values in axes), indexing="ij")
