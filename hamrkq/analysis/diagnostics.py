@@ -349,7 +349,9 @@ def diagnose_for_report(
     or not far below the tolerance (within
     :data:`~hamrkq.analysis.summaries.CLOSE_REFERENCE` of it: fpu, arenstorf),
     and the extended one can be had (heyoka) and is more accurate, the run is
-    measured against that instead, and a note says so.
+    measured against that instead, and a note says so; and where the exact
+    solution cannot be had (a run from another initial time), the independent
+    reference is used, with a note.
 
     Returns
     -------
@@ -358,15 +360,25 @@ def diagnose_for_report(
     """
     if len(sol) < 2:
         return None, reference, ["fewer than two nodes: no diagnostics"]
-    try:
-        diag = diagnose(sol, problem, reference=reference)
-    except HamrkqError as exc:
-        note = f"reference {reference!r} unavailable ({exc}); true error not reported"
-        return diagnose(sol, problem, reference="none"), reference, [note]
     notes: list[str] = []
-    if extend and reference == "independent":
-        diag, reference = _extended_if_unmeasured(sol, problem, diag, notes)
-    return diag, reference, notes
+    # --reference auto promises the independent reference where the exact
+    # solution cannot be had (a run from --t-start, whose initial state is
+    # not the exact solution's there); a reference asked for by name is not
+    # replaced.
+    kinds = [reference, "independent"] if extend and reference == "exact" else [reference]
+    for kind in kinds:
+        try:
+            diag = diagnose(sol, problem, reference=kind)
+        except HamrkqError as exc:
+            notes.append(f"reference {kind!r} unavailable ({exc})")
+            continue
+        if kind != reference:
+            notes[-1] += f"; measured against {kind!r}"
+        if extend and kind == "independent":
+            diag, kind = _extended_if_unmeasured(sol, problem, diag, notes)
+        return diag, kind, notes
+    notes[-1] += "; true error not reported"
+    return diagnose(sol, problem, reference="none"), reference, notes
 
 
 def _extended_if_unmeasured(
