@@ -3,8 +3,12 @@
     python benchmarks/events.py
 
 Kepler e = 0.6 over 100 orbits at atol 1e-12 (auto): plain; dense_output=True;
-the pericentre event ``q1*p1 + q2*p2`` (direction +1); and Prentice's problem
-at atol 1e-9 with the event ``q`` (its zero crossings).  Median of 3 runs each.
+the pericentre event ``q1*p1 + q2*p2`` (direction +1); Prentice's problem
+at atol 1e-9 with the event ``q`` (its zero crossings); and an anharmonic
+oscillator (``v**2/2 + 2 x**2 + x**4/100``) over t <= 10 000 at atol 1e-9
+with two events, ``x`` upward and ``v - 1/2`` both ways (about 9 500
+roots: where locating them, not integrating, is the cost).  Median of 3
+runs each.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import statistics
 import time
 
 import measure  # noqa: F401 - compiles a first use before timing (HAMRKQ_COMPILE=wait)
+import sympy as sp
 
 import hamrkq
 
@@ -41,6 +46,12 @@ def main() -> None:
     prentice = hamrkq.load_problem("prentice2011")
     cases["prentice2011 plain"] = lambda: hamrkq.solve(prentice, atol=1e-9)
     cases["prentice2011 event q"] = lambda: hamrkq.solve(prentice, atol=1e-9, events="q")
+    x, v = sp.symbols("x v")
+    oscillator = hamrkq.Hamiltonian(v**2 / 2 + 2 * x**2 + x**4 / 100, q=[x], p=[v])
+    many = dict(q0=[0.5], p0=[0.0], t_span=(0.0, 1e4), atol=1e-9)
+    roots = [{"expression": "x", "direction": 1}, "v - 1/2"]
+    cases["oscillator plain"] = lambda: hamrkq.solve(oscillator, **many)
+    cases["oscillator 2 events"] = lambda: hamrkq.solve(oscillator, events=roots, **many)
     results = {name: timed(fn) for name, fn in cases.items()}
     for name, seconds in results.items():
         base = results[name.split()[0] + " plain"]

@@ -359,3 +359,29 @@ def test_two_crossings_inside_one_step_of_a_callable_event_backward_in_time():
     times = sol.t_events[0]
     assert times.size == exact.size  # node signs alone: 2 of 20
     np.testing.assert_allclose(times, exact[::-1], atol=1e-6)
+
+
+def test_bracketed_roots_all_at_once_to_four_eps_in_a_few_calls():
+    from hamrkq.events import bracketed_roots
+
+    # Roots of sin(t) - 1/2 near 1000..2000, each in a bracket of 0.3, one
+    # whose end is already the root to within an ulp (false position lands
+    # on that end; bisecting from there took 30 iterations), and one whose
+    # end is exactly a root.
+    k = np.arange(1000, 1200)
+    exact = np.arcsin(0.5) + 2 * math.pi * k
+    a, b = exact - 0.1 * np.cos(k) ** 2 - 0.01, exact + 0.2 * np.sin(k) ** 2 + 0.01
+    b[0] = exact[0] + 4 * np.spacing(exact[0])  # f(b) = 3e-12, f(a) = -0.04
+    calls = []
+
+    def f(t):
+        calls.append(t.size)
+        return np.sin(t) - 0.5
+
+    roots = bracketed_roots(f, a, b, np.sin(a) - 0.5, np.sin(b) - 0.5)
+    assert len(calls) <= 10 and calls[0] == k.size
+    np.testing.assert_allclose(roots, exact, rtol=8 * np.finfo(float).eps, atol=0)
+    assert (
+        bracketed_roots(f, np.array([0.0]), np.array([1.0]), np.array([0.0]), np.array([1.0]))
+        == 0.0
+    )
