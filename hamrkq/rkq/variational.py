@@ -2,7 +2,8 @@
 
 :func:`sweep` carries a unit tangent vector ``v`` from node to node with the
 exact linearisation of one quencher step (:func:`hamrkq.rkq.steps.tangent_increment`
-from ``y_i`` over ``h_i = t_{i+1} - t_i``), renormalising it every step and
+from the node ``y_i`` over ``h_i = t_{i+1} - t_i``; the callers pass the
+quencher track's nodes where there are), renormalising it every step and
 recording ``log|v_{i+1}| - log|v_i|``: the maximal Lyapunov exponent and MEGNO
 are sums over these (:mod:`hamrkq.analysis.chaos`).  ``@jitable``: interpreted,
 or compiled by numba with the compiled ``rhs_jvp``.
