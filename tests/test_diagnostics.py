@@ -311,3 +311,70 @@ def test_references_start_where_the_run_started_when_t_eval_omits_it():
     np.testing.assert_allclose(independent.series["reference"], truth, rtol=0, atol=1e-9)
     first_error = np.abs(sol.y[0] - truth[0]).max()
     assert 1e-8 < first_error <= 1.05e-6  # the first node's own error, now measured
+
+
+OSCILLATOR_FILE = """\
+name = "oscillator"
+coordinates = ["q"]
+momenta = ["p"]
+hamiltonian = "(p**2 + w**2*q**2)/2"
+
+[parameters]
+w = 1.0
+
+[initial]
+q = [0]
+p = [1]
+
+[integration]
+t_span = [0, 30]
+atol = 1e-8
+
+[invariants]
+I = "(p**2 + w**2*q**2)/2"
+
+[exact]
+q = ["sin(w*t)/w"]
+p = ["cos(w*t)"]
+"""
+
+
+def test_a_run_with_other_parameters_is_diagnosed_at_them(tmp_path):
+    # solve(problem, parameters={"w": 2}) measured against the problem's w = 1:
+    # a true error of 1.3 and 2.0 reported as measured, the invariant H's
+    # error 0.375, and the energy bound from the gradient at w = 1.
+    path = tmp_path / "oscillator.toml"
+    path.write_text(OSCILLATOR_FILE)
+    problem = hamrkq.load_problem(path)
+    sol = hamrkq.solve(problem, parameters={"w": 2.0})
+    exact = np.column_stack([np.sin(2 * sol.t) / 2, np.cos(2 * sol.t)])
+    own = np.abs(sol.y - exact).max(axis=0)
+    energy = np.abs((sol.y[:, 1] ** 2 + 4 * sol.y[:, 0] ** 2) / 2 - 0.5)
+    bound = energy / ((np.abs(4 * sol.y[:, 0]) + np.abs(sol.y[:, 1])) * 1e-8)
+    for reference in ("auto", "exact", "independent"):
+        diag = diagnose(sol, problem, reference=reference)
+        np.testing.assert_allclose(diag.error.max_abs, own, rtol=1e-3)
+        assert diag.invariants[0].max_abs == pytest.approx(energy.max(), rel=1e-9)
+        assert diag.energy_bound_ratio == pytest.approx(bound.max(), rel=1e-9)
+    # The same for a Hamiltonian whose default the run overrode.
+    q, p, w = (
+        problem.hamiltonian.q[0],
+        problem.hamiltonian.p[0],
+        problem.hamiltonian.parameters[0],
+    )
+    ham = hamrkq.Hamiltonian((p**2 + w**2 * q**2) / 2, q=[q], p=[p], parameters={w: 1.0})
+    run = hamrkq.solve(ham, [0.0], [1.0], (0.0, 30.0), atol=1e-8, parameters={"w": 2.0})
+    assert diagnose(run, ham, reference="rk8").energy_bound_ratio == pytest.approx(
+        bound.max(), rel=0.05
+    )
+
+
+def test_auto_passes_over_an_exact_solution_that_does_not_apply():
+    # Kepler from other initial values: the file's exact solution starts
+    # elsewhere.  reference="auto" raised InputError; it takes the run's own
+    # track, as its docstring says, and notes why.
+    kepler = hamrkq.load_problem("kepler")
+    sol = hamrkq.solve(kepler, q0=[0.5, 0.0], p0=[0.0, 1.2], t_span=(0.0, 20.0))
+    diag = diagnose(sol, kepler)
+    assert diag.error.source == "rk8"
+    assert any("the exact solution does not apply" in note for note in diag.notes)

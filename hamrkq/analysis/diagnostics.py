@@ -81,20 +81,34 @@ def _check_arguments(solution: Any, problem: Any) -> None:
         )
 
 
-def _system(problem: Any, params: Any):
-    """(hamiltonian, params array) from a Problem, a Hamiltonian or nothing."""
+def _system(problem: Any, params: Any, sol: Any):
+    """(problem, hamiltonian, params array) from a Problem, a Hamiltonian or
+    nothing, at the parameters ``params`` (a mapping or an array) or, by
+    default, the run's own (``sol.options["parameters"]``: a run made with
+    ``solve(..., parameters=...)`` is measured at those, not at the
+    problem's defaults).  A Problem comes back at those parameters too
+    (:meth:`~hamrkq.catalogue.problem.Problem.with_parameters`), so that
+    its exact solution, invariants and gradient are the run's system's."""
     if problem is None:
-        return None, params
+        return None, None, params
     ham = getattr(problem, "hamiltonian", problem)
     if params is None:
-        params = (
+        params = (getattr(sol, "options", None) or {}).get("parameters")
+    if params is None:
+        values = (
             problem.parameter_array
             if hasattr(problem, "parameter_array")
             else ham.parameter_values()
         )
     elif isinstance(params, Mapping):
-        params = ham.parameter_values(params)
-    return ham, params
+        values = ham.parameter_values(params)
+    else:
+        values = np.asarray(params, dtype=np.float64)
+    if hasattr(problem, "with_parameters") and ham.parameters:
+        named = {s.name: float(v) for s, v in zip(ham.parameters, values, strict=True)}
+        if named != dict(problem.parameters):
+            problem = problem.with_parameters(**named)
+    return problem, ham, values
 
 
 def _initial(sol) -> tuple[float, np.ndarray]:
@@ -154,6 +168,21 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
 
 
+def _auto_reference(sol, ham, params, exact, periodic, notes: list[str]) -> str:
+    """``reference="auto"``: the exact solution where it applies to this run
+    (it starts at the run's initial state), else the run's own track, else
+    none; a note says why an exact solution was passed over."""
+    fallback = "rk8" if sol.z is not None else "none"
+    if exact is None:
+        return fallback
+    try:
+        _reference_states(sol, "exact", ham, params, exact, periodic)
+    except InputError as exc:
+        notes.append(f"the exact solution does not apply ({exc}); reference {fallback!r}")
+        return fallback
+    return "exact"
+
+
 def _gamma_max(sol: Any, series: dict, notes: list[str]) -> float:
     """Largest ``|Gamma|`` (nan without one), with a note when it is rounding."""
     if sol.gamma is None:
@@ -200,7 +229,8 @@ def diagnose(
         right-hand side for an independent reference.
     reference : {"auto", "exact", "independent", "extended", "rk8", "none"} or Reference
         What the true error is measured against.  ``"auto"``: the exact
-        solution if there is one, else the run's RK8 track, else nothing (an
+        solution if there is one and it applies (it starts at the run's
+        initial state), else the run's RK8 track, else nothing (an
         independent reference costs a tight integration, so it is never
         chosen silently).  ``"extended"``: heyoka's Taylor integrator in
         extended precision (:mod:`hamrkq.analysis.extended_reference`; the
@@ -208,7 +238,9 @@ def diagnose(
         A :class:`~hamrkq.analysis.reference.Reference` computed at
         ``solution.t`` can be passed directly (to share it between runs).
     params : array_like or mapping, optional
-        Parameter values; default the problem's (or the Hamiltonian's defaults).
+        Parameter values; default the run's own (``solution.options
+        ["parameters"]``), else the problem's.  The problem's exact solution,
+        invariants and gradient are taken at these.
     gradient : callable, optional
         ``gradient(t, Y) -> (N, 2n)``, dH/dy at the rows of Y; default from
         the problem.  Without it the energy bound is not evaluated.
@@ -234,7 +266,7 @@ def diagnose(
     """
     _check_arguments(solution, problem)
     sol = solution
-    ham, params = _system(problem, params)
+    problem, ham, params = _system(problem, params, sol)
     if ham is not None:
         if gradient is None:
             gradient = lambda t, Y: numeric_of(ham).gradient(t, Y, params)  # noqa: E731
@@ -242,10 +274,10 @@ def diagnose(
             invariants = problem.invariant_functions()
         if exact is None and getattr(problem, "exact", None) is not None:
             exact = problem.exact
+    notes: list[str] = []
     kind = reference
     if isinstance(kind, str) and kind == "auto":
-        kind = "exact" if exact is not None else ("rk8" if sol.z is not None else "none")
-    notes: list[str] = []
+        kind = _auto_reference(sol, ham, params, exact, periodic, notes)
     t, y = sol.t, sol.y
     rule = str(sol.options.get("tolerance_rule", "componentwise"))
     delta = tolerance(y, sol.atol, sol.rtol, rule)
