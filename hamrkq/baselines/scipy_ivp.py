@@ -88,6 +88,21 @@ class _Nodes:
             self.quenched.append(bool(solver.quenched))
 
 
+def _final_message(
+    status: Status, message: str, method: str, t_end: float, steps: int, kept: list, output: bool
+) -> str:
+    """The run's message: where it ended, and for a partial run the nodes
+    kept (with ``t_eval``, the last output time kept too: it comes before
+    where the steps reached)."""
+    if status is Status.SUCCESS:
+        return f"scipy:{method} reached t = {float(t_end)!r} in {steps} steps."
+    if kept:
+        if output:
+            message += f" The last output time kept is t = {float(kept[-1])!r}."
+        message += f" The {len(kept)} nodes computed so far are kept."
+    return message
+
+
 def solve_scipy(
     ham: Any,
     y0: Any,
@@ -198,10 +213,7 @@ def solve_scipy(
         )
         if isinstance(solver, RK34Q8):
             rejected = solver.stats["rejected"]
-    if status is Status.SUCCESS:
-        message = f"scipy:{method} reached t = {float(t_end)!r} in {steps} steps."
-    elif len(nodes.t):
-        message += f" The {len(nodes.t)} nodes computed so far are kept."
+    message = _final_message(status, message, method, t_end, steps, nodes.t, times is not None)
     t = np.array(nodes.t)
     y = np.array(nodes.y).reshape(t.size, ham.dim)
     z = np.array(nodes.z).reshape(t.size, ham.dim) if track else None

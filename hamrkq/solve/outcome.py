@@ -402,6 +402,9 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
     else:  # pragma: no cover - other statuses come from other methods
         text = f"{status.description} (t = {float(t)!r})"
     if not status.success:
+        if out.t.size and out.t[-1] != t:
+            # Output times (t_eval) end before where the steps reached.
+            text += f" The last output time kept is t = {float(out.t[-1])!r}."
         text += f" The {out.t.size} nodes computed so far are kept."
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
