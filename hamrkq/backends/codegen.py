@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING
 import sympy as sp
 
 from hamrkq.backends.dd_printer import DD_FUNCTIONS, rhs_dd_block
+from hamrkq.backends.numba_cache import CACHE_FORMAT
 from hamrkq.backends.scalar_printer import block, rhs_jvp_block
 from hamrkq.backends.source_cache import (
     CACHE_ENV,
@@ -125,9 +126,11 @@ def _versions() -> str:
     # Read from the module each time (a dictionary lookup), not bound at import.
     from hamrkq import _version
 
+    # numba_cache.CACHE_FORMAT: numba's files written without a checksum by
+    # an earlier hamrkq are then never met (they would read as damaged).
     return (
-        f"codegen={CODEGEN_VERSION};hamrkq={_version.__version__};{_tool_versions()};"
-        f"called={_called_sources_digest()}"
+        f"codegen={CODEGEN_VERSION};numba_cache={CACHE_FORMAT};hamrkq={_version.__version__};"
+        f"{_tool_versions()};called={_called_sources_digest()}"
     )
 
 
@@ -136,9 +139,11 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
 
     The key hashes ``srepr`` of H and of the ordered coordinates, momenta,
     parameters and time symbol (everything generated is derived from these, in
-    this order), the versions of this generator, hamrkq, SymPy (which does the
-    derivation), numba and Python, a digest of the sources the generated code
-    calls (:data:`CALLED_SOURCES`), and ``extra`` (for instance a method name).
+    this order), the versions of this generator, of the layout of numba's
+    cache files (:data:`~hamrkq.backends.numba_cache.CACHE_FORMAT`), hamrkq,
+    SymPy (which does the derivation), numba and Python, a digest of the
+    sources the generated code calls (:data:`CALLED_SOURCES`), and ``extra``
+    (for instance a method name).
     It does not need the derived equations, so a warm cache is found without
     differentiating anything.
 

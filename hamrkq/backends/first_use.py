@@ -204,12 +204,14 @@ def _warm_up(ham: Hamiltonian) -> None:
         compiled.compile_system(ham)  # meanwhile
     finally:
         kernel_module.join_helper(helper)
-    # With the stand-ins of rhs_jvp and jac (the helper compiled them beside
-    # the kernel): the probe's kernel signature is every run's.
-    functions = kernel_functions(ham, "off")
-    run = kernel_module.probe(functions, ham.dim, len(ham.parameters))
     try:
+        # With the stand-ins of rhs_jvp and jac (the helper compiled them
+        # beside the kernel): the probe's kernel signature is every run's.
+        functions = kernel_functions(ham, "off")
+        run = kernel_module.probe(functions, ham.dim, len(ham.parameters))
         with np.errstate(all="ignore"):
             run.run()
+    except BackendUnavailable:
+        raise  # already says what failed (a damaged cache file, by name)
     except Exception as exc:  # numba's TypingError/LoweringError and relatives
         raise compiled.numba_failure("the RKQ kernel", exc) from exc

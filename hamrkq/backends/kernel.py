@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq.backends import codegen
-from hamrkq.backends.numba_compile import LOCK, jit, numba_module, signatures
+from hamrkq.backends.numba_compile import LOCK, BackendUnavailable, jit, numba_module, signatures
 
 __all__ = [
     "HELPER_MIN_DIM",
@@ -375,10 +375,29 @@ def build_kernel() -> None:
     The kernel's arguments are typed from a one-step integration of a
     stand-in system; the functions' types are the fixed signatures of every
     compiled system.
-    """
-    from hamrkq.rkq.driver import KernelFunctions
 
+    Raises
+    ------
+    BackendUnavailable
+        numba cannot be used or fails to compile the kernel (``hamrkq
+        compile`` then exits with status 2 and this message, not a
+        traceback); a damaged cache file that could not be compiled again is
+        named.
+    """
     numba_module()
+    try:
+        _build_kernel()
+    except BackendUnavailable:
+        raise
+    except Exception as exc:  # numba's errors, or an unwritable cache (OSError)
+        from hamrkq.backends.compiled import numba_failure  # compiled imports this module
+
+        raise numba_failure("the RKQ kernel", exc) from exc
+
+
+def _build_kernel() -> None:
+    """:func:`build_kernel`'s work, its errors as they are."""
+    from hamrkq.rkq.driver import KernelFunctions
 
     def zero_rhs(t, y, params, out):
         out[:] = 0.0

@@ -22,8 +22,9 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+from hamrkq.backends.numba_cache import DamagedEntry, compile_checked, error_text
 from hamrkq.backends.numba_linking import callees_optimised_once
-from hamrkq.errors import HamrkqError
+from hamrkq.errors import HamrkqError, warn
 
 __all__ = [
     "DISABLE_ENV",
@@ -127,26 +128,65 @@ def jit(
     disk cache: in ``cache_dir`` when given, else beside the function's
     source file), counted; with ``callees_once``, its ``register_jitable``
     callees are optimised once, inside it
-    (:func:`~hamrkq.backends.numba_linking.callees_optimised_once`)."""
+    (:func:`~hamrkq.backends.numba_linking.callees_optimised_once`).
+
+    The cache's files carry checksums
+    (:func:`~hamrkq.backends.numba_cache.compile_checked`): a damaged one is
+    removed and the function compiled again, with one
+    :class:`~hamrkq.errors.HamrkqWarning` naming the file.
+
+    Raises
+    ------
+    BackendUnavailable
+        A damaged cache file was found and compiling the function again
+        failed; the message names the file and the real reason.  Other
+        failures of numba (its TypingError and relatives) propagate as they
+        are.
+    """
     numba = numba_module()
-    flags = {"cache": True, "nogil": True, "error_model": "numpy"}
+    flags = {"nogil": True, "error_model": "numpy"}
     previous = numba.config.CACHE_DIR
     if cache_dir is not None:
         # numba reads its cache directory when a dispatcher is created.
         numba.config.CACHE_DIR = cache_dir
+    damaged: list[DamagedEntry] = []
+    started = time.perf_counter()
     try:
         with warnings.catch_warnings():
             # numba explains an uncacheable function with a warning; the
             # counters and BackendUnavailable carry that information instead.
             warnings.simplefilter("ignore", numba.NumbaWarning)
-            started = time.perf_counter()
             linking = callees_optimised_once() if callees_once else contextlib.nullcontext()
             with linking:
-                dispatcher = numba.njit(signature, **flags)(function)
+                dispatcher = compile_checked(numba, function, signature, flags, damaged)
             _account(dispatcher, started)
+    except Exception as exc:
+        if not damaged:
+            raise
+        # The damaged file is named with the real reason, as the reason of
+        # the interpreted fallback or of `hamrkq compile`'s exit status 2.
+        raise BackendUnavailable(
+            f"{_damage_text(function, damaged[0])}, but compiling it again failed "
+            f"({error_text(exc)})"
+        ) from exc
     finally:
         numba.config.CACHE_DIR = previous
+    for damage in damaged:
+        warn(
+            f"hamrkq: {_damage_text(function, damage)}; compiled it again "
+            f"({time.perf_counter() - started:.1f} s) and cached the new code"
+        )
     return dispatcher
+
+
+def _damage_text(function: Callable, damage: DamagedEntry) -> str:
+    """What was damaged, in the words of a warning or an error."""
+    name = f"{function.__module__}.{function.__qualname__}"
+    kind = "index" if damage.path.endswith(".nbi") else "machine code"
+    text = f"numba's cached {kind} of {name}, {damage.path}, is damaged ({damage.reason})"
+    if damage.not_removed is not None:
+        return f"{text} and cannot be removed ({damage.not_removed})"
+    return text + "; removed it"
 
 
 def stats() -> dict[str, float]:
