@@ -94,6 +94,10 @@ def test_parameters_are_arguments_not_regenerated():
     assert f3[0] == pytest.approx(0.2 + np.cos(0.3) / 3)
     with pytest.raises(InputError, match="unknown parameter b"):
         ham.parameter_values({"b": 1.0})
+    # A symbol named like the parameter but with other assumptions is another
+    # symbol to SymPy: the message said "unknown parameter a (parameters: a)".
+    with pytest.raises(InputError, match=r"other assumptions \(positive=True\).*key it by name"):
+        ham.parameter_values({sp.Symbol("a", positive=True): 3.0})
     with pytest.raises(InputError, match="finite"):
         ham.parameter_values({a: np.inf})
     no_default = Hamiltonian(a * p**2, q=[q], p=[p], parameters=[a])

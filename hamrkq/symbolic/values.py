@@ -108,6 +108,14 @@ def show_value(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+def _assumptions(symbol: sp.Symbol) -> str:
+    """The assumptions a symbol was declared with, for messages."""
+    given = getattr(symbol, "_assumptions_orig", None) or symbol.assumptions0
+    # every Symbol is commutative unless told otherwise: not worth naming
+    shown = {k: v for k, v in given.items() if v is not None and k != "commutative"}
+    return ", ".join(f"{k}={v}" for k, v in sorted(shown.items())) or "none"
+
+
 def bind_parameters(
     parameters: tuple[sp.Symbol, ...],
     defaults: Mapping[sp.Symbol, float],
@@ -122,6 +130,16 @@ def bind_parameters(
         symbol = by_name.get(key) if isinstance(key, str) else key
         if symbol not in parameters:
             known = ", ".join(by_name) or "none"
+            twin = by_name.get(getattr(key, "name", None))
+            if twin is not None:
+                # Symbol("w", real=True) is not Symbol("w"): SymPy tells
+                # symbols apart by their assumptions too.
+                raise InputError(
+                    f"parameter {key!s} is keyed by a symbol with other assumptions "
+                    f"({_assumptions(key)}) than the Hamiltonian's {twin!s} "
+                    f"({_assumptions(twin)}); SymPy counts them as different symbols: key "
+                    f"it by name ({twin.name!r}) or by the Hamiltonian's own symbol"
+                )
             raise InputError(f"unknown parameter {key!s} (parameters: {known})")
         chosen[symbol] = as_number(value, f"parameter {symbol}")
         conflict = assumption_conflict(symbol, chosen[symbol])
