@@ -208,6 +208,39 @@ def normalise(text: str) -> str:
     return TIMING.sub("<time>", text)
 
 
+#: A number in an output: ``1.5e-09``, ``0.9325``, ``9835``, ``6.743001419250383``.
+NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
+#: Errors and accuracies (below this, written in exponent form) are
+#: compared within :data:`NOISE`: they are what a run measures against a
+#: reference integrated by SciPy's DOP853, whose last bits depend on the
+#: machine (NumPy's and BLAS's kernels for its CPU), and a true error is only
+#: known to within its reference's accuracy.  The same checkout gave
+#: "reference accurate to ~7.1e-12" on one machine and "~8.4e-12" on another,
+#: a true error of 5.15e-10 and 5.28e-10 against a reference accurate to
+#: 8e-11.  Other numbers must agree to :data:`DIGITS` (a period found by
+#: Newton's method, 6.743001419250383 on one machine, ...384 on the other);
+#: any number printed with fewer digits must be the same.
+SMALL = 1e-6
+NOISE = 0.25
+DIGITS = 1e-12
+
+
+def same_output(new: str, old: str) -> bool:
+    """Whether two outputs say the same once normalised (:func:`normalise`): equal text
+    between the numbers, equal numbers, and errors within :data:`NOISE`."""
+    new, old = normalise(new), normalise(old)
+    if NUMBER.split(new) != NUMBER.split(old):
+        return False
+    for a, b in zip(NUMBER.findall(new), NUMBER.findall(old), strict=True):
+        if a == b:
+            continue
+        x, y = float(a), float(b)
+        small = "e" in (a + b).lower() and max(abs(x), abs(y)) < SMALL
+        if not abs(x - y) <= (NOISE if small else DIGITS) * max(abs(x), abs(y)):
+            return False
+    return True
+
+
 def generate(pages: list[str]) -> dict[str, Any]:
     """Run ``pages``, write :data:`GENERATED` and fill the pages."""
     data = load()
