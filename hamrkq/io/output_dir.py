@@ -12,6 +12,7 @@ a figure written.
 from __future__ import annotations
 
 import errno
+import fnmatch
 import json
 import os
 import tempfile
@@ -37,21 +38,35 @@ __all__ = [
     "OutputDir",
     "check_dpi",
     "close_all",
+    "is_own",
 ]
 
 
 #: Files that hamrkq's commands write, as glob patterns: with ``force`` these
 #: (and only these) are removed first, so that no stale figure from an earlier
 #: run sits beside the new results.  A user's own files are never touched.
+#: Every name a command writes must match one (tests/test_cli_force.py runs
+#: each command and checks its files): ``solution.csv``, the ensemble's and
+#: the section's files were missing, and ``--force`` left them stale beside
+#: the new results.
 OWN_FILES = (
     "summary.json",
+    # run, reproduce (solution_<method>.npz), compare
+    "solution*.npz",
+    "solution.csv",
+    "figure[0-9]_*.png",
     "comparison.md",
     "comparison.csv",
     "comparison.json",
-    "solution*.npz",
-    "figure[0-9]_*.png",
     "work_precision.png",
     "energy_error.png",
+    # ensemble
+    "ensemble.npz",
+    "ensemble_map.png",
+    "ensemble_orbits.png",
+    # poincare
+    "section.npz",
+    "section.png",
 )
 
 
@@ -66,6 +81,12 @@ MIN_DPI = 10
 MAX_DPI = 600
 #: Largest figure written, in pixels (width x height at the chosen dpi).
 MAX_FIGURE_PIXELS = 30_000_000
+
+
+def is_own(name: str) -> bool:
+    """Whether a file name is one of hamrkq's outputs (:data:`OWN_FILES`),
+    which ``--force`` removes."""
+    return any(fnmatch.fnmatchcase(name, pattern) for pattern in OWN_FILES)
 
 
 def check_dpi(dpi: int) -> int:
@@ -265,10 +286,9 @@ class OutputDir:
         if self._ready:
             return
         if self.force and self.path.is_dir():  # under our lock: only our own old files
-            for pattern in OWN_FILES:
-                for old in self.path.glob(pattern):
-                    if old.is_file():
-                        old.unlink()
+            for old in self.path.iterdir():
+                if is_own(old.name) and old.is_file():
+                    old.unlink()
         self.path.mkdir(parents=True, exist_ok=True)
         self._ready = True
 
