@@ -247,12 +247,46 @@ def remember_function_addresses() -> None:
 
 
 def _remembering(lookup: Callable, dispatcher_type: type) -> Callable:
+    """``lookup(func, sig)`` (numba's address lookup of a first-class
+    function) with its answers remembered, for
+    :func:`remember_function_addresses`.
+
+    Parameters
+    ----------
+    lookup : callable
+        numba's ``_get_wrapper_address`` or ``_get_jit_address``.
+    dispatcher_type : type
+        numba's ``Dispatcher``: only a dispatcher's answers are kept.
+
+    Returns
+    -------
+    callable
+        ``remembered(func, sig)``, which numba's compiled code calls by name.
+    """
+    import ctypes
+
     # Keyed by identity: numba passes the same signature object on every call
     # (its unpickling is memoised), and hashing a numba type costs microseconds.
     # An entry holds both objects, so neither id is reused while it is kept.
     known: dict[tuple[int, int], tuple] = {}
+    # numba's compiled code unpickles ``sig`` and then calls this with
+    # PyObject_CallFunctionObjArgs(lookup, func, sig, NULL).  When the
+    # unpickling raises (Ctrl-C, or SIGTERM's handler, landing in that Python
+    # code), ``sig`` is NULL, which ends the argument list early: this is
+    # called with ``func`` alone while the interrupt is still set.  Any
+    # exception raised here would replace it (the command line printed
+    # "TypeError: remembered() missing 1 required positional argument:
+    # 'sig'" with a traceback, and the run's results were lost).  A call
+    # through a PYFUNCTYPE function (ctypes.pythonapi's kind) raises the
+    # exception set when it returns, so the interrupt goes on as itself.  A
+    # private prototype: ctypes.pythonapi's own attribute is shared.
+    raise_pending = ctypes.PYFUNCTYPE(ctypes.c_void_p)(("PyErr_Occurred", ctypes.pythonapi))
+    missing = object()
 
-    def remembered(func, sig):
+    def remembered(func, sig=missing):
+        if sig is missing:
+            raise_pending()
+            raise TypeError(f"{lookup.__name__}() needs a signature")  # called without one
         entry = known.get((id(func), id(sig)))
         if entry is not None and entry[0] is func and entry[1] is sig:
             return entry[2]

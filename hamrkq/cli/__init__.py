@@ -35,9 +35,14 @@ __all__ = [
     "EXIT_FAILED",
     "EXIT_OK",
     "EXIT_WRITE_FAILED",
+    "QUICK_REPORT",
     "Terminated",
     "entry_point",
+    "interrupted",
+    "interrupts_held",
     "main",
+    "quick_report",
+    "raise_if_interrupted",
     "signals_received",
 ]
 
@@ -58,35 +63,118 @@ class Terminated(KeyboardInterrupt):
     like Ctrl-C."""
 
 
-#: Names of the signals received while the current command ran (see
-#: :func:`signals_received`).
+#: Names of the signals received while the current command ran, SIGINT
+#: (Ctrl-C) included (see :func:`signals_received`).
 _RECEIVED: list[str] = []
 
 
 def signals_received() -> tuple[str, ...]:
-    """The signals (``"SIGTERM"``) the current command has received so far: a
-    command says in its report that it was stopped by one, not by Ctrl-C."""
-    return tuple(_RECEIVED)
+    """The signals other than Ctrl-C's (``"SIGTERM"``) the current command has
+    received so far: a command says in its report that it was stopped by
+    one, not by Ctrl-C."""
+    return tuple(name for name in _RECEIVED if name != "SIGINT")
+
+
+#: The note of a command stopped by SIGTERM before its report: the report is
+#: the quick one.  A scheduler kills the process a grace period after
+#: SIGTERM (``docker stop``: 10 s) and nobody presses Ctrl-C a second time to
+#: cut a long report short: the reference integration of a 587 000-node run
+#: took 6 s, the figures 1-3 s (matplotlib's import alone 0.6 s).
+QUICK_REPORT = (
+    "the report after SIGTERM is the quick one: no figures and no reference "
+    "integration (the true error is not measured)"
+)
+
+
+def quick_report() -> bool:
+    """Whether the current command was stopped by SIGTERM (not Ctrl-C), so
+    that its report leaves out what takes long (:data:`QUICK_REPORT`)."""
+    return bool(signals_received())
+
+
+def interrupted() -> bool:
+    """Whether Ctrl-C or SIGTERM has reached the current command."""
+    return bool(_RECEIVED)
+
+
+#: While a command writes its results (:func:`interrupts_held`): the
+#: interrupts received meanwhile, held back.
+_HELD: list[BaseException] = []
+_HOLDING: list[bool] = [False]
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[list[BaseException]]:
+    """Hold Ctrl-C and SIGTERM back while the block writes results; yields
+    the list of those received, for the caller to act on after it.
+
+    Every file is written atomically, so an interrupt landing in a write
+    left no file at all: writing summary.json with a run's 10 000 events
+    takes 0.6 s, solution.npz of 587 000 nodes 0.1 s.  Held back, the file
+    is written whole, and the command stops right after (the quick report
+    after SIGTERM, the rest of the report skipped after Ctrl-C).
+    """
+    _HELD.clear()
+    _HOLDING[0] = True
+    held: list[BaseException] = []
+    try:
+        yield held
+    finally:
+        _HOLDING[0] = False
+        held += _HELD
+        _HELD.clear()
+
+
+def raise_if_interrupted() -> None:
+    """Raise the interrupt the current command received again (Terminated
+    for SIGTERM, KeyboardInterrupt for Ctrl-C), if any: for a command that
+    keeps no partial results and would otherwise go on after the run it
+    stopped (``hamrkq compare``'s sweep)."""
+    if not _RECEIVED:
+        return
+    if _RECEIVED[-1] == "SIGINT":
+        raise KeyboardInterrupt
+    raise Terminated(f"signal {_RECEIVED[-1]}")
 
 
 def _raise_terminated(signum: int, frame: object) -> None:
-    _RECEIVED.append(signal.Signals(signum).name)
-    raise Terminated(f"signal {signal.Signals(signum).name}")
+    name = signal.Signals(signum).name
+    _RECEIVED.append(name)
+    if _HOLDING[0]:
+        _HELD.append(Terminated(f"signal {name}"))
+        return
+    raise Terminated(f"signal {name}")
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    # Python's own handler (signal.default_int_handler), recorded.
+    _RECEIVED.append("SIGINT")
+    if _HOLDING[0]:
+        _HELD.append(KeyboardInterrupt())
+        return
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
-    """Handle SIGTERM like SIGINT while a command runs (main thread only:
-    Python delivers signals there, and elsewhere cannot install handlers)."""
+    """Handle SIGTERM like SIGINT while a command runs, and record both
+    (main thread only: Python delivers signals there, and elsewhere cannot
+    install handlers).  A SIGINT that is ignored (a job started in the
+    background by a shell) stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     _RECEIVED.clear()
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    previous_int = signal.getsignal(signal.SIGINT)
+    if previous_int is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _raise_interrupt)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+        if previous_int is signal.default_int_handler:
+            signal.signal(signal.SIGINT, previous_int)
 
 
 #: True while an interrupted command drops what the interruption left
@@ -133,7 +221,7 @@ def _interrupts_in_callbacks_delivered() -> Iterator[None]:
             previous(unraisable)
             return
         terminated = isinstance(exc, Terminated)
-        if terminated and _RECEIVED:
+        if _RECEIVED and _RECEIVED[-1] == ("SIGTERM" if terminated else "SIGINT"):
             _RECEIVED.pop()  # its handler records it again
         # From another thread, a moment later: raised here, in the hook, it
         # would be swallowed the same way.
@@ -285,10 +373,14 @@ def entry_point() -> NoReturn:
     so the streams are flushed, the ``atexit`` handlers run (logging,
     ``weakref.finalize``, multiprocessing) and the process ends.  If another
     thread is still running, the shutdown is the normal one, which waits for
-    it.  Tests and other callers in a process of their own use :func:`main`.
+    it, unless the command was interrupted (Ctrl-C or SIGTERM): its results
+    are written, and the threads' work is what was asked to stop (an
+    ensemble's chunks in compiled code, which cannot be stopped from
+    outside: ``hamrkq ensemble`` took 6.5 s to exit after SIGTERM).  Tests
+    and other callers in a process of their own use :func:`main`.
     """
     status = main()
-    if threading.active_count() > 1:
+    if threading.active_count() > 1 and not _RECEIVED:
         sys.exit(status)
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):

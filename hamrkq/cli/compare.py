@@ -34,6 +34,7 @@ import numpy as np
 
 from hamrkq.analysis.comparison import MATCH_MODES, Comparison, compare, default_methods
 from hamrkq.catalogue.problems import load_problem
+from hamrkq.cli import raise_if_interrupted
 from hamrkq.io.report import OutputDir, check_dpi, package_versions
 
 if TYPE_CHECKING:
@@ -285,10 +286,19 @@ def compare_command(args: argparse.Namespace) -> int:
     check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
     methods = args.methods or default_methods(problem)
+
+    def log(text: str) -> None:
+        print(f"  {text}", flush=True)
+        # After each run: a run stopped by Ctrl-C or SIGTERM returns its
+        # status, and compare() would go on with the rest of the sweep.  A
+        # comparison keeps no partial results (its headline matches every
+        # method to the anchor's error or cost over the whole sweep): stop.
+        raise_if_interrupted()
+
     result = compare(
         problem, methods, t_end=args.t_end, quick=args.quick, match=args.match,
         tol_factors=args.tol_factors, step_factors=args.step_factors, backend=args.backend,
-        log=lambda text: print(f"  {text}", flush=True),
+        log=log,
     )  # fmt: skip
     command = _command_line(args, methods)
     out.text(FILES["markdown"], markdown(result, command=command))

@@ -16,7 +16,10 @@ every other value comes from the problem.  What it writes into ``--out``
 
 A progress bar over members goes to stderr on a terminal.  Exit status: 0
 every member succeeded, 1 some member failed (everything is still written),
-2 bad input.
+2 bad input.  Ctrl-C or SIGTERM ends the ensemble (:func:`hamrkq.ensemble`
+keeps the members of every chunk finished and marks the others
+``INTERRUPTED``): the files are written with ``"partial": true`` and the exit
+status is 1.
 """
 
 from __future__ import annotations
@@ -30,9 +33,17 @@ from typing import Any
 import numpy as np
 
 from hamrkq.catalogue.problems import load_problem
+from hamrkq.cli import (
+    QUICK_REPORT,
+    interrupted,
+    interrupts_held,
+    quick_report,
+    signals_received,
+)
 from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir
+from hamrkq.result import Status
 
 __all__ = ["QUANTITIES", "check_kept_states", "ensemble_command", "parse_grid", "register"]
 
@@ -177,10 +188,26 @@ def ensemble_command(args: argparse.Namespace) -> int:
         **options,
     )
     wall = time.perf_counter() - started
-    out.solution("ensemble.npz", ens)  # any result with .save(path): atomic, recorded
-    notes = [] if args.no_plots else _figures(out, ens, axes, args)
-    summary = _summary(args, problem, ens, axes, wall, out, notes)
-    out.json("summary.json", summary)
+    with interrupts_held() as held:
+        out.solution("ensemble.npz", ens)  # any result with .save(path): atomic, recorded
+    missing = int(np.count_nonzero(ens.status == Status.INTERRUPTED.code))
+    notes = []
+    if missing:
+        notes.append(f"interrupted: {missing} of {len(ens)} members not integrated")
+    if quick_report():
+        notes.append(QUICK_REPORT)
+    elif held:  # Ctrl-C while the ensemble was written: as a second Ctrl-C
+        notes.append("figures not drawn: interrupted")
+    elif not args.no_plots:
+        try:
+            notes += _figures(out, ens, axes, args)
+        except KeyboardInterrupt:  # a second Ctrl-C: the figure being drawn is not written
+            notes.append("interrupted while the figures were drawn; figures incomplete")
+    with interrupts_held():
+        if signals_received():
+            notes.append(f"stopped by {', '.join(signals_received())} (handled like Ctrl-C)")
+        summary = _summary(args, problem, ens, axes, wall, out, notes)
+        out.json("summary.json", summary)
     print(f"{problem.name}: {len(ens)} members, {ens.failed.size} failed, {wall:.2f} s")
     for key in ("max_energy_drift", "max_global_error"):
         print(f"  {key}: {summary[key]}")
@@ -189,7 +216,7 @@ def ensemble_command(args: argparse.Namespace) -> int:
     for note in notes:
         print(f"note: {note}")
     print(f"wrote {out.path}/: {', '.join(out.written)}")
-    return 0 if ens.all_success else 1
+    return 0 if ens.all_success and not interrupted() else 1
 
 
 def _pick(columns: dict[str, np.ndarray], names: list[str]) -> dict[str, np.ndarray] | None:
@@ -232,6 +259,8 @@ def _summary(args, problem, ens: EnsembleSolution, axes, wall: float, out, notes
             {"name": name, "lo": float(v[0]), "hi": float(v[-1]), "n": len(v)} for name, v in axes
         ],
         "members": len(ens),
+        # Ctrl-C or SIGTERM: the members not integrated are INTERRUPTED
+        "partial": bool(np.any(ens.status == Status.INTERRUPTED.code)),
         "failed": ens.failed.size,
         "failed_members": ens.failed[:100].tolist(),
         "t_span": list(ens.t_span),

@@ -5,6 +5,12 @@ Chooses ``--orbits`` initial conditions on the section at ``--energy``
 and the section as an event, draws the crossings coloured by orbit, or by
 its MEGNO with ``--megno`` (``section.png``), and writes them to
 ``section.npz`` with ``summary.json``.
+
+The orbits run one after the other.  Ctrl-C or SIGTERM stops the orbit
+running (its crossings so far are kept, :func:`hamrkq.solve` locating them
+for half a second at most) and starts no other; the files are written with
+``"partial": true``, every orbit not finished marked ``INTERRUPTED``, and
+the exit status is 1.
 """
 
 from __future__ import annotations
@@ -17,13 +23,22 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from hamrkq._files import atomic_file
 from hamrkq.analysis.chaos import indicator_of
-from hamrkq.analysis.poincare import energy_orbits, poincare
+from hamrkq.analysis.poincare import PoincareSection, energy_orbits, poincare
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problem import Problem
 from hamrkq.catalogue.problems import load_problem
+from hamrkq.cli import (
+    QUICK_REPORT,
+    interrupted,
+    interrupts_held,
+    quick_report,
+    signals_received,
+)
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, jsonable
+from hamrkq.result import Status
 from hamrkq.symbolic.expressions import parse_expression
 
 __all__ = ["poincare_command", "register"]
@@ -104,49 +119,137 @@ def poincare_command(args: argparse.Namespace) -> int:
     if args.method is not None:
         options["method"] = args.method
     started = time.perf_counter()
-    sec = poincare(problem, args.section, q0, p0, (0.0, args.t_end), **options)
+    sec, indicators = _orbits(
+        problem, args.section, q0, p0, (0.0, args.t_end), options, args.megno
+    )
     elapsed = time.perf_counter() - started
-    indicators = None
-    if args.megno:  # along the section's own runs: each orbit integrated once
-        indicators = [
-            float(indicator_of("megno", orbit, problem).value[-1]) for orbit in sec.solutions
-        ]
+    done = len(sec.solutions)
+    statuses = [s.status.name for s in sec.solutions]
+    statuses += [Status.INTERRUPTED.name] * (args.orbits - done)  # never started
+    partial = Status.INTERRUPTED.name in statuses
+    notes = []
+    if done < args.orbits:
+        notes.append(f"orbits {done} to {args.orbits - 1} (from 0) were not started")
+    notes += sorted({s.options["events_not_located"] for s in sec.solutions if _partial(s)})
     lhs = args.section.split("=")[0].strip()
     k = [s.name for s in ham.q].index(lhs)
     x, y = ham.q[1 - k].name, ham.p[1 - k].name
-    np.savez_compressed(
-        out.file("section.npz"), t=sec.t, y=sec.y, orbit=sec.orbit, q0=q0, p0=p0,
-        names=np.array(ham.names),
-    )  # fmt: skip
-    out.written.append("section.npz")
-    if not args.no_plots:
-        from hamrkq.plotting.sections import section_figure
-
+    with interrupts_held() as held:
+        with atomic_file(out.file("section.npz")) as handle:
+            np.savez_compressed(
+                handle, t=sec.t, y=sec.y, orbit=sec.orbit, q0=q0, p0=p0,
+                names=np.array(ham.names),
+            )  # fmt: skip
+        out.written.append("section.npz")
+    if quick_report():
+        notes.append(QUICK_REPORT)
+    elif held:  # Ctrl-C while the crossings were written: as a second Ctrl-C
+        notes.append("section.png not drawn: interrupted")
+    elif not args.no_plots:
         title = f"{problem.name}: {args.section}, E = {energy_text}, {args.orbits} orbits"
-        figure = section_figure(sec, x, y, title=title, megno=indicators)
-        out.figure("section.png", figure, dpi=args.dpi)
-    out.json(
-        "summary.json",
-        jsonable(
-            {
-                "command": "poincare",
-                "problem": problem.name,
-                "section": args.section,
-                "energy": energy,
-                "orbits": args.orbits,
-                "t_end": args.t_end,
-                "options": options,
-                # what ran ("auto" names its member)
-                "method": sorted({s.method for s in sec.solutions}),
-                "crossings": int(sec.t.size),
-                "status": [s.status.name for s in sec.solutions],
-                "megno": indicators,
-                "wall_time_s": elapsed,
-            }
-        ),
-    )
+        notes += _figure(out, sec, x, y, indicators, title, args.dpi)
+    with interrupts_held():
+        if signals_received():
+            notes.append(f"stopped by {', '.join(signals_received())} (handled like Ctrl-C)")
+        out.json(
+            "summary.json",
+            jsonable(
+                {
+                    "command": "poincare",
+                    "problem": problem.name,
+                    "section": args.section,
+                    "energy": energy,
+                    "orbits": args.orbits,
+                    "t_end": args.t_end,
+                    "options": options,
+                    # what ran ("auto" names its member)
+                    "method": sorted({s.method for s in sec.solutions}),
+                    "crossings": int(sec.t.size),
+                    # one per orbit: an orbit not started is INTERRUPTED too
+                    "status": statuses,
+                    "partial": partial,
+                    "megno": indicators,
+                    "wall_time_s": elapsed,
+                    "notes": notes,
+                    "files": [*out.written, "summary.json"],
+                }
+            ),
+        )
+    orbits = f"{args.orbits}" if done == args.orbits else f"{done} of {args.orbits}"
     print(
-        f"{sec.t.size} crossings of {args.section} by {args.orbits} orbits at E = {energy:.6g} "
-        f"in {elapsed:.1f} s; wrote {', '.join(out.written)} to {out.path}"
+        f"{sec.t.size} crossings of {args.section} by {orbits} orbits at "
+        f"E = {energy:.6g} in {elapsed:.1f} s; wrote {', '.join(out.written)} to {out.path}"
     )
-    return 0 if sec.success else 1
+    for note in notes:
+        print(f"note: {note}")
+    return 0 if sec.success and not partial and not interrupted() else 1
+
+
+def _orbits(
+    problem: Problem,
+    section: str,
+    q0: np.ndarray,
+    p0: np.ndarray,
+    t_span: tuple[float, float],
+    options: dict[str, Any],
+    megno: bool,
+) -> tuple[PoincareSection, list[float] | None]:
+    """The section's crossings by each orbit of ``q0``/``p0`` in turn, and
+    each orbit's MEGNO at its end (with ``megno``; NaN for an orbit
+    interrupted).  Ctrl-C or SIGTERM ends the orbit running (solve keeps its
+    nodes and the crossings among them) and starts no other; the orbits
+    run so far are returned.  Before the first orbit has a result, it
+    propagates: nothing to keep (the command line says "terminated")."""
+    parts: list[PoincareSection] = []
+    indicators: list[float] = []
+    try:
+        for q, p in zip(q0, p0, strict=True):
+            part = poincare(problem, section, q, p, t_span, **options)
+            parts.append(part)
+            (sol,) = part.solutions
+            if sol.status is Status.INTERRUPTED:
+                break
+            if megno:  # along the section's own run: each orbit integrated once
+                indicators.append(float(indicator_of("megno", sol, problem).value[-1]))
+    except KeyboardInterrupt:
+        # Between two orbits, or while one was set up or its MEGNO computed:
+        # the orbits run so far stand.
+        if not parts:
+            raise
+    if megno:
+        indicators += [math.nan] * (len(parts) - len(indicators))
+    combined = PoincareSection(
+        t=np.concatenate([part.t for part in parts]),
+        y=np.concatenate([part.y for part in parts]),
+        orbit=np.concatenate([part.orbit + k for k, part in enumerate(parts)]),
+        section=parts[0].section,
+        names=parts[0].names,
+        solutions=[part.solutions[0] for part in parts],
+    )
+    return combined, indicators if megno else None
+
+
+def _partial(sol: Any) -> bool:
+    """Whether ``sol``'s crossings were located along part of its run only."""
+    return bool(sol.options.get("events_not_located"))
+
+
+def _figure(
+    out: OutputDir,
+    sec: PoincareSection,
+    x: str,
+    y: str,
+    indicators: list[float] | None,
+    title: str,
+    dpi: int,
+) -> list[str]:
+    """Draw ``section.png``; returns notes (none, or that Ctrl-C or SIGTERM
+    stopped the drawing, which leaves no file)."""
+    from hamrkq.plotting.sections import section_figure
+
+    try:
+        figure = section_figure(sec, x, y, title=title, megno=indicators)
+        out.figure("section.png", figure, dpi=dpi)
+    except KeyboardInterrupt:
+        return ["section.png not drawn: interrupted"]
+    return []

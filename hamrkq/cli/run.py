@@ -30,7 +30,14 @@ import numpy as np
 
 from hamrkq.analysis.diagnostics import diagnose_for_report
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import EXIT_WRITE_FAILED, signals_received
+from hamrkq.cli import (
+    EXIT_WRITE_FAILED,
+    QUICK_REPORT,
+    interrupted,
+    interrupts_held,
+    quick_report,
+    signals_received,
+)
 from hamrkq.errors import InputError, OptionError
 from hamrkq.io.report import (
     OutputDir,
@@ -44,7 +51,7 @@ from hamrkq.io.report import (
 from hamrkq.options import METHOD_NAMES
 from hamrkq.solve import BACKENDS, METHODS, solve
 
-__all__ = ["REFERENCE_CHOICES", "register", "run_command"]
+__all__ = ["REFERENCE_CHOICES", "check_keep_every", "register", "run_command"]
 
 #: ``--reference`` values.  ``auto``: the exact solution where the catalogue
 #: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference);
@@ -200,6 +207,38 @@ def parse_atol(items: list[str], problem: Any) -> float | list[float] | None:
     return values
 
 
+def check_keep_every(keep_every: int | None, problem: Any) -> None:
+    """Refuse ``--keep-every K`` (K > 1) for a problem whose file has a
+    terminal event.
+
+    Events are located between consecutive nodes, so a thinned run leaves a
+    file's events out (with a warning): the run would not stop where the
+    problem says it ends (``osct.toml``'s terminal event at t = 2.354) but go
+    on to ``t_end`` with status SUCCESS.  ``--keep-every`` only makes the
+    output smaller; it must not change what is computed, and leaving it out
+    honours both.  (A method outside the RKQ family, which cannot locate
+    events either, is still allowed, with the warning and a note in
+    summary.json: running a problem with another method is what comparing
+    methods means.)
+
+    Raises
+    ------
+    InputError
+        ``keep_every`` above 1 and a terminal event in the problem file.
+    """
+    if keep_every is None or keep_every <= 1:
+        return
+    terminal = [repr(str(event["expression"])) for event in problem.events if event["terminal"]]
+    if terminal:
+        raise InputError(
+            f"--keep-every {keep_every}: problem {problem.name!r} has a terminal event "
+            f"({', '.join(terminal)}) that ends the run where it occurs, and events are "
+            "located only with every node kept: the run would go on past it to t_end. "
+            "Leave out --keep-every (and thin the nodes afterwards: "
+            f"Solution.load(path).t[::{keep_every}])"
+        )
+
+
 def resolve_reference(kind: str, problem: Any, method: str) -> str:
     """The reference kind for :func:`diagnose`, checked before the run starts."""
     if kind == "auto":
@@ -294,6 +333,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.param:
         problem = problem.with_parameters(**parse_parameters(args.param))
     kwargs = solve_arguments(args, problem)
+    check_keep_every(args.keep_every, problem)
     method = kwargs.get("method", problem.integration.get("method", "auto"))
     reference = resolve_reference(args.reference, problem, method)
     check_dpi(args.dpi)
@@ -306,29 +346,15 @@ def run_command(args: argparse.Namespace) -> int:
     with ProgressBar(f"{problem.name} {method}", enabled=False if quiet else None) as bar:
         sol = solve(problem, progress=bar, **kwargs)
     solve_time = time.perf_counter() - started
-    write_failed = _attempt(lambda: out.solution("solution.npz", sol))
-    if args.csv and write_failed is None:
-        write_failed = _attempt(lambda: write_csv(out, "solution.csv", sol))
-
-    notes: list[str] = []
-    diag = None
-    try:
-        diag, reference, more = diagnose_for_report(
-            sol, problem, reference, extend=args.reference == "auto"
-        )
-        notes += more
-        if not args.no_plots and write_failed is None:
-            write_failed = _attempt(
-                lambda: notes.extend(
-                    write_figures(out, sol, diag, title=problem.name, dpi=args.dpi)
-                )
-            )
-        interrupted = False
-    except KeyboardInterrupt:
-        notes.append("interrupted during diagnostics or plotting; report incomplete")
-        interrupted = True
-    if signals_received():  # the status says "KeyboardInterrupt"; say what it was
-        notes.append(f"stopped by {', '.join(signals_received())} (handled like Ctrl-C)")
+    notes = _events_left_out(sol)
+    with interrupts_held() as held:
+        write_failed = _attempt(lambda: out.solution("solution.npz", sol))
+        if args.csv and write_failed is None:
+            write_failed = _attempt(lambda: write_csv(out, "solution.csv", sol))
+    diag, reference, more, write_failed, cut_short = _report(
+        sol, problem, reference, args, out, held, write_failed
+    )
+    notes += more
     total = time.perf_counter() - started
     settings = {
         "command": "run",
@@ -340,17 +366,23 @@ def run_command(args: argparse.Namespace) -> int:
         "cli_overrides": kwargs,
         "parameters": dict(problem.parameters),
     }
-    summary = summary_dict(
-        sol,
-        diag,
-        problem=problem,
-        settings=settings,
-        wall_time={"solve": solve_time, "total": total},
-        notes=notes,
-    )
-    summary["files"] = [*out.written, "summary.json"]
-    if write_failed is None:
-        write_failed = _attempt(lambda: out.json("summary.json", summary))
+    with interrupts_held():
+        summary = summary_dict(
+            sol,
+            diag,
+            problem=problem,
+            settings=settings,
+            wall_time={"solve": solve_time, "total": total},
+            notes=notes,
+        )
+        if signals_received():  # the status says "KeyboardInterrupt"; say what it was
+            summary["notes"].append(
+                f"stopped by {', '.join(signals_received())} (handled like Ctrl-C)"
+            )
+        notes = summary["notes"]
+        summary["files"] = [*out.written, "summary.json"]
+        if write_failed is None:
+            write_failed = _attempt(lambda: out.json("summary.json", summary))
 
     if args.json:
         print(json.dumps(jsonable(summary), indent=2, allow_nan=False))
@@ -365,7 +397,57 @@ def run_command(args: argparse.Namespace) -> int:
         return EXIT_WRITE_FAILED
     if not quiet:
         print(f"wrote {out.path}/: {', '.join(out.written)}")
-    return 0 if sol.success and not interrupted else 1
+    # Ctrl-C or SIGTERM after the run (in the report, or held back while a
+    # file was written): the files are whole, the exit status says it.
+    return 0 if sol.success and not cut_short and not interrupted() else 1
+
+
+def _events_left_out(sol: Any) -> list[str]:
+    """The note that the problem file's events were left out (a thinned or
+    baseline run), in the warning's words, for scripts reading
+    summary.json; none where the message says it already (events located
+    along part of an interrupted run)."""
+    missing = sol.options.get("events_not_located")
+    return [missing] if missing and missing not in sol.message else []
+
+
+def _report(
+    sol: Any,
+    problem: Any,
+    reference: str,
+    args: argparse.Namespace,
+    out: OutputDir,
+    held: list[BaseException],
+    write_failed: OSError | None,
+) -> tuple[Any, str, list[str], OSError | None, bool]:
+    """The diagnostics against ``reference`` and the figures of a run:
+    ``(diagnostics or None, the reference used, notes, write_failed,
+    interrupted)``.  After SIGTERM the quick report (no reference, no
+    figures); Ctrl-C now, or ``held`` while the nodes were written, skips the
+    rest of it."""
+    notes: list[str] = []
+    quick = quick_report()
+    if quick:
+        reference = "none"
+        notes.append(QUICK_REPORT)
+    diag = None
+    try:
+        if held and not quick:
+            raise held[0]  # Ctrl-C while the nodes were written: as a second Ctrl-C
+        diag, reference, more = diagnose_for_report(
+            sol, problem, reference, extend=args.reference == "auto"
+        )
+        notes += more
+        if not args.no_plots and not quick and write_failed is None:
+            write_failed = _attempt(
+                lambda: notes.extend(
+                    write_figures(out, sol, diag, title=problem.name, dpi=args.dpi)
+                )
+            )
+    except KeyboardInterrupt:
+        notes.append("interrupted during diagnostics or plotting; report incomplete")
+        return diag, reference, notes, write_failed, True
+    return diag, reference, notes, write_failed, False
 
 
 def print_summary(problem: Any, sol: Any, diag: Any, notes: list[str], solve_time: float) -> None:

@@ -70,6 +70,10 @@ def _run(request: Request, client: Any, chunk_size: int | None, progress) -> Ens
         for future in distributed.as_completed(futures):
             progress(collector.add(future.result()))
             future.release()
+    except KeyboardInterrupt:
+        # As on this machine (hamrkq.ensemble.local): the chunks finished,
+        # the other members marked interrupted.
+        return collector.finish(interrupted=True)
     finally:
         client.cancel(futures)
     return collector.finish()

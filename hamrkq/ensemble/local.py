@@ -6,6 +6,14 @@ members integrate in parallel), but the Python part of each :func:`hamrkq.solve`
 call holds the GIL.  Processes need no GIL but each loads the compiled code
 from the disk cache once, and every chunk travels pickled.
 ``benchmarks/ensemble_pools.py`` measures both; :data:`DEFAULT_POOL` is what won.
+
+Ctrl-C (or SIGTERM on the command line) ends an ensemble as it ends a
+:func:`hamrkq.solve` run: the result comes back with the members of every
+chunk finished, and the others marked ``INTERRUPTED``
+(:meth:`Collector.finish`).  The chunks running are not waited for: a
+chunk is one call of the compiled batch loop, which cannot be stopped part
+way, and can take seconds; a thread finishes it in the background and its
+members are dropped, a process is ended.
 """
 
 from __future__ import annotations
@@ -24,8 +32,17 @@ from hamrkq.ensemble.chunk import run_chunk
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.ensemble.result import EnsembleSolution
 from hamrkq.errors import InputError, OptionError
+from hamrkq.result import Status
 
-__all__ = ["DEFAULT_POOL", "POOLS", "Collector", "chunk_bounds", "run_local", "usable_cores"]
+__all__ = [
+    "DEFAULT_POOL",
+    "INTERRUPTED_MESSAGE",
+    "POOLS",
+    "Collector",
+    "chunk_bounds",
+    "run_local",
+    "usable_cores",
+]
 
 POOLS = ("threads", "processes")
 #: The pool ``workers > 1`` uses unless told otherwise; chosen by measurement
@@ -37,6 +54,11 @@ DEFAULT_POOL = "threads"
 MAX_CHUNK = 200
 #: Default number of chunks per worker, for load balance between fast and slow members.
 CHUNKS_PER_WORKER = 8
+#: The message of a member an interrupted ensemble did not finish.
+INTERRUPTED_MESSAGE = (
+    "Not integrated: the ensemble was interrupted (KeyboardInterrupt) before this "
+    "member's chunk finished."
+)
 
 
 def usable_cores() -> int:
@@ -82,7 +104,6 @@ class Collector:
         b = a + chunk.size
         if self.seen[a:b].any():
             raise RuntimeError(f"members {a}:{b} were delivered twice")
-        self.seen[a:b] = True
         self.y[a:b] = chunk.y
         self.t_last[a:b] = chunk.t_last
         self.status[a:b] = chunk.status
@@ -91,14 +112,31 @@ class Collector:
         self.energy_drift[a:b] = chunk.energy_drift
         self.stats[a:b] = chunk.stats
         self.messages.update({a + i: text for i, text in chunk.messages.items()})
+        # Last: a chunk half stored when Ctrl-C lands counts as not arrived.
+        self.seen[a:b] = True
         self.done += chunk.size
         return chunk.size
 
-    def finish(self) -> EnsembleSolution:
-        """The :class:`EnsembleSolution` (every member must have arrived)."""
-        if not self.seen.all():
-            missing = np.flatnonzero(~self.seen)
+    def finish(self, interrupted: bool = False) -> EnsembleSolution:
+        """The :class:`EnsembleSolution`.
+
+        Parameters
+        ----------
+        interrupted : bool
+            The ensemble was stopped by Ctrl-C: the members that never
+            arrived get status ``INTERRUPTED``, NaN states and
+            :data:`INTERRUPTED_MESSAGE`.  Otherwise every member must have
+            arrived.
+        """
+        missing = np.flatnonzero(~self.seen)
+        if missing.size and not interrupted:
             raise RuntimeError(f"{missing.size} members never arrived (first: {missing[0]})")
+        self.status[missing] = Status.INTERRUPTED.code
+        self.y[missing] = self.t_last[missing] = np.nan
+        self.max_global_error[missing] = self.energy0[missing] = np.nan
+        self.energy_drift[missing] = np.nan
+        self.stats[missing] = 0
+        self.messages.update({int(i): INTERRUPTED_MESSAGE for i in missing})
         r = self.request
         failed = np.array(sorted(self.messages), dtype=np.int64)
         names = [s.name for s in r.ham.parameters]
@@ -135,8 +173,11 @@ def run_local(
     collector = Collector(request)
     bounds = chunk_bounds(request.size, workers, chunk_size)
     if workers == 1 or len(bounds) <= 1:
-        for a, b in bounds:
-            progress(collector.add(run_chunk(request.subset(a, b))))
+        try:
+            for a, b in bounds:
+                progress(collector.add(run_chunk(request.subset(a, b))))
+        except KeyboardInterrupt:
+            return collector.finish(interrupted=True)
         return collector.finish()
     if pool == "threads":
         executor: cf.Executor = cf.ThreadPoolExecutor(workers, thread_name_prefix="hamrkq")
@@ -145,14 +186,35 @@ def run_local(
         # locks that a forked child would inherit in an unknown state.
         context = multiprocessing.get_context("spawn")
         executor = cf.ProcessPoolExecutor(workers, mp_context=context)
-    with executor:
-        try:
-            for chunk in _bounded(executor, request, bounds, 2 * workers):
-                progress(collector.add(chunk))
-        except BaseException:
-            executor.shutdown(wait=False, cancel_futures=True)
-            raise
+    try:
+        for chunk in _bounded(executor, request, bounds, 2 * workers):
+            progress(collector.add(chunk))
+    except KeyboardInterrupt:
+        # Not ``with executor``, whose exit waits for the chunks running: a
+        # compiled batch of up to MAX_CHUNK members each (6.5 s of
+        # Henon-Heiles after SIGTERM).
+        _abandon(executor)
+        return collector.finish(interrupted=True)
+    except BaseException:
+        _abandon(executor)
+        raise
+    executor.shutdown(wait=True)
     return collector.finish()
+
+
+def _abandon(executor: cf.Executor) -> None:
+    """Stop ``executor`` without waiting for its running chunks: the queued
+    ones are cancelled, a thread finishes its chunk in the background (a
+    compiled call cannot be stopped from outside), a worker process is
+    ended (Python 3.14's ``terminate_workers``, else each process)."""
+    executor.shutdown(wait=False, cancel_futures=True)
+    if isinstance(executor, cf.ProcessPoolExecutor):
+        terminate = getattr(executor, "terminate_workers", None)
+        if terminate is not None:
+            terminate()
+            return
+        for process in list((getattr(executor, "_processes", None) or {}).values()):
+            process.terminate()
 
 
 def _bounded(

@@ -359,7 +359,13 @@ class Integration:
         if self.upgrade is not None:
             self.steps_before_upgrade = int(s["steps"])
         chunks.append(_filled(out, s["nout"]))
-        return self._output(chunks, status)
+        try:
+            return self._output(chunks, status)
+        except KeyboardInterrupt:
+            # Landed while the nodes were gathered (concatenating a long
+            # run's chunks takes a moment): they are all here; gather them
+            # again, the run marked interrupted.
+            return self._output(chunks, ST_INTERRUPTED)
 
     def _try_upgrade(self, chunk: int, budget: int) -> int:
         """Switch to ``upgrade``'s functions if they are ready; the size of

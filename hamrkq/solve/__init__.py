@@ -58,7 +58,13 @@ from hamrkq.solve.dispatch import (
     run_rk,
     start_background,
 )
-from hamrkq.solve.event_check import certificate, run_certified, with_events
+from hamrkq.solve.event_check import (
+    certificate,
+    certified_at_events,
+    interrupted,
+    run_certified,
+    with_events,
+)
 
 __all__ = [
     "BACKENDS",
@@ -268,21 +274,36 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     # singular initial node, would only be noise.
     with np.errstate(all="ignore"):
         started = time.perf_counter()
+        # method="auto"'s runs that ran again (more quencher steps, the
+        # rounding witness, or the quencher in double-double): (their task, run)
+        discarded: list[tuple[Task, Any]] = []
+        last = None  # the last run made: (its task, run, events located)
         try:
             out, located = run_certified(task, spec, prepared.events, chosen)
-            # method="auto"'s runs that ran again (more quencher steps, the
-            # rounding witness, or the quencher in double-double): (their task, run)
-            discarded = []
+            last = (task, out, located)
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
                 discarded.append((task, out))
                 task = rerun
                 out, located = run_certified(task, spec, prepared.events, chosen)
+                last = (task, out, located)
+        except KeyboardInterrupt:
+            # Ctrl-C or SIGTERM outside a step loop and outside the location
+            # of events, which handle it themselves: while a run was set up
+            # (a rerun's f compiled in double-double) or its nodes gathered.
+            # The last run made stands, marked interrupted; before the
+            # first, there is nothing to keep.
+            if last is None:
+                raise
+            task, out, located = last
+            if discarded and discarded[-1][1] is out:
+                discarded.pop()
+            out, located = _interrupted(task, out, located, prepared.events, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
                 task.progress.close()  # its own bar (not a caller's): leave it on its own line
         elapsed = time.perf_counter() - started
         if isinstance(out, Solution):  # the baselines build their own
-            return out
+            return _with_events_note(out, prepared)
         out.stats.setdefault("integrate_s", elapsed)
         # Loading the compiled code mid-run (a background compile), or
         # compiling f in double-double for a rerun, counts as compiling, in
@@ -299,20 +320,63 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
                 r.stats["nfev"] + r.stats["njev"] for _, r in discarded
             )
             out.stats["discarded_s"] = sum(r.stats["integrate_s"] for _, r in discarded)
-        sol = outcome.solution(task, spec, out, chosen)
-        if discarded:
-            note = outcome.rerun_note(
-                task,
-                discarded,
-                out.stats["discarded_evaluations"],
-                auto=prepared.requested.method == "auto",
-            )
-            sol = sol.replace(message=sol.message + note)
-        if dense_output or prepared.events:
-            sol = with_events(
-                task, sol, chosen, prepared.events, dense_output, located, certificate(task, out)
-            )
+        try:
+            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output)
+        except KeyboardInterrupt:
+            # Landed while the solution was put together (H at the nodes,
+            # the events of a run cut at an event state located again): the
+            # same, marked interrupted, once more.
+            out, located = _interrupted(task, out, located, prepared.events, chosen)
+            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output)
+        return _with_events_note(sol, prepared)
+
+
+def _interrupted(task: Task, out: Any, located: Any, specs: list, backend: str) -> tuple:
+    """A run and its events after Ctrl-C or SIGTERM outside its step loop:
+    the run marked interrupted, and its events as located already, or
+    else as many as are found in a short time
+    (:func:`hamrkq.solve.event_check.certified_at_events`)."""
+    if isinstance(out, Solution):
+        return out, None
+    if located is not None:
+        return interrupted(out), located
+    return certified_at_events(task, interrupted(out), specs, backend)
+
+
+def _solution(
+    prepared: Prepared,
+    task: Task,
+    out: Any,
+    located: Any,
+    discarded: list,
+    chosen: str,
+    dense_output: bool,
+) -> Solution:
+    """The :class:`Solution` of an RKQ-family run ``out`` of ``task``: its
+    message with the runs ``discarded`` before it, and its events."""
+    sol = outcome.solution(task, prepared.spec, out, chosen)
+    if discarded:
+        note = outcome.rerun_note(
+            task,
+            discarded,
+            out.stats["discarded_evaluations"],
+            auto=prepared.requested.method == "auto",
+        )
+        sol = sol.replace(message=sol.message + note)
+    if dense_output or prepared.events:
+        sol = with_events(
+            task, sol, chosen, prepared.events, dense_output, located, certificate(task, out)
+        )
+    return sol
+
+
+def _with_events_note(sol: Solution, prepared: Prepared) -> Solution:
+    """``sol`` with ``options["events_not_located"]``: why a problem file's
+    events were left out of the run (the words of the warning), so that a
+    saved solution and the command line's summary say it too."""
+    if prepared.events_note is None:
         return sol
+    return sol.replace(options={**sol.options, "events_not_located": prepared.events_note})
 
 
 @dataclass(frozen=True)
@@ -329,6 +393,9 @@ class Prepared:
     compile_s: float
     events: list
     requested: SolveOptions
+    #: Why a problem file's events are left out of the run (the warning's
+    #: words), or None: they are located, or there are none.
+    events_note: str | None = None
 
 
 def prepare(
@@ -392,7 +459,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             "chooses the nodes that are kept"
         )
     located = spec.run is run_rk and options.keep_every == 1 and t_eval_v is None
-    event_list = _event_list(events, system_or_problem, ham, params, located)
+    event_list, events_note = _event_list(events, system_or_problem, ham, params, located)
     if (dense_output or event_list) and not located:
         raise InputError(
             "dense_output and events need an RKQ-family method with every node kept "
@@ -425,28 +492,37 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
     )
     task = replace(task, project=auto.projects(requested, task), auto=requested.method == "auto")
-    return Prepared(task, spec, chosen, compile_s, event_list, requested)
+    return Prepared(task, spec, chosen, compile_s, event_list, requested, events_note)
 
 
-def _event_list(events, system_or_problem, ham, params, located: bool) -> list:
+def _event_list(events, system_or_problem, ham, params, located: bool) -> tuple[list, str | None]:
     """The event specifications of ``events=``, or else of the problem
-    file's ``[[events]]``.  The file's events are a default: where the run
-    cannot locate events (a method outside the RKQ family, thinned nodes)
-    they are left out with a warning, so that the problem still runs with
-    every method (``hamrkq compare``, SciPy's and the symplectic
-    baselines); events given to ``solve`` are never left out."""
+    file's ``[[events]]``, and why the file's are left out (None: they are
+    not).  The file's events are a default: where the run cannot locate
+    events (a method outside the RKQ family, thinned nodes) they are left
+    out with a warning, so that the problem still runs with every method
+    (``hamrkq compare``, SciPy's and the symplectic baselines); events given
+    to ``solve`` are never left out.  The warning's words are also kept in
+    ``sol.options["events_not_located"]``: a warning can be filtered away,
+    and a saved solution or a command's summary.json must still say it."""
     if events is not None or not isinstance(system_or_problem, Problem):
-        return _events.event_specs(events, ham, params)
+        return _events.event_specs(events, ham, params), None
     specs = _events.event_specs(list(system_or_problem.events) or None, ham, params)
     if specs and not located:
         labels = ", ".join(repr(spec.label) for spec in specs)
-        warn(
+        terminal = [repr(spec.label) for spec in specs if spec.terminal]
+        note = (
             f"the events of problem {system_or_problem.name!r} ({labels}) are not "
             "located in this run: events need an RKQ-family method with every node "
             "kept (solve(..., events=[]) runs without them, and without this warning)"
         )
-        return []
-    return specs
+        if terminal:
+            note += (
+                f"; the terminal event {', '.join(terminal)} does not end it, so it runs to t_end"
+            )
+        warn(note)
+        return [], note
+    return specs, None
 
 
 def _require_double_double(ham) -> None:
