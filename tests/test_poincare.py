@@ -342,3 +342,37 @@ def test_direction_along_a_backward_run():
     np.testing.assert_allclose(down.t, [-2 * math.pi, -4 * math.pi], atol=1e-8, rtol=0)
     np.testing.assert_allclose(down.column("p"), 1.0, atol=1e-8)
     assert "backward run" in " ".join(poincare.__doc__.split())
+
+
+def test_an_interrupted_orbit_ends_the_section_with_the_orbits_run_so_far(monkeypatch):
+    # A run of solve that comes back INTERRUPTED (Ctrl-C or SIGTERM in its
+    # step loop) ends the section: its crossings so far stand and no other
+    # orbit starts.  The library function ran the remaining orbits to the end.
+    import hamrkq.analysis.poincare as module
+
+    hh = hamrkq.load_problem("henon_heiles")
+    q0, p0 = energy_orbits(hh.hamiltonian, 1 / 12, 4)
+    runs = []
+
+    def solve(*args, **kwargs):
+        sol = hamrkq.solve(*args, **kwargs)
+        runs.append(sol)
+        return sol.replace(status=hamrkq.Status.INTERRUPTED) if len(runs) == 2 else sol
+
+    monkeypatch.setattr(module, "solve", solve)
+    sec = hamrkq.poincare(hh, "q1 = 0", q0, p0, (0.0, 300.0), atol=1e-9)
+    assert len(runs) == 2
+    assert [s.status for s in sec.solutions] == [hamrkq.Status.SUCCESS, hamrkq.Status.INTERRUPTED]
+    for k in range(2):
+        np.testing.assert_array_equal(sec.t[sec.orbit == k], runs[k].t_events[0])
+
+    def interrupt(*args, **kwargs):  # Ctrl-C between two orbits
+        if runs:
+            raise KeyboardInterrupt
+        runs.append(hamrkq.solve(*args, **kwargs))
+        return runs[-1]
+
+    runs.clear()
+    monkeypatch.setattr(module, "solve", interrupt)
+    sec = hamrkq.poincare(hh, "q1 = 0", q0, p0, (0.0, 300.0), atol=1e-9)
+    assert len(sec.solutions) == 1 and sec.t.size == runs[0].t_events[0].size

@@ -20,7 +20,7 @@ import sympy as sp
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError
-from hamrkq.result import Solution
+from hamrkq.result import Solution, Status
 from hamrkq.solve import solve
 from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -67,6 +67,25 @@ class PoincareSection:
     def success(self) -> bool:
         """True when every orbit's run ended as asked."""
         return all(s.success for s in self.solutions)
+
+    @classmethod
+    def of(
+        cls, section: str, names: tuple[str, ...], solutions: list[Solution]
+    ) -> PoincareSection:
+        """The crossings of the runs ``solutions`` (each made with the
+        section's event first), orbit ``k`` the ``k``-th run."""
+        times = [s.t_events[0] for s in solutions]
+        states = [s.y_events[0] for s in solutions]
+        return cls(
+            t=np.concatenate(times) if times else np.empty(0),
+            y=np.concatenate(states) if states else np.empty((0, len(names))),
+            orbit=np.concatenate([np.full(t.size, k) for k, t in enumerate(times)]).astype(int)
+            if times
+            else np.empty(0, dtype=int),
+            section=section,
+            names=tuple(names),
+            solutions=list(solutions),
+        )
 
     def column(self, name: str) -> np.ndarray:
         """One state component at every crossing, by name."""
@@ -136,6 +155,9 @@ def poincare(
     Returns
     -------
     PoincareSection
+        One run per orbit in ``solutions``; after Ctrl-C or SIGTERM, the
+        orbits run so far (the last one interrupted, with its crossings so
+        far) and no others.
 
     Raises
     ------
@@ -171,20 +193,17 @@ def poincare(
     if Q.shape[0] == 0:
         # Else np.concatenate of no crossing times: "need at least one array".
         raise InputError(f"q0 and p0 need at least one orbit, got shapes {Q.shape} and {P.shape}")
-    solutions = [
-        solve(system, q, p, t_span, events=[event], **solve_options)
-        for q, p in zip(Q, P, strict=True)
-    ]
-    times = [s.t_events[0] for s in solutions]
-    states = [s.y_events[0] for s in solutions]
-    return PoincareSection(
-        t=np.concatenate(times),
-        y=np.concatenate(states) if states else np.empty((0, ham.dim)),
-        orbit=np.concatenate([np.full(t.size, k) for k, t in enumerate(times)]).astype(int),
-        section=section,
-        names=ham.names,
-        solutions=solutions,
-    )
+    solutions: list[Solution] = []
+    try:
+        for q, p in zip(Q, P, strict=True):
+            solutions.append(solve(system, q, p, t_span, events=[event], **solve_options))
+            if solutions[-1].status is Status.INTERRUPTED:
+                break  # Ctrl-C or SIGTERM: the orbit stands as far as it ran, no other starts
+    except KeyboardInterrupt:
+        # Between two orbits (or while one was set up): those run so far stand.
+        if not solutions:
+            raise
+    return PoincareSection.of(section, ham.names, solutions)
 
 
 def energy_orbits(

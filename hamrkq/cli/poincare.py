@@ -218,13 +218,8 @@ def _orbits(
             raise
     if megno:
         indicators += [math.nan] * (len(parts) - len(indicators))
-    combined = PoincareSection(
-        t=np.concatenate([part.t for part in parts]),
-        y=np.concatenate([part.y for part in parts]),
-        orbit=np.concatenate([part.orbit + k for k, part in enumerate(parts)]),
-        section=parts[0].section,
-        names=parts[0].names,
-        solutions=[part.solutions[0] for part in parts],
+    combined = PoincareSection.of(
+        parts[0].section, parts[0].names, [part.solutions[0] for part in parts]
     )
     return combined, indicators if megno else None
 
