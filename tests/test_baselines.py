@@ -222,3 +222,21 @@ def test_rk34_drifts_over_10000_pendulum_periods_where_verlet_does_not():
     assert err[-tenth:].max() > 5 * err[:tenth].max()
     drift, scatter = sym.drift_and_scatter(verlet.t, verlet.energy)
     assert abs(drift) < 0.02 * scatter, (drift, scatter)
+
+
+@pytest.mark.parametrize(
+    ("method", "options"),
+    [
+        ("scipy:DOP853", {}),
+        ("scipy:RK34Q8", {}),
+        ("gauss4", {"step": 0.1}),
+        ("verlet", {"step": 0.1}),
+    ],
+)
+def test_every_method_reports_compile_and_integration_seconds(method, options):
+    # PRODUCT.md: sol.stats["compile_s"], sol.stats["integrate_s"]; the
+    # baselines' stats had neither (a KeyError for a script that reads them).
+    harmonic = hamrkq.load_problem("harmonic")
+    sol = hamrkq.solve(harmonic, t_span=(0.0, 10.0), method=method, **options)
+    assert sol.stats["integrate_s"] > 0.0 and sol.stats["compile_s"] >= 0.0
+    assert sol.stats["integrate_s"] < 60.0  # seconds, not a count

@@ -303,7 +303,10 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
                 task.progress.close()  # its own bar (not a caller's): leave it on its own line
         elapsed = time.perf_counter() - started
         if isinstance(out, Solution):  # the baselines build their own
-            return _with_events_note(out, prepared)
+            # compile_s and integrate_s in every run's stats, as the RKQ
+            # family's (a baseline runs in Python: what it compiled is f).
+            timing = {"integrate_s": elapsed, "compile_s": prepared.compile_s}
+            return _with_events_note(out.replace(stats={**out.stats, **timing}), prepared)
         out.stats.setdefault("integrate_s", elapsed)
         # Loading the compiled code mid-run (a background compile), or
         # compiling f in double-double for a rerun, counts as compiling, in
