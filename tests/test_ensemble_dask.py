@@ -105,3 +105,38 @@ def _default_client():
         return distributed.default_client().id
     except ValueError:  # no client at all
         return None
+
+
+@pytest.mark.parametrize("closed", ["client", "cluster"])
+def test_a_client_or_cluster_closed_mid_run_keeps_the_chunks_that_came_back(closed):
+    # The cancelled futures raised FutureCancelledError, and hamrkq's own
+    # cleanup (client.cancel on a closed client) replaced it with
+    # "ClosedClientError: Client is closed. Can't send cancel-keys message";
+    # the chunks already back were lost.  Now they stand, as after Ctrl-C.
+    pend = hamrkq.load_problem("pendulum")
+    q0, p0 = _members(120)
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    )
+    own = distributed.Client(cluster)
+    arrived = []
+
+    def close_after_the_first_chunk(done, total):
+        arrived.append(done)
+        if len(arrived) == 1:
+            threading.Thread(target=own.close if closed == "client" else cluster.close).start()
+
+    try:
+        ens = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 100), client=own, chunk_size=4,
+                              progress=close_after_the_first_chunk)  # fmt: skip
+    finally:
+        own.close()
+        cluster.close()
+    local = hamrkq.ensemble(pend, q0=q0, p0=p0, t_span=(0, 100), workers=1)
+    done = ens.status == hamrkq.Status.SUCCESS.code
+    assert 4 <= np.count_nonzero(done) < 120
+    np.testing.assert_array_equal(ens.y[done], local.y[done])
+    rest = ~done
+    assert np.all(ens.status[rest] == hamrkq.Status.INTERRUPTED.code)
+    assert np.all(np.isnan(ens.y[rest]))
+    assert all("the Dask client or its cluster closed" in m for m in ens.messages)

@@ -74,6 +74,28 @@ def _run(request: Request, client: Any, chunk_size: int | None, progress) -> Ens
         # As on this machine (hamrkq.ensemble.local): the chunks finished,
         # the other members marked interrupted.
         return collector.finish(interrupted=True)
+    except Exception as exc:
+        if not _gone(client):
+            raise
+        # The client or its cluster closed under the run: its tasks were
+        # cancelled.  The chunks that came back stand, as after Ctrl-C.
+        why = (
+            "not run: the Dask client or its cluster closed during the ensemble "
+            f"({type(exc).__name__}: {exc})"
+        )
+        return collector.finish(interrupted=True, why=why)
     finally:
-        client.cancel(futures)
+        if not _gone(client):  # a closed client cannot cancel (ClosedClientError)
+            client.cancel(futures)
     return collector.finish()
+
+
+def _gone(client: Any) -> bool:
+    """Whether ``client`` or its scheduler has gone away."""
+    if client.status in ("closing", "closed"):
+        return True
+    try:
+        client.scheduler_info()  # served from the client's cache: cheap
+    except Exception:  # any failure to reach it means gone
+        return True
+    return client.scheduler is None

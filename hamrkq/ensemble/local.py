@@ -117,16 +117,20 @@ class Collector:
         self.done += chunk.size
         return chunk.size
 
-    def finish(self, interrupted: bool = False) -> EnsembleSolution:
+    def finish(
+        self, interrupted: bool = False, why: str = INTERRUPTED_MESSAGE
+    ) -> EnsembleSolution:
         """The :class:`EnsembleSolution`.
 
         Parameters
         ----------
         interrupted : bool
-            The ensemble was stopped by Ctrl-C: the members that never
-            arrived get status ``INTERRUPTED``, NaN states and
-            :data:`INTERRUPTED_MESSAGE`.  Otherwise every member must have
-            arrived.
+            The ensemble was stopped (Ctrl-C, SIGTERM, its Dask cluster gone):
+            the members that never arrived get status ``INTERRUPTED``, NaN
+            states and the message ``why``.  Otherwise every member must
+            have arrived.
+        why : str
+            The message of the members that never arrived.
         """
         missing = np.flatnonzero(~self.seen)
         if missing.size and not interrupted:
@@ -136,7 +140,7 @@ class Collector:
         self.max_global_error[missing] = self.energy0[missing] = np.nan
         self.energy_drift[missing] = np.nan
         self.stats[missing] = 0
-        self.messages.update({int(i): INTERRUPTED_MESSAGE for i in missing})
+        self.messages.update({int(i): why for i in missing})
         r = self.request
         failed = np.array(sorted(self.messages), dtype=np.int64)
         names = [s.name for s in r.ham.parameters]
