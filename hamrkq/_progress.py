@@ -20,7 +20,7 @@ from typing import TextIO
 
 from tqdm import tqdm
 
-__all__ = ["BAR_FORMAT", "ProgressBar", "WaitNotice", "say"]
+__all__ = ["BAR_FORMAT", "ProgressBar", "WaitNotice", "say", "tqdm_size"]
 
 #: The bar's line: label, bar, share of the time span done, the current t
 #: (tqdm's postfix), time spent and time left.
@@ -35,7 +35,7 @@ def _is_terminal(stream: TextIO) -> bool:
     return bool(isatty and isatty())
 
 
-def _size(stream: TextIO) -> dict[str, int]:
+def tqdm_size(stream: TextIO) -> dict[str, int]:
     """tqdm's ``ncols`` and ``nrows`` for ``stream`` where it cannot find them
     itself; empty when the terminal reports its size."""
     try:
@@ -98,7 +98,7 @@ class ProgressBar:
                 bar_format=BAR_FORMAT,
                 ascii=".#",
                 leave=True,
-                **_size(self.stream),
+                **tqdm_size(self.stream),
             )
             return
         self._bar.set_postfix_str(postfix, refresh=False)

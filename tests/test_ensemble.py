@@ -403,3 +403,28 @@ def test_a_member_whose_shadow_saturated_in_the_batch_loop_is_solved_alone(monke
     for i in range(2):
         assert ens.member_status(i) is Status.TOLERANCE_UNATTAINABLE
         _assert_member_equals_solve(ens, i, problem, **kwargs)
+
+
+def test_the_members_bar_is_drawn_on_a_bare_pseudo_terminal(monkeypatch):
+    # A pseudo-terminal that reports a size of 0 x 0 (script(1), some CI
+    # runners): tqdm drew nothing there, as hamrkq run's bar did before it got
+    # a fallback size; the ensemble's bar lacked it.
+    import os
+    import pty
+    import time
+
+    from hamrkq.ensemble.api import _Progress
+
+    master, slave = pty.openpty()
+    assert os.get_terminal_size(slave) == (0, 0)
+    stream = os.fdopen(slave, "w")
+    monkeypatch.setattr("sys.stderr", stream)
+    with _Progress(None, 10) as advance:
+        advance(4)
+        time.sleep(1.2)  # the bar waits a second before it is drawn
+        advance(6)
+    stream.flush()
+    text = os.read(master, 4096).decode()
+    stream.close()
+    os.close(master)
+    assert "10/10" in text and "member" in text

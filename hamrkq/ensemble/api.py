@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -145,8 +146,14 @@ class _Progress:
         if progress is None or progress is True:
             from tqdm.auto import tqdm
 
-            # disable=None: drawn only when stderr is a terminal.
-            self.bar = tqdm(total=total, unit="member", disable=None, delay=1.0)
+            from hamrkq._progress import tqdm_size
+
+            # disable=None: drawn only when stderr is a terminal (one of
+            # 0 x 0, a bare pseudo-terminal, too: tqdm drew nothing there).
+            self.bar = tqdm(
+                total=total, unit="member", disable=None, delay=1.0, file=sys.stderr,
+                **tqdm_size(sys.stderr),
+            )  # fmt: skip
         self.started = time.monotonic()
 
     def __enter__(self) -> Callable[[int], None]:
