@@ -51,6 +51,7 @@ __all__ = [
     "event_specs",
     "locate",
     "locate_all",
+    "terminal_cut",
     "terminal_watch",
 ]
 
@@ -518,19 +519,22 @@ def locate_all(specs: list[EventSpec], dense: DenseOutput) -> tuple[Found, int]:
     those after the terminal event that ends the run left out, and the index
     of that event function (-1: none ends it)."""
     found = [locate(spec, dense) for spec in specs]
-    key = 1.0 if dense.t[-1] >= dense.t[0] else -1.0
+    return terminal_cut(specs, found, 1.0 if dense.t[-1] >= dense.t[0] else -1.0)
+
+
+def terminal_cut(specs: list[EventSpec], found: Found, key: float) -> tuple[Found, int]:
+    """``found`` without the roots after the terminal occurrence that ends
+    the run first, and the index of its event function (-1: none ends it);
+    ``key`` is +1 for a run forward in time, -1 backward."""
     stop_at, stop_by = math.inf, -1
     for k, (spec, (times, _)) in enumerate(zip(specs, found, strict=True)):
         if spec.terminal and times.size >= spec.terminal:
             at = key * times[spec.terminal - 1]
             if at < stop_at:
                 stop_at, stop_by = at, k
-    if stop_by >= 0:
-        found = [
-            (times[key * times <= stop_at], states[key * times <= stop_at])
-            for times, states in found
-        ]
-    return found, stop_by
+    if stop_by < 0:
+        return found, -1
+    return [(t[key * t <= stop_at], y[key * t <= stop_at]) for t, y in found], stop_by
 
 
 def apply(

@@ -199,7 +199,7 @@ def _located_in_time(task: Task, out: RunOutput, specs: list, backend: str) -> L
                 (np.concatenate([p[0] for p in kept]), np.concatenate([p[1] for p in kept]))
                 for kept in pieces
             ]
-            found, stop_by = _terminal_cut(specs, found, key)
+            found, stop_by = _events.terminal_cut(specs, found, key)
             done = end
     except KeyboardInterrupt:
         pass  # another interrupt: the windows done are kept
@@ -230,21 +230,6 @@ def _located_in_time(task: Task, out: RunOutput, specs: list, backend: str) -> L
             "which was not looked for there"
         )
     return Located(everywhere, found, -1, note + ".")
-
-
-def _terminal_cut(specs: list, found: _events.Found, key: float) -> tuple[_events.Found, int]:
-    """``found`` without the roots after the terminal occurrence that ends
-    the run first, and the index of its event function (-1: none ends it);
-    :func:`hamrkq.events.locate_all`'s rule, over the windows located so far."""
-    stop_at, stop_by = math.inf, -1
-    for k, (spec, (times, _)) in enumerate(zip(specs, found, strict=True)):
-        if spec.terminal and times.size >= spec.terminal:
-            at = key * times[spec.terminal - 1]
-            if at < stop_at:
-                stop_at, stop_by = at, k
-    if stop_by < 0:
-        return found, -1
-    return [(t[key * t <= stop_at], y[key * t <= stop_at]) for t, y in found], stop_by
 
 
 def certificate(task: Task, out: RunOutput) -> tuple | None:
