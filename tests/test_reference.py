@@ -148,10 +148,11 @@ def test_kepler_two_degrees_of_freedom_against_keplers_equation():
     assert abs(ref.details["period"] - 2 * np.pi) < 1e-13
     # The truth is the flow of the double y0 (its period is 2 pi only to
     # rounding): the catalogue's formula, checked against mpmath in
-    # tests/test_exact.py; measured 7.2e-13 (4.3e-13 from the ideal orbit
-    # through the exact y0).
+    # tests/test_exact.py; measured 7.2e-13 on one machine and 2.3e-12 on
+    # another (SciPy's DOP853 rounds with the CPU's NumPy and BLAS kernels;
+    # 4.3e-13 from the ideal orbit through the exact y0).
     error = np.max(np.abs(ref.y - exact.kepler(t, y0)))
-    assert error < 2e-12
+    assert error < 5e-12
     assert error <= ref.estimated_error < 1e-9
     assert np.max(np.abs(ref.y - kepler_exact(t, e))) < 1e-11
 
