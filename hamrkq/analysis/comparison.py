@@ -14,8 +14,9 @@ method the run to put in the headline table:
 With ``match="error"`` the sweep is then refined, in up to two rounds: a
 method whose sweep does not reach the target gets a run at a setting
 extrapolated from its two most accurate runs (error and cost as power laws of
-the setting), and one whose cheapest sufficient run is more than three times
-too accurate gets a run interpolated between it and the next cheaper run;
+the setting), and one whose cheapest sufficient run has an error below 0.3 of
+the target (more than 3.3 times too accurate) gets a run interpolated between
+it and the next cheaper run;
 none is run when it is predicted to cost more than ten times the anchor (the
 notes say so).
 
@@ -371,6 +372,11 @@ def _measure(run: Run, reference: dict[str, np.ndarray]) -> Run:
     )  # fmt: skip
 
 
+#: A method's cheapest run that reached the target is refined when its error
+#: is below this fraction of the target.
+REFINE_BELOW = 0.3
+
+
 def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
                notes: list[str]) -> float | None:  # fmt: skip
     """The next setting (factor) for a method, so that matched error is matched closely.
@@ -378,7 +384,8 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
     ``log error`` and ``log nfev`` are taken as straight lines in ``log factor``
     through two runs: the two most accurate when no run has reached the
     target (aiming at 0.7 target), or, when the cheapest run that reached it
-    is more than three times too accurate, that run and the dearest one that
+    is more than 3.3 times too accurate (error below :data:`REFINE_BELOW` of
+    the target), that run and the dearest one that
     missed (aiming at 0.8 target, between the two; or beyond the cheapest run,
     at most :data:`MAX_COARSENING` times its setting, when no run missed).  None
     when there is
@@ -393,7 +400,7 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
     bracket = False
     if reached:
         best = min(reached, key=lambda r: r.nfev)
-        if best.max_error >= 0.3 * target:
+        if best.max_error >= REFINE_BELOW * target:
             return None
         missed = [r for r in own if r.max_error > target and r.nfev < best.nfev]
         dearer = sorted((r for r in own if r.nfev > best.nfev), key=lambda r: r.nfev)
