@@ -23,7 +23,7 @@ import numpy as np
 
 import hamrkq
 import hamrkq.events
-from hamrkq.analysis.poincare import energy_orbits
+from hamrkq.analysis.energy_surface import energy_orbits
 
 HERE = Path(__file__).resolve().parent
 T_END = 1000.0

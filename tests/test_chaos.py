@@ -11,7 +11,7 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.analysis.chaos import lyapunov, megno
-from hamrkq.analysis.poincare import energy_orbits
+from hamrkq.analysis.energy_surface import energy_orbits
 from hamrkq.catalogue.problems import load_problem
 
 pytest.importorskip("numba")  # the interpreted sweep over thousands of nodes is minutes

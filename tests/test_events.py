@@ -362,7 +362,7 @@ def test_two_crossings_inside_one_step_of_a_callable_event_backward_in_time():
 
 
 def test_bracketed_roots_all_at_once_to_four_eps_in_a_few_calls():
-    from hamrkq.events import bracketed_roots
+    from hamrkq.rkq.roots import bracketed_roots
 
     # Roots of sin(t) - 1/2 near 1000..2000, each in a bracket of 0.3, one
     # whose end is already the root to within an ulp (false position lands

@@ -11,7 +11,8 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.analysis.poincare import energy_orbits, poincare
+from hamrkq.analysis.energy_surface import energy_orbits
+from hamrkq.analysis.poincare import poincare
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import ExpressionError, InputError

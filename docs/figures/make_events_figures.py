@@ -20,7 +20,7 @@ import sympy as sp
 from matplotlib.figure import Figure
 
 import hamrkq
-from hamrkq.analysis.poincare import energy_orbits
+from hamrkq.analysis.energy_surface import energy_orbits
 from hamrkq.plotting.figures import save_figure
 from hamrkq.plotting.sections import section_figure
 

@@ -1,7 +1,7 @@
 """``hamrkq poincare``: the surface of section of a catalogue problem at an energy.
 
 Chooses ``--orbits`` initial conditions on the section at ``--energy``
-(:func:`hamrkq.analysis.poincare.energy_orbits`), integrates each with RKQ
+(:func:`hamrkq.analysis.energy_surface.energy_orbits`), integrates each with RKQ
 and the section as an event, draws the crossings coloured by orbit, or by
 its MEGNO with ``--megno`` (``section.png``), and writes them to
 ``section.npz`` with ``summary.json``.
@@ -25,7 +25,8 @@ import sympy as sp
 
 from hamrkq._files import atomic_file
 from hamrkq.analysis.chaos import indicator_of
-from hamrkq.analysis.poincare import PoincareSection, energy_orbits, poincare
+from hamrkq.analysis.energy_surface import energy_orbits
+from hamrkq.analysis.poincare import PoincareSection, poincare
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.problem import Problem
 from hamrkq.catalogue.problems import load_problem
