@@ -141,8 +141,11 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
     if kind == "exact":
         if exact is None:
             raise InputError("reference='exact' needs an exact solution (exact= or a problem)")
-        _check_exact_start(exact, t0, y0)
         states = np.asarray(exact(sol.t), dtype=float).reshape(sol.y.shape)
+        if sol.t.size and t0 == sol.t[0]:
+            _check_exact_start(states[0], sol.y[0])
+        else:  # a run with t_eval: its initial state is not a node
+            _check_exact_start(_exact_at(exact, t0), y0)
         return states, "exact", "exact solution", 4 * EPS * float(np.max(np.abs(states)))
     if kind == "independent":
         if ham is None:
@@ -159,10 +162,15 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
     raise OptionError(f"reference must be one of {REFERENCE_KINDS} or a Reference, got {kind!r}")
 
 
-def _check_exact_start(exact: Callable, t0: float, y0: np.ndarray) -> None:
-    """An InputError unless the exact solution passes through the run's
-    initial state (a run from other initial values, or another t0)."""
-    start = np.asarray(exact(np.array([t0])), dtype=float).reshape(-1)
+def _exact_at(exact: Callable, t0: float) -> np.ndarray:
+    """The exact solution's state at ``t0``."""
+    return np.asarray(exact(np.array([t0])), dtype=float).reshape(-1)
+
+
+def _check_exact_start(start: np.ndarray, y0: np.ndarray) -> None:
+    """An InputError unless the exact solution's state ``start`` at the
+    run's initial time is the run's initial state ``y0`` (a run from other
+    initial values, or from another t0, is not the exact solution's)."""
     scale = max(float(np.max(np.abs(start))), float(np.max(np.abs(y0))))
     if np.max(np.abs(start - y0)) > 1e-9 * (1.0 + scale):
         raise InputError(
@@ -179,7 +187,8 @@ def _auto_reference(sol: Any, exact: Callable | None, notes: list[str]) -> str:
     if exact is None:
         return fallback
     try:
-        _check_exact_start(exact, *_initial(sol))
+        t0, y0 = _initial(sol)
+        _check_exact_start(_exact_at(exact, t0), y0)
     except InputError as exc:
         notes.append(f"the exact solution does not apply ({exc}); reference {fallback!r}")
         return fallback
