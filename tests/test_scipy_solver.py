@@ -238,3 +238,36 @@ def test_relative_tolerance_and_paper_gamma():
     exact = 10 * harmonic_exact(sol.t)
     delta = np.maximum(1e-12, 1e-8 * np.abs(sol.y))
     assert np.all(np.abs(sol.y - exact) <= 1.05 * delta + 1e-12)
+
+
+def test_fun_and_jac_get_arrays_of_their_own():
+    """A fun memoised on (t, y) that keeps y by reference (a SciPy idiom for
+    sharing work with jac) must see the same y later: the solver's stages
+    were one reused buffer, and stage 3 (same t as stage 2) got stage 2's
+    cached f -- SUCCESS with an error of 16 without jac."""
+    cache = {"t": None, "y": None, "f": None}
+    kept = []
+
+    def fun(t, y):
+        kept.append((t, y))
+        if cache["t"] == t and np.array_equal(cache["y"], y):
+            return cache["f"]
+        f = harmonic(t, y)
+        cache.update(t=t, y=y, f=f)
+        return f
+
+    def jac(t, y):
+        kept.append((t, y))
+        return harmonic_jac(t, y)
+
+    for use_jac in (True, False):
+        cache.update(t=None, y=None, f=None)
+        kept.clear()
+        kwargs = {"jac": jac} if use_jac else {"global_error_estimate": "off"}
+        sol = solve_ivp(fun, (0.0, 10.0), [0.0, 1.0], method=RK34Q8, atol=1e-8, **kwargs)
+        assert sol.status == 0
+        assert np.max(np.abs(sol.y - harmonic_exact(sol.t))) < 1.05e-8
+        # every y handed out still holds the value it was called with
+        values = np.array([y for _, y in kept])
+        assert len({id(y) for _, y in kept}) == len(kept)
+        assert np.all(np.isfinite(values))

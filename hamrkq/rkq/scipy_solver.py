@@ -259,12 +259,19 @@ class RK34Q8(OdeSolver):
 
         def inplace(t, y, params, out):
             self.njev += 1
-            out[:, :] = evaluate(t, y)
+            # A copy, as SciPy's own methods hand out: y is a reused work
+            # buffer, and a jac that keeps it (memoised on (t, y)) would see
+            # it overwritten by the next stage.
+            out[:, :] = evaluate(t, y.copy())
 
         return inplace
 
     def _rhs(self, t, y, params, out):
-        out[:] = self.fun(t, y)
+        # A fresh array per call, as SciPy's own methods give: y is one of
+        # the loop's work buffers (stages 2 and 3 share t + h/2 and a buffer),
+        # and a fun memoised on (t, y) that keeps y by reference returned
+        # stage 2's f for stage 3: a run off by 16 reported SUCCESS.
+        out[:] = self.fun(t, y.copy())
 
     def _start(self, t0, t_bound, first_step, atol, rtol, max_step) -> None:
         run = self._run
