@@ -45,7 +45,9 @@ __all__ = [
     "TOLERANCE_RULES",
     "Z_METHOD_NAMES",
     "SolveOptions",
+    "applicable_settings",
     "check_setting",
+    "refused_options",
 ]
 
 #: Relative tolerances below this are raised to it (with a warning): below
@@ -132,6 +134,7 @@ class SolveOptions:
         options = cls(**checked)
         if given.get("z_method") is not None:
             _check_z_method_applies(options.method, options.z_method)
+        _check_options_apply(options.method, given)
         if options.method in MEMBERS or options.method == "auto":
             member = get_member(
                 # auto's members share their Gamma and steps (tests/test_family.py)
@@ -218,6 +221,62 @@ def _check_z_method_applies(method: str, z_method: str) -> None:
             else "no quencher"
         )
     raise OptionError(f"z_method={z_method!r} replaces the quencher of {eight}; {has}")
+
+
+#: Options that steer a quencher and its estimate Gamma: they mean nothing to
+#: a method without one.
+QUENCHER_OPTIONS = (
+    "quench",
+    "quench_threshold",
+    "global_error_estimate",
+    "z_substeps",
+    "quencher_precision",
+    "gamma_limit",
+)
+#: Options of hamrkq's own adaptive step loop (SciPy's solvers have their own
+#: safety factor and error norm).
+STEP_LOOP_OPTIONS = ("safety", "tolerance_rule")
+
+
+def refused_options(method: str) -> tuple[tuple[str, ...], str]:
+    """The options ``method`` has no use for, and why (for the message).
+
+    Given by keyword, each is an error (:meth:`SolveOptions.resolve`); in a
+    problem file's ``[integration]``, a default that applies where it can
+    (:func:`applicable_settings`)."""
+    if method in (f"{SCIPY_PREFIX}RK34Q8", "auto"):  # RKQ (SciPy's form of rk34q8)
+        return (), ""
+    if method in FIXED_STEP_METHODS:
+        refused = ("atol", "rtol", "first_step", "max_step", *QUENCHER_OPTIONS)
+        return (*refused, *STEP_LOOP_OPTIONS), (
+            "a fixed-step method: no error control, no quencher; give step only"
+        )
+    if method.startswith(SCIPY_PREFIX):
+        return (*QUENCHER_OPTIONS, *STEP_LOOP_OPTIONS), (
+            "SciPy's solver, with its own step control and no quencher"
+        )
+    if method in MEMBERS and not MEMBERS[method].use_z:
+        return QUENCHER_OPTIONS, "the pair alone, without a quencher"
+    return (), ""
+
+
+def applicable_settings(method: str, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """A problem file's ``[integration]`` settings that apply to ``method``:
+    its ``atol`` means nothing to ``verlet``, whose run ignores it (as
+    :func:`hamrkq.solve` does with a problem's defaults)."""
+    refused, _ = refused_options(method)
+    return {key: value for key, value in settings.items() if key not in refused}
+
+
+def _check_options_apply(method: str, given: Mapping[str, Any]) -> None:
+    """An option given (by keyword) to a method that has no use for it is an
+    error, not silently ignored: ``max_step=1e-3`` with ``gauss4`` ran steps
+    of 0.1 without a word."""
+    refused, why = refused_options(method)
+    for name in refused:
+        value = given.get(name)
+        if value is not None and not (name == "max_step" and value == math.inf):
+            raise OptionError(f"{name}={value!r} does not apply to method={method!r} ({why})")
 
 
 def _check(key: str, value: Any) -> Any:

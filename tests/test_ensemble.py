@@ -428,3 +428,17 @@ def test_the_members_bar_is_drawn_on_a_bare_pseudo_terminal(monkeypatch):
     stream.close()
     os.close(master)
     assert "10/10" in text and "member" in text
+
+
+def test_fixed_step_ensemble_of_a_problem_whose_file_sets_tolerances():
+    """The pendulum's file sets atol under [integration]: a default, which
+    means nothing to verlet.  The ensemble passed it on as a keyword and
+    every fixed-step ensemble of such a problem raised OptionError."""
+    pend = hamrkq.load_problem("pendulum")
+    assert "atol" in pend.integration
+    for method, step in (("verlet", 0.1), ("gauss4", 0.2)):
+        ens = hamrkq.ensemble(pend, q0=[[0.5], [1.0]], p0=[0.0], t_span=(0, 2),
+                              method=method, step=step, progress=False)  # fmt: skip
+        assert ens.all_success
+        alone = hamrkq.solve(pend, q0=[1.0], p0=[0.0], t_span=(0, 2), method=method, step=step)
+        assert np.array_equal(ens.y[1, 0], alone.y[-1])

@@ -53,6 +53,22 @@ def call(**changes):
         ({"method": "rk34", "z_method": "dop853"}, OptionError, "'rk34' has no quencher"),
         ({"method": "verlet", "step": 0.1, "z_method": "dop853"}, OptionError, "needs an RKQ"),
         ({"backend": "cuda"}, OptionError, "backend='cuda'.*'auto', 'numba', 'python'"),
+        # an option the method has no use for is refused, not ignored: gauss4
+        # with max_step=1e-3 ran steps of 0.1 without a word
+        (
+            {"method": "gauss4", "step": 0.1, "max_step": 1e-3},
+            OptionError,
+            "max_step=0.001 does not apply to method='gauss4'",
+        ),
+        ({"method": "verlet", "step": 0.1, "gamma_limit": 0.01}, OptionError, "fixed-step"),
+        ({"method": "verlet", "step": 0.1, "safety": 0.8}, OptionError, "safety=0.8"),
+        ({"method": "scipy:DOP853", "quench": "redo"}, OptionError, "SciPy's solver"),
+        ({"method": "scipy:DOP853", "tolerance_rule": "prentice"}, OptionError, "SciPy"),
+        ({"method": "rk34", "z_substeps": 3}, OptionError, "the pair alone"),
+        ({"method": "rk34", "global_error_estimate": "off"}, OptionError, "without a quencher"),
+        # y0 as SciPy takes it: 1-D (a transposed or nested array is a slip)
+        ({"q0": [[0.0]]}, InputError, r"q0 must be 1-dimensional .*shape \(1, 1\)"),
+        ({"p0": np.ones((1, 1))}, InputError, "p0 must be 1-dimensional"),
         ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),
         ({"safety": 1.5}, InputError, "safety must be at most 1.0, got 1.5"),
         ({"quench_threshold": -1}, InputError, "quench_threshold.*-1"),
@@ -112,3 +128,17 @@ def test_strings_are_never_evaluated(monkeypatch):
     for changes in ({"atol": "__import__('os')"}, {"q0": ["1+1"]}, {"t_span": ("0", "1")}):
         with pytest.raises((InputError, InputTypeError)):
             call(**changes)
+
+
+def test_options_a_method_can_use_are_accepted():
+    """The other side of the refusals above: what each kind of method uses."""
+    assert call(method="verlet", step=0.1, keep_every=2, max_steps=100).success
+    assert call(method="scipy:DOP853", max_step=0.1, first_step=0.01).success
+    assert call(method="rk34", safety=0.8, tolerance_rule="prentice", max_step=0.5).success
+    assert call(method="rk67q9", gamma_limit=0.01, z_substeps=3, quench="redo").success
+    assert call(method="scipy:RK34Q8", gamma_limit=0.01).success
+    assert call(q0=sp.Matrix([0.0])).success  # a SymPy column vector is 1-D enough
+    # a problem file's settings are defaults: they apply where they can
+    pend = load_problem("pendulum")
+    assert "atol" in pend.integration
+    assert solve(pend, method="verlet", step=0.1, t_span=(0, 1)).success

@@ -27,6 +27,7 @@ from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
 from hamrkq.errors import InputError, InputTypeError, OptionError
 from hamrkq.events import event_specs
+from hamrkq.options import applicable_settings
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -184,8 +185,11 @@ def build_request(
             )
     if isinstance(system, Problem):
         ham = system.hamiltonian
-        # The problem's [integration] settings are defaults; keywords win.
-        options = {**dict(system.integration), **options}
+        # The problem's [integration] settings are defaults, where they apply
+        # to the method (a file's atol means nothing to verlet); keywords win.
+        settings = dict(system.integration)
+        method = options.get("method") or settings.get("method") or "auto"
+        options = {**applicable_settings(method, settings), **options}
         base_params = np.asarray(system.parameter_array, dtype=float)
         t_span = system.t_span if t_span is None else t_span
     elif isinstance(system, Hamiltonian):

@@ -167,9 +167,15 @@ def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: 
         if isinstance(values, numbers.Number | sp.Basic) and not isinstance(values, sp.MatrixBase):
             values = [values]
         try:
-            seq = list(np.asarray(values, dtype=object).ravel())
+            array = np.asarray(values, dtype=object)
         except (TypeError, ValueError):
             raise InputTypeError(f"{label} must be a sequence of numbers") from None
+        if array.ndim > 1 and not isinstance(values, sp.MatrixBase):
+            # As SciPy's y0: flattening a (2, 1) or a transposed array hid a slip.
+            raise InputError(
+                f"{label} must be 1-dimensional (n values), got an array of shape {array.shape}"
+            )
+        seq = list(array.ravel())
         if len(seq) != n:
             raise InputError(
                 f"{label} has {len(seq)} values but the system has {n} "
