@@ -48,6 +48,7 @@ from hamrkq._floats import EPS
 from hamrkq.errors import InputError, OptionError
 
 __all__ = [
+    "BUILTIN_ASSUMES",
     "BUILTIN_EXACT",
     "ExactSolution",
     "get_exact",
@@ -429,6 +430,20 @@ def kepler(
 #: The registry, by name.  Read-only.
 BUILTIN_EXACT: Mapping[str, ExactSolution] = MappingProxyType(
     {"harmonic": harmonic, "kepler": kepler, "pendulum": pendulum}
+)
+
+
+#: What each built-in solution assumes: the state's length and the
+#: Hamiltonian whose flow it is (no parameter enters any of them).  A file's
+#: ``[exact] builtin`` of another length is refused when the file is read; one
+#: whose Hamiltonian differs is refused by the check of the solution against
+#: Hamilton's equations (:func:`hamrkq.catalogue.problem.check_exact`).
+BUILTIN_ASSUMES: Mapping[str, tuple[int, str]] = MappingProxyType(
+    {
+        "harmonic": (2, "H = (p**2 + q**2)/2 (unit mass and frequency)"),
+        "kepler": (4, "H = (p1**2 + p2**2)/2 - 1/sqrt(q1**2 + q2**2) (G M = 1)"),
+        "pendulum": (2, "H = p**2/2 - cos(q) (unit length and gravity), H < 1"),
+    }
 )
 
 

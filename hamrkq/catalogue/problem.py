@@ -21,7 +21,26 @@ import sympy as sp
 from hamrkq.errors import InputError, ProblemFileError
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["Problem", "exact_function", "finite_real"]
+__all__ = ["Problem", "check_exact", "exact_function", "finite_real"]
+
+#: Where an exact solution is checked against Hamilton's equations: these
+#: fractions of the time span, inside it (a hand-written solution such as
+#: ``sqrt(t)`` may hold on the span alone) and off its symmetric points.
+EXACT_CHECK_FRACTIONS = (0.1234, 0.4567, 0.7891)
+#: The steps of the central differences, as fractions of the span.  A central
+#: difference with step ``h`` is off by ``h**2 |y'''|/6`` (truncation) plus
+#: ``eps |y|/h`` (rounding): at its best, near ``h = eps**(1/3)`` times the
+#: solution's own time scale, some ``eps**(2/3)`` (4e-11) of the scale.  The
+#: time scale may be far below the span's (Kepler's pericentre passage in a
+#: span of many orbits), so every step from 1e-2 to 1e-10 of the span is
+#: tried and the best one counts.
+EXACT_CHECK_STEPS = tuple(10.0**-k for k in range(2, 11))
+#: Largest difference accepted between the central differences and Hamilton's
+#: equations, relative to the scale ``max |f| + max |y| / span`` (``f`` the
+#: right-hand side at the sample times): five orders above what a true
+#: solution's differences reach, and far below what a wrong frequency,
+#: amplitude, sign or Hamiltonian gives (a relative difference of order one).
+EXACT_CHECK_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,11 +152,20 @@ class Problem:
 
     @property
     def exact(self) -> Callable[[Any], np.ndarray] | None:
-        """The exact solution ``t -> (N, 2n)``, or None."""
+        """The exact solution ``t -> (N, 2n)``, or None.
+
+        Raises
+        ------
+        ProblemFileError
+            The file's ``[exact]`` does not solve Hamilton's equations of its
+            Hamiltonian at these parameter values (:func:`check_exact`).
+        """
         if self.exact_spec is None:
             return None
         if "exact" not in self._values:
-            self._values["exact"] = exact_function(self)
+            exact = exact_function(self)
+            check_exact(self, exact)
+            self._values["exact"] = exact
         return self._values["exact"]
 
     def invariant_functions(self) -> dict[str, Callable]:
@@ -202,3 +230,74 @@ def exact_function(problem: Problem) -> Callable[[Any], np.ndarray]:
         return np.column_stack([np.broadcast_to(c, t.shape) for c in columns]).astype(float)
 
     return exact
+
+
+def check_exact(problem: Problem, exact: Callable[[Any], np.ndarray]) -> None:
+    """A ProblemFileError naming ``[exact]`` unless ``exact`` solves Hamilton's
+    equations of ``problem``: at the times :data:`EXACT_CHECK_FRACTIONS` of
+    the span, its central differences must agree with the right-hand side
+    ``f(t, exact(t))`` to :data:`EXACT_CHECK_TOLERANCE` of the scale
+    ``max |f| + max |y| / span``, with the best of :data:`EXACT_CHECK_STEPS`.
+
+    Whether it starts at a run's initial state is checked where a run is
+    measured against it (:func:`hamrkq.diagnose`).  A built-in solution that
+    refuses the initial state (the pendulum's beyond libration) is left to
+    refuse it where it is used.
+    """
+    from hamrkq.backends.numeric import vectorized
+
+    ham = problem.hamiltonian
+    t0, t1 = problem.t_span
+    span = t1 - t0
+    if not (math.isfinite(span) and span != 0.0):
+        return
+    times = np.array([t0 + fraction * span for fraction in EXACT_CHECK_FRACTIONS])
+    steps = np.array(EXACT_CHECK_STEPS) * abs(span)
+    after = (times[:, None] + steps[None, :]).reshape(-1)
+    before = (times[:, None] - steps[None, :]).reshape(-1)
+    every = np.concatenate([times, after, before])
+    try:
+        with np.errstate(all="ignore"):
+            states = np.asarray(exact(every), dtype=float).reshape(every.size, ham.dim)
+    except InputError:
+        return
+    shown = ", ".join(f"{k} = {v:g}" for k, v in problem.parameters.items())
+    at_params = f" at the parameters {shown}" if shown else ""
+    bad = ~np.all(np.isfinite(states), axis=1)
+    if np.any(bad):
+        raise ProblemFileError(
+            f"the exact solution is not finite at t = {every[np.argmax(bad)]:.6g}{at_params}",
+            path=problem.path,
+            key="exact",
+        )
+    count, size = times.size, steps.size
+    at = states[:count]
+    plus = states[count : count + after.size].reshape(count, size, ham.dim)
+    minus = states[count + after.size :].reshape(count, size, ham.dim)
+    # the steps as the floats they are: (t + h) - (t - h) is exact
+    slopes = (plus - minus) / (after - before).reshape(count, size, 1)
+    with np.errstate(all="ignore"):
+        rhs = vectorized(ham, list(ham.rhs))(times, at, problem.parameter_array)
+    if not np.all(np.isfinite(rhs)):
+        return  # a singularity of H: nothing to compare with
+    scale = float(np.max(np.abs(rhs))) + float(np.max(np.abs(at))) / abs(span)
+    off = np.max(np.abs(slopes - rhs[:, None, :]), axis=2)  # (times, steps)
+    best = np.argmin(off, axis=1)  # each time's best step
+    worst = int(np.argmax(off[np.arange(count), best]))
+    if off[worst, best[worst]] <= EXACT_CHECK_TOLERANCE * scale:
+        return
+    slope = slopes[worst, best[worst]]
+    k = int(np.argmax(np.abs(slope - rhs[worst])))
+    builtin = problem.exact_spec.get("builtin") if problem.exact_spec else None
+    assumes = ""
+    if builtin is not None:
+        from hamrkq.catalogue.exact import BUILTIN_ASSUMES
+
+        assumes = f"; the builtin {builtin!r} is the flow of {BUILTIN_ASSUMES[builtin][1]}"
+    raise ProblemFileError(
+        f"the exact solution does not solve Hamilton's equations{at_params}: at "
+        f"t = {times[worst]:.6g} its d{ham.names[k]}/dt is {slope[k]:.6g} (central "
+        f"differences) where the Hamiltonian gives {rhs[worst, k]:.6g}{assumes}",
+        path=problem.path,
+        key="exact",
+    )

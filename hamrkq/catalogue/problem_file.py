@@ -334,14 +334,21 @@ class _FileReader:
         if not table:
             return None
         if "builtin" in table:
-            from hamrkq.catalogue.exact import BUILTIN_EXACT
+            from hamrkq.catalogue.exact import BUILTIN_ASSUMES, BUILTIN_EXACT
 
             builtin = table["builtin"]
             if set(table) != {"builtin"}:
                 raise self.error("builtin excludes other keys", "exact")
-            if builtin not in BUILTIN_EXACT:
+            if not isinstance(builtin, str) or builtin not in BUILTIN_EXACT:
                 known = ", ".join(sorted(BUILTIN_EXACT))
                 raise self.error(f"unknown builtin {builtin!r} (known: {known})", "exact.builtin")
+            dim, assumes = BUILTIN_ASSUMES[builtin]
+            if dim != 2 * n:
+                raise self.error(
+                    f"the builtin {builtin!r} is the flow of {assumes}, {dim // 2} degree(s) "
+                    f"of freedom; this problem has {n}",
+                    "exact.builtin",
+                )
             return {"builtin": builtin}
         if set(table) != {"q", "p"}:
             raise self.error("must have either 'builtin' or both 'q' and 'p'", "exact")

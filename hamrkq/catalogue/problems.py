@@ -54,8 +54,9 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
     ProblemNotFoundError
         Neither a catalogue entry nor an existing file.
     ProblemFileError
-        The file is malformed; the message names the file, the line when known,
-        and the key.
+        The file is malformed, or its ``[exact]`` solution does not solve
+        Hamilton's equations at these parameter values; the message names the
+        file, the line when known, and the key.
     """
     if not isinstance(name_or_path, str | Path):
         raise InputTypeError(
@@ -78,4 +79,7 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
         why = "is not a file" if path.exists() else "does not exist"
         raise ProblemNotFoundError(f"problem file {text_name!r} {why}")
     problem = parse_file(path)
-    return problem.with_parameters(**parameters) if parameters else problem
+    if parameters:
+        problem = problem.with_parameters(**parameters)
+    problem.exact  # noqa: B018 - checks [exact] against Hamilton's equations
+    return problem

@@ -1,0 +1,92 @@
+"""Defects found by a QA pass of the documentation and the command line, each
+with the behaviour it now has."""
+
+import textwrap
+
+import numpy as np
+import pytest
+
+import hamrkq
+from hamrkq.errors import ProblemFileError
+
+OSCILLATOR = """\
+name = "{name}"
+coordinates = ["q"]
+momenta = ["p"]
+hamiltonian = "(p**2 + w**2*q**2)/2"
+
+[parameters]
+w = {w}
+
+[initial]
+q = 0
+p = 1
+
+[integration]
+t_span = [0, 10]
+
+[exact]
+{exact}
+"""
+
+
+def oscillator(tmp_path, exact, w=2, name="osc"):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(OSCILLATOR.format(name=name, w=w, exact=textwrap.dedent(exact)))
+    return path
+
+
+# -- 1: an [exact] solution is checked against Hamilton's equations -------------
+
+
+def test_a_builtin_exact_solution_of_another_hamiltonian_is_refused(tmp_path):
+    # The builtin "harmonic" has unit frequency; with w = 2 it was taken as the
+    # exact solution and `hamrkq run` reported a true error of 1.3, exit 0.
+    path = oscillator(tmp_path, 'builtin = "harmonic"')
+    with pytest.raises(ProblemFileError, match="Hamilton's equations") as info:
+        hamrkq.load_problem(path)
+    assert info.value.key == "exact"
+    assert "w = 2" in str(info.value) and "unit mass and frequency" in str(info.value)
+    # At w = 1 it is the flow, and loads.
+    assert hamrkq.load_problem(path, w=1).exact is not None
+    problem = hamrkq.load_problem(oscillator(tmp_path, 'builtin = "harmonic"', w=1))
+    with pytest.raises(ProblemFileError, match="w = 3"):
+        problem.with_parameters(w=3).exact  # noqa: B018
+
+
+def test_a_hand_written_exact_solution_is_checked_not_only_its_start(tmp_path):
+    path = oscillator(tmp_path, 'q = ["sin(2*t)"]\np = ["cos(t)"]', w=1)
+    with pytest.raises(ProblemFileError, match=r"key 'exact'.*dq/dt") as info:
+        hamrkq.load_problem(path)
+    assert str(path) in str(info.value)
+    good = oscillator(tmp_path, 'q = ["sin(w*t)/w"]\np = ["cos(w*t)"]', name="good")
+    problem = hamrkq.load_problem(good)
+    np.testing.assert_allclose(problem.exact(1.0), [[np.sin(2) / 2, np.cos(2)]])
+
+
+def test_a_builtin_of_another_dimension_is_refused_when_read(tmp_path):
+    path = tmp_path / "two.toml"
+    path.write_text(
+        'name = "two"\ncoordinates = ["x", "y"]\nmomenta = ["u", "v"]\n'
+        'hamiltonian = "(u**2 + v**2 + x**2 + y**2)/2"\n'
+        "[initial]\nx = 0\ny = 0\nu = 1\nv = 0\n[integration]\nt_span = [0, 1]\n"
+        '[exact]\nbuiltin = "harmonic"\n'
+    )
+    with pytest.raises(ProblemFileError, match=r"1 degree.*has 2") as info:
+        hamrkq.load_problem(path)
+    assert info.value.key == "exact.builtin"
+
+
+@pytest.mark.parametrize(("name", "parameters"), [("kepler", {"e": 0.999}), ("pendulum", {})])
+def test_the_catalogue_exact_solutions_pass_the_check(name, parameters):
+    assert hamrkq.load_problem(name, **parameters).exact is not None
+
+
+def test_the_cli_refuses_a_wrong_exact_solution_before_running(tmp_path, capsys):
+    from hamrkq.cli import main
+
+    path = oscillator(tmp_path, 'builtin = "harmonic"')
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out)]) == 2
+    assert "Hamilton's equations" in capsys.readouterr().err
+    assert not out.exists()
