@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import hamrkq
-from hamrkq.errors import ProblemFileError
+from hamrkq.errors import InputError, ProblemFileError
 
 OSCILLATOR = """\
 name = "{name}"
@@ -90,3 +90,59 @@ def test_the_cli_refuses_a_wrong_exact_solution_before_running(tmp_path, capsys)
     assert main(["run", str(path), "--out", str(out)]) == 2
     assert "Hamilton's equations" in capsys.readouterr().err
     assert not out.exists()
+
+
+# -- 2: solve(problem, q0={...}) binds the names given, the rest from the file --
+
+COUPLED = """\
+name = "coupled"
+coordinates = ["x", "y"]
+momenta = ["u", "v"]
+hamiltonian = "(u**2 + v**2)/2 + (x**2 + w**2*y**2)/2 + c*x**2*y"
+
+[parameters]
+w = 1.5
+c = 0.2
+
+[initial]
+x = 0.5
+y = 0
+u = 0
+v = "w/4"
+
+[integration]
+t_span = [0, 1]
+atol = 1e-8
+"""
+
+
+def coupled(tmp_path):
+    path = tmp_path / "coupled.toml"
+    path.write_text(COUPLED)
+    return hamrkq.load_problem(path)
+
+
+def test_solve_with_a_problem_takes_a_partial_mapping_of_initial_values(tmp_path):
+    # docs/quickstart.md: "hamrkq.solve(problem, q0={"x": 0.4}) overrides one
+    # initial value by name"; it raised "q0: no value for y".
+    problem = coupled(tmp_path)
+    sol = hamrkq.solve(problem, q0={"x": 0.4}, method="midpoint", step=0.5)
+    np.testing.assert_array_equal(sol.y[0], [0.4, 0.0, 0.0, 0.375])
+    # by symbol, with the momenta at other parameters (v = w/4 follows w)
+    y = problem.hamiltonian.q[1]
+    sol = hamrkq.solve(
+        problem, p0={"u": 0.25}, q0={y: 0.1}, parameters={"w": 2}, method="midpoint", step=0.5
+    )
+    np.testing.assert_array_equal(sol.y[0], [0.5, 0.1, 0.25, 0.5])
+
+
+def test_a_partial_mapping_is_still_checked(tmp_path):
+    problem = coupled(tmp_path)
+    with pytest.raises(InputError, match="'u' is not a coordinate"):
+        hamrkq.solve(problem, q0={"u": 1.0}, method="midpoint", step=0.5)
+    with pytest.raises(InputError, match="bound twice"):
+        x = problem.hamiltonian.q[0]
+        hamrkq.solve(problem, q0={"x": 1.0, x: 2.0}, method="midpoint", step=0.5)
+    # A Hamiltonian has no initial values of its own: every name is required.
+    with pytest.raises(InputError, match="q0: no value for y"):
+        hamrkq.solve(problem.hamiltonian, {"x": 0.4}, [0, 0], (0, 1), method="midpoint", step=0.5)

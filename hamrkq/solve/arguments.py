@@ -81,7 +81,9 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
 
 
 def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
-    """The Hamiltonian and the defaults a Problem supplies."""
+    """The Hamiltonian and the defaults a Problem supplies: its initial values
+    (those a mapping ``q0``/``p0`` does not bind, by name), time span,
+    parameters and ``[integration]`` settings."""
     if parameters is not None and not isinstance(parameters, Mapping):
         raise InputTypeError(
             f"parameters must be a mapping of names or symbols to numbers, got {parameters!r}"
@@ -97,11 +99,12 @@ def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
             names = {(k.name if isinstance(k, sp.Symbol) else k): v for k, v in parameters.items()}
             problem = problem.with_parameters(**names)
         merged = {**problem.parameters, **(parameters or {})}
+        ham = problem.hamiltonian
         return (
-            problem.hamiltonian,
+            ham,
             dict(problem.integration),
-            problem.q0 if q0 is None else q0,
-            problem.p0 if p0 is None else p0,
+            _initial(q0, ham.q, problem.q0),
+            _initial(p0, ham.p, problem.p0),
             problem.t_span if t_span is None else t_span,
             merged,
         )
@@ -109,6 +112,21 @@ def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
         "system_or_problem must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
         f"got {type(obj).__name__}"
     )
+
+
+def _initial(given: Any, symbols: tuple[sp.Symbol, ...], defaults: np.ndarray) -> Any:
+    """A Problem's initial values with ``given`` over them: all of them for
+    None, a mapping's names (or symbols) over the rest, a sequence as it is.
+    (For a Hamiltonian a mapping binds every name: it has no defaults.)"""
+    if given is None:
+        return defaults
+    if not isinstance(given, Mapping):
+        return given
+    rest = {s.name: float(v) for s, v in zip(symbols, defaults, strict=True)}
+    for symbol in symbols:
+        if symbol.name in given or symbol in given:
+            del rest[symbol.name]
+    return {**rest, **given}
 
 
 def eval_times(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
