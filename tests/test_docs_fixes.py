@@ -146,3 +146,29 @@ def test_a_partial_mapping_is_still_checked(tmp_path):
     # A Hamiltonian has no initial values of its own: every name is required.
     with pytest.raises(InputError, match="q0: no value for y"):
         hamrkq.solve(problem.hamiltonian, {"x": 0.4}, [0, 0], (0, 1), method="midpoint", step=0.5)
+
+
+# -- 3: --dpi is checked (10..600) by every command, before any run or file ----
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["poincare", "henon_heiles", "--orbits", "2", "--t-end", "10", "--dpi", "5"],
+        ["poincare", "henon_heiles", "--orbits", "2", "--t-end", "10", "--dpi", "2000"],
+        ["ensemble", "pendulum", "--grid", "q=-3:3:3", "--t-end", "1", "--dpi", "2000"],
+        ["ensemble", "pendulum", "--grid", "q=-3:3:3", "--t-end", "1", "--dpi", "5"],
+        ["run", "harmonic", "--dpi", "9"],
+        ["compare", "harmonic", "--dpi", "601"],
+        ["reproduce", "prentice2011", "--dpi", "601"],
+    ],
+)
+def test_dpi_outside_10_to_600_is_refused_before_anything_is_written(argv, tmp_path, capsys):
+    # poincare --dpi 5 drew a 30 x 27 pixel figure and exited 0; --dpi 2000
+    # (poincare, ensemble) exited 2 after section.npz / ensemble.npz was written.
+    from hamrkq.cli import main
+
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    assert "--dpi must be between 10 and 600" in capsys.readouterr().err
+    assert not out.exists()

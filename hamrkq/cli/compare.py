@@ -280,10 +280,10 @@ def compare_command(args: argparse.Namespace) -> int:
     """The ``compare`` subcommand; returns the exit status."""
     from hamrkq.cli.run import parse_parameters
 
+    check_dpi(args.dpi)
     problem = load_problem(args.problem)
     if args.param:
         problem = problem.with_parameters(**parse_parameters(args.param))
-    check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
     methods = args.methods or default_methods(problem)
 

@@ -42,7 +42,7 @@ from hamrkq.cli import (
 )
 from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.errors import InputError
-from hamrkq.io.report import OutputDir
+from hamrkq.io.report import OutputDir, check_dpi
 from hamrkq.result import Status
 
 __all__ = ["QUANTITIES", "check_kept_states", "ensemble_command", "parse_grid", "register"]
@@ -97,7 +97,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="DIR", help="output directory (default hamrkq-ensemble/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--no-plots", action="store_true", help="do not draw the figures")
-    p.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
+    p.add_argument(
+        "--dpi", type=int, default=120, help="resolution of the PNGs (10 to 600, default 120)"
+    )
     p.set_defaults(func=ensemble_command)
 
 
@@ -155,6 +157,7 @@ def check_kept_states(members: int, samples: int, dim: int) -> None:
 
 def ensemble_command(args: argparse.Namespace) -> int:
     """The ``ensemble`` subcommand; returns the exit status."""
+    check_dpi(args.dpi)
     problem = load_problem(args.problem)
     ham = problem.hamiltonian
     q_names = [s.name for s in ham.q]
@@ -162,8 +165,6 @@ def ensemble_command(args: argparse.Namespace) -> int:
     par_names = [s.name for s in ham.parameters]
     axes = parse_grid(args.grid, [*q_names, *p_names, *par_names])
     check_kept_states(math.prod(len(values) for _, values in axes), args.samples, ham.dim)
-    if args.dpi < 10:
-        raise InputError(f"--dpi must be at least 10, got {args.dpi}")
     mesh = np.meshgrid(*(values for _, values in axes), indexing="ij")
     columns = {name: m.ravel() for (name, _), m in zip(axes, mesh, strict=True)}
     t0 = problem.t_span[0]

@@ -38,7 +38,7 @@ from hamrkq.cli import (
     signals_received,
 )
 from hamrkq.errors import InputError
-from hamrkq.io.report import OutputDir, jsonable
+from hamrkq.io.report import OutputDir, check_dpi, jsonable
 from hamrkq.result import Status
 from hamrkq.symbolic.expressions import parse_expression
 
@@ -85,7 +85,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="DIR", help="output directory (default hamrkq-poincare/NAME)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--no-plots", action="store_true", help="do not draw the figure")
-    p.add_argument("--dpi", type=int, default=150, help="resolution of the PNG (default 150)")
+    p.add_argument(
+        "--dpi", type=int, default=150, help="resolution of the PNG (10 to 600, default 150)"
+    )
     p.set_defaults(func=poincare_command)
 
 
@@ -97,6 +99,7 @@ def initial_energy(problem: Problem) -> float:
 
 def poincare_command(args: argparse.Namespace) -> int:
     """Run the ``poincare`` subcommand; returns the exit status."""
+    check_dpi(args.dpi)
     problem = load_problem(args.problem)
     ham = problem.hamiltonian
     if ham.n != 2:

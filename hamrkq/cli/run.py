@@ -329,6 +329,7 @@ def write_figures(out: OutputDir, sol: Any, diag: Any, *, title: str, dpi: int) 
 
 def run_command(args: argparse.Namespace) -> int:
     """The ``run`` subcommand; returns the exit status."""
+    check_dpi(args.dpi)
     problem = load_problem(args.problem)
     if args.param:
         problem = problem.with_parameters(**parse_parameters(args.param))
@@ -336,7 +337,6 @@ def run_command(args: argparse.Namespace) -> int:
     check_keep_every(args.keep_every, problem)
     method = kwargs.get("method", problem.integration.get("method", "auto"))
     reference = resolve_reference(args.reference, problem, method)
-    check_dpi(args.dpi)
     out = OutputDir(args.out or DEFAULT_ROOT / problem.name, force=args.force)
 
     started = time.perf_counter()
