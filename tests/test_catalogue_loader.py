@@ -141,7 +141,7 @@ BAD_FILES = [
     (
         lambda s: s.replace('q = ["sqrt(k)/2"]', 'q = ["x"]'),
         ExpressionError,
-        ["initial.q[0]", "unknown name"],
+        ["initial.q[0]", "the coordinate 'x' is not allowed here", "may use the parameters"],
     ),
     (lambda s: s.replace("m = 2", 'm = "sin"'), ExpressionError, ["parameters.m"]),
 ]

@@ -172,3 +172,57 @@ def test_dpi_outside_10_to_600_is_refused_before_anything_is_written(argv, tmp_p
     assert main([*argv, "--out", str(out)]) == 2
     assert "--dpi must be between 10 and 600" in capsys.readouterr().err
     assert not out.exists()
+
+
+# -- 8: a name not allowed in a problem file's expression: what is allowed there --
+
+NAMES = """\
+name = "names"
+coordinates = ["x"]
+momenta = ["v"]
+hamiltonian = "(v**2 + a*x**2)/2"
+
+[parameters]
+a = 2
+{parameter}
+[initial]
+x = {x}
+v = 1
+
+[integration]
+t_span = [0, {t_end}]
+"""
+
+
+@pytest.mark.parametrize(
+    ("edit", "key", "fragments"),
+    [
+        # said "unknown name (not a declared symbol, t, pi or E): 't'"
+        ({"x": '"t"'}, "initial.x", ["the time t is not allowed here", "parameters (a)"]),
+        ({"x": '"v"'}, "initial.x", ["the momentum 'v' is not allowed", "not the coordinates"]),
+        ({"x": '"2*foo"'}, "initial.x", ["unknown name 'foo' (in '2*foo')", "may use"]),
+        (
+            {"parameter": 'b = "3*a"'},
+            "parameters.b",
+            ["the parameter 'a' (in '3*a') is not allowed", "a parameter's value is one of"],
+        ),
+        ({"t_end": '"x"'}, "integration.t_span", ["the coordinate 'x'", "t_span may use"]),
+    ],
+)
+def test_a_name_not_allowed_where_it_stands_says_what_is_allowed(tmp_path, edit, key, fragments):
+    from hamrkq.errors import ExpressionError
+
+    values = {"parameter": "", "x": "0", "t_end": '"2*a"', **edit}
+    path = tmp_path / "names.toml"
+    path.write_text(NAMES.format(**values))
+    with pytest.raises(ExpressionError) as info:
+        hamrkq.load_problem(path)
+    message = str(info.value)
+    assert info.value.key == key and "t, pi or E" not in message
+    for fragment in fragments:
+        assert fragment in message, message
+    # a name the Hamiltonian cannot use keeps the parser's own message
+    good = NAMES.format(parameter="", x="0", t_end='"2*a"')
+    path.write_text(good.replace("a*x**2", "a*x**2 + zeta"))
+    with pytest.raises(ExpressionError, match="not a declared symbol, t, pi or E"):
+        hamrkq.load_problem(path)

@@ -18,7 +18,7 @@ from typing import Any
 import sympy as sp
 
 from hamrkq.catalogue.problem import Problem, finite_real
-from hamrkq.errors import InputError, ProblemFileError
+from hamrkq.errors import ExpressionError, InputError, ProblemFileError
 from hamrkq.symbolic.expressions import check_name, parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -91,6 +91,8 @@ class _FileReader:
 
     def __init__(self, path: Path, text: str, data: dict):
         self.path, self.text, self.data = path, text, data
+        #: Each declared name's role, for messages ("the coordinate", ...).
+        self.roles: dict[str, str] = {}
 
     def error(self, message: str, key: str) -> ProblemFileError:
         return ProblemFileError(message, path=self.path, key=key, line=self._line(key))
@@ -113,7 +115,46 @@ class _FileReader:
         return None
 
     def expr(self, text: Any, symbols: Mapping[str, sp.Symbol], key: str) -> sp.Expr:
-        return parse_expression(text, symbols, path=self.path, key=key, line=self._line(key))
+        try:
+            return parse_expression(text, symbols, path=self.path, key=key, line=self._line(key))
+        except ExpressionError as exc:
+            # The parser's "unknown name (not a declared symbol, t, pi or E)"
+            # is true of the Hamiltonian; elsewhere fewer names are allowed.
+            scope = self.scope(key)
+            if scope is None or not exc.detail.startswith("unknown name"):
+                raise
+            name = exc.piece
+            where = "" if str(text).strip() == name else f" (in {_shown(text)})"
+            if name not in self.roles and name != "t":
+                message = f"unknown name {name!r}{where}: {scope}"
+            else:
+                what = f"{self.roles[name]} {name!r}" if name in self.roles else "the time t"
+                message = f"{what}{where} is not allowed here: {scope}"
+            error = ExpressionError(message, path=self.path, key=key, line=self._line(key))
+            error.piece = name
+            raise error from None
+
+    def scope(self, key: str) -> str | None:
+        """What an expression at ``key`` may use, where that is less than
+        every declared name and ``t`` (None there)."""
+        params = [name for name, role in self.roles.items() if role == "the parameter"]
+        listed = f"the parameters ({', '.join(params)}) and " if params else ""
+        constants = "constants (numbers, pi, E and the functions of them)"
+        if key.startswith("parameters."):
+            return (
+                f"a parameter's value is one of the {constants}, not an expression of other "
+                "parameters, the coordinates, momenta or t"
+            )
+        if key.startswith("initial."):
+            return f"initial values may use {listed}{constants}, not the coordinates, momenta or t"
+        if key == "integration.t_span":
+            return f"t_span may use {listed}{constants}, not the coordinates, momenta or t"
+        if key.startswith("exact."):
+            return (
+                f"the exact solution may use t, {listed}{constants}, not the coordinates or "
+                "momenta"
+            )
+        return None
 
     def table(self, key: str) -> dict:
         value = self.data.get(key, {})
@@ -172,6 +213,11 @@ class _FileReader:
         if repeated:
             raise self.error(f"names declared twice: {', '.join(repeated)}", "coordinates")
         symbols = {n: sp.Symbol(n, real=True) for n in all_names}
+        self.roles = {
+            **dict.fromkeys(q_names, "the coordinate"),
+            **dict.fromkeys(p_names, "the momentum"),
+            **dict.fromkeys(param_names, "the parameter"),
+        }
         t = sp.Symbol("t", real=True)
         params_only = {n: symbols[n] for n in param_names}
         defaults = {}
