@@ -226,3 +226,23 @@ def test_a_name_not_allowed_where_it_stands_says_what_is_allowed(tmp_path, edit,
     path.write_text(good.replace("a*x**2", "a*x**2 + zeta"))
     with pytest.raises(ExpressionError, match="not a declared symbol, t, pi or E"):
         hamrkq.load_problem(path)
+
+
+# -- 9: an [integration] tolerance of the wrong length is refused when read ----
+
+
+@pytest.mark.parametrize("key", ["atol", "rtol"])
+def test_a_tolerance_list_of_the_wrong_length_is_refused_when_the_file_is_read(tmp_path, key):
+    # atol = [1e-8, 1e-9, 1e-9] in a 1-dof file loaded (and `hamrkq show` showed
+    # it); only solve refused it, naming neither the file nor the key.
+    path = oscillator(tmp_path, 'q = ["sin(w*t)/w"]\np = ["cos(w*t)"]')
+    text = path.read_text().replace(
+        "t_span = [0, 10]", f"t_span = [0, 10]\n{key} = [1e-8, 1e-9, 1e-9]"
+    )
+    path.write_text(text)
+    with pytest.raises(ProblemFileError) as info:
+        hamrkq.load_problem(path)
+    assert info.value.key == f"integration.{key}" and info.value.line == 15
+    assert "a list of 2 (one for each of q, p), got a list of 3" in str(info.value)
+    path.write_text(text.replace("[1e-8, 1e-9, 1e-9]", "[1e-8, 1e-9]"))
+    assert hamrkq.load_problem(path).integration[key] == [1e-8, 1e-9]

@@ -246,7 +246,7 @@ class _FileReader:
             raise self.error(f"unknown key(s): {', '.join(extra)}", f"integration.{extra[0]}")
         for key, value in integration.items():
             if key != "t_span":
-                self.setting(key, value)
+                self.setting(key, value, [*q_names, *p_names])
         span = integration.pop("t_span", None)
         if not isinstance(span, list) or len(span) != 2:
             raise self.error("t_span must be a list of two values", "integration.t_span")
@@ -364,9 +364,10 @@ class _FileReader:
             events.append({"expression": expr, "direction": direction, "terminal": terminal})
         return tuple(events)
 
-    def setting(self, key: str, value: Any) -> None:
+    def setting(self, key: str, value: Any, state: list[str]) -> None:
         """Check one ``[integration]`` value with :func:`hamrkq.options.check_setting`,
-        the same checks :func:`hamrkq.solve` makes."""
+        the same checks :func:`hamrkq.solve` makes, and a tolerance's length
+        (one number, or one for each of the ``state``'s components)."""
         from hamrkq.errors import HamrkqError
         from hamrkq.options import check_setting
 
@@ -374,6 +375,16 @@ class _FileReader:
             check_setting(key, value)
         except HamrkqError as exc:
             raise self.error(str(exc), f"integration.{key}") from None
+        if (
+            key in ("atol", "rtol")
+            and isinstance(value, list)
+            and len(value) not in (1, len(state))
+        ):
+            raise self.error(
+                f"{key} = {_shown(value)}: one number, or a list of {len(state)} (one for each "
+                f"of {', '.join(state)}), got a list of {len(value)}",
+                f"integration.{key}",
+            )
 
     def exact_spec(self, symbols: Mapping[str, sp.Symbol], n: int) -> dict | None:
         table = self.table("exact")
