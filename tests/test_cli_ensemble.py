@@ -83,8 +83,10 @@ def test_a_failed_member_gives_exit_status_1_and_everything_is_written(tmp_path,
     ("grid", "match"),
     [
         ("q=-1:1", "expected NAME=LO:HI:N"),
-        ("q=-1:x:3", "expected NAME=LO:HI:N"),
+        ("q=-1:x:3", "LO and HI must be finite numbers"),
         ("q=-1:1:0", "N must be a positive integer"),
+        # said "expected NAME=LO:HI:N with finite LO, HI", where N is at fault
+        ("q=-3:3:2.5", "N must be a positive integer, got '2.5'"),
         ("q=-1:inf:3", "finite"),
         ("zeta=0:1:3", "'zeta' is not a coordinate, momentum or parameter"),
         ("q", "expected NAME=LO:HI:N"),

@@ -246,3 +246,27 @@ def test_a_tolerance_list_of_the_wrong_length_is_refused_when_the_file_is_read(t
     assert "a list of 2 (one for each of q, p), got a list of 3" in str(info.value)
     path.write_text(text.replace("[1e-8, 1e-9, 1e-9]", "[1e-8, 1e-9]"))
     assert hamrkq.load_problem(path).integration[key] == [1e-8, 1e-9]
+
+
+# -- 11: command-line wording ---------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        # said "step (h) must be given", a name the command line does not have
+        (["run", "harmonic", "--method", "gauss4"], "give its step size with --step H"),
+        (
+            ["ensemble", "pendulum", "--grid", "q=0:1:2", "--method", "gauss4"],
+            "hamrkq.ensemble(..., step=h) (this command has none)",
+        ),
+    ],
+)
+def test_a_fixed_step_method_without_a_step_names_the_option(argv, fragment, tmp_path, capsys):
+    from hamrkq.cli import main
+
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--method gauss4 is a fixed-step method" in err and fragment in err
+    assert not out.exists()

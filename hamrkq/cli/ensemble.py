@@ -40,6 +40,7 @@ from hamrkq.cli import (
     quick_report,
     signals_received,
 )
+from hamrkq.cli.run import check_step
 from hamrkq.ensemble import EnsembleSolution, ensemble
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, check_dpi
@@ -111,15 +112,17 @@ def parse_grid(items: list[str], known: list[str]) -> list[tuple[str, np.ndarray
         name, sep, spec = item.partition("=")
         name = name.strip()
         parts = spec.split(":")
+        if not sep or len(parts) != 3:
+            raise InputError(f"--grid {item!r}: expected NAME=LO:HI:N")
+        lo, hi = (_finite(text) for text in parts[:2])
+        if lo is None or hi is None:
+            raise InputError(f"--grid {item!r}: LO and HI must be finite numbers")
         try:
-            lo, hi, count = float(parts[0]), float(parts[1]), int(parts[2])
-        except (ValueError, IndexError):
-            lo = hi = math.nan
+            count = int(parts[2])
+        except ValueError:
             count = 0
-        if not sep or len(parts) != 3 or not (math.isfinite(lo) and math.isfinite(hi)):
-            raise InputError(f"--grid {item!r}: expected NAME=LO:HI:N with finite LO, HI")
         if count < 1:
-            raise InputError(f"--grid {item!r}: N must be a positive integer")
+            raise InputError(f"--grid {item!r}: N must be a positive integer, got {parts[2]!r}")
         if name not in known:
             raise InputError(
                 f"--grid {item!r}: {name!r} is not a coordinate, momentum or parameter "
@@ -155,6 +158,15 @@ def check_kept_states(members: int, samples: int, dim: int) -> None:
         )
 
 
+def _finite(text: str) -> float | None:
+    """``float(text)`` if that is a finite number, else None."""
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
 def ensemble_command(args: argparse.Namespace) -> int:
     """The ``ensemble`` subcommand; returns the exit status."""
     check_dpi(args.dpi)
@@ -164,6 +176,7 @@ def ensemble_command(args: argparse.Namespace) -> int:
     p_names = [s.name for s in ham.p]
     par_names = [s.name for s in ham.parameters]
     axes = parse_grid(args.grid, [*q_names, *p_names, *par_names])
+    check_step(args.method, None, problem, "hamrkq.ensemble(..., step=h) (this command has none)")
     check_kept_states(math.prod(len(values) for _, values in axes), args.samples, ham.dim)
     mesh = np.meshgrid(*(values for _, values in axes), indexing="ij")
     columns = {name: m.ravel() for (name, _), m in zip(axes, mesh, strict=True)}

@@ -51,7 +51,7 @@ from hamrkq.io.report import (
 from hamrkq.options import METHOD_NAMES
 from hamrkq.solve import BACKENDS, METHODS, solve
 
-__all__ = ["REFERENCE_CHOICES", "check_keep_every", "register", "run_command"]
+__all__ = ["REFERENCE_CHOICES", "check_keep_every", "check_step", "register", "run_command"]
 
 #: ``--reference`` values.  ``auto``: the exact solution where the catalogue
 #: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference);
@@ -272,6 +272,7 @@ def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
     atol = parse_atol(args.atol, problem)
     if atol is not None:
         kwargs["atol"] = atol
+    check_step(kwargs.get("method"), args.step, problem, "--step H")
     if args.t_start is not None or args.t_end is not None:
         t0, t_end = problem.t_span
         kwargs["t_span"] = (
@@ -279,6 +280,19 @@ def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
             t_end if args.t_end is None else args.t_end,
         )
     return kwargs
+
+
+def check_step(method: str | None, step: float | None, problem: Any, option: str) -> None:
+    """An InputError naming the command's option for the step size (``option``)
+    when a fixed-step method has none, from the command line or the problem
+    file (solve's own message names its keyword, ``step``)."""
+    from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
+
+    method = method or problem.integration.get("method", "auto")
+    if method in FIXED_STEP_METHODS and step is None and "step" not in problem.integration:
+        raise InputError(
+            f"--method {method} is a fixed-step method: give its step size with {option}"
+        )
 
 
 def write_csv(out: OutputDir, name: str, sol: Any) -> None:
