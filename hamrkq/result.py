@@ -45,6 +45,13 @@ class Status(enum.Enum):
     NEWTON_FAILED = (6, "The Newton iteration of an implicit method did not converge.")
     EXTERNAL_FAILURE = (7, "An external solver reported a failure.")
     TERMINAL_EVENT = (8, "A terminal event ended the integration (see Solution.t_events).")
+    # 9 is the step loop's own code for a run method="auto" abandons and runs again
+    # (hamrkq.rkq.layout.ST_ABANDONED), never a final status: kept apart.
+    ASSUMPTION_VIOLATED = (
+        10,
+        "The state contradicted an assumption declared on its symbol (positive, "
+        "nonnegative, ...), under which SymPy had simplified H.",
+    )
 
     def __init__(self, code: int, description: str):
         self.code = code
