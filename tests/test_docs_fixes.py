@@ -270,3 +270,22 @@ def test_a_fixed_step_method_without_a_step_names_the_option(argv, fragment, tmp
     err = capsys.readouterr().err
     assert "--method gauss4 is a fixed-step method" in err and fragment in err
     assert not out.exists()
+
+
+def test_show_prints_initial_values_as_the_shortest_text_of_the_double(capsys):
+    from hamrkq.cli import main
+
+    assert main(["show", "kepler"]) == 0
+    # printed with %.17g: q0 = [0.40000000000000002, 0]
+    assert "initial: q0 = [0.4, 0], p0 = [0, 2]" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", [["run", "harmonic"], ["show", "kepler"], ["list"]])
+def test_an_unknown_option_is_reported_with_the_subcommands_usage(command, capsys):
+    from hamrkq.cli import main
+
+    assert main([*command, "--bogus"]) == 2
+    err = capsys.readouterr().err
+    # the top-level usage "hamrkq [-h] [--version] COMMAND ..." said nothing of the options
+    assert err.startswith(f"usage: hamrkq {command[0]} [-h]")
+    assert "hamrkq: error: unrecognized arguments: --bogus" in err

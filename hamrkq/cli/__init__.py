@@ -278,9 +278,23 @@ COMMAND_MODULES: tuple[str, ...] = (
 class _Parser(argparse.ArgumentParser):
     """argparse exits with status 2 on bad usage already; keep its message short."""
 
+    #: The subcommands' parsers by name (on the top-level parser).
+    commands: dict[str, argparse.ArgumentParser] | None = None
+
     def error(self, message: str):  # pragma: no cover - exercised through main
         self.print_usage(sys.stderr)
         self.exit(EXIT_BAD_INPUT, f"hamrkq: error: {message}\n")
+
+    def parse_args(self, args=None, namespace=None):  # type: ignore[override]
+        """As argparse's, but an unknown option is reported with the usage of
+        the subcommand it was given to (argparse's own reports it with the
+        top-level usage, ``hamrkq [-h] [--version] COMMAND ...``)."""
+        parsed, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = getattr(parsed, "command", None)
+            parser = (self.commands or {}).get(command, self)
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        return parsed
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -309,6 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue  # that subcommand is not part of this build
         module.register(sub)
+    parser.commands = dict(sub.choices)
     return parser
 
 
@@ -444,8 +459,8 @@ def _cmd_show(args: argparse.Namespace) -> int:
     for name, expr in invariants.items():
         verdict = "conserved" if ham.is_first_integral(expr) else "NOT proved conserved"
         out.append(f"  {name} = {fmt(expr)}   [{verdict}]")
-    q0 = ", ".join(f"{v:.17g}" for v in problem.q0)
-    p0 = ", ".join(f"{v:.17g}" for v in problem.p0)
+    q0 = ", ".join(map(_shortest, problem.q0))
+    p0 = ", ".join(map(_shortest, problem.p0))
     out += ["", f"initial: q0 = [{q0}], p0 = [{p0}]", f"t_span:  {list(problem.t_span)}"]
     if problem.exact_spec is not None:
         out.append("exact solution: available")
@@ -453,5 +468,14 @@ def _cmd_show(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _shortest(value: float) -> str:
+    """The shortest text that reads back as the same double (``repr``: 0.4,
+    where ``%.17g`` gave 0.40000000000000002), an integral value without
+    its ``.0``."""
+    text = repr(float(value))
+    return text.removesuffix(".0")
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
+
