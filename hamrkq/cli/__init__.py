@@ -478,4 +478,3 @@ def _shortest(value: float) -> str:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
-
