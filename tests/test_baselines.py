@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sympy as sp
 from scipy.integrate import DOP853, solve_ivp
 
 import hamrkq
@@ -240,3 +241,33 @@ def test_every_method_reports_compile_and_integration_seconds(method, options):
     sol = hamrkq.solve(harmonic, t_span=(0.0, 10.0), method=method, **options)
     assert sol.stats["integrate_s"] > 0.0 and sol.stats["compile_s"] >= 0.0
     assert sol.stats["integrate_s"] < 60.0  # seconds, not a count
+
+
+def test_the_paper_pair_is_blind_to_a_forcing_of_a_free_particle():
+    """docs/algorithm.md, "A blind spot of this pair": on q' = p, p' = cos t
+    Kutta's RK3 and RK4 are both Simpson's rule, so their difference is
+    rounding and every step grows 5-fold.  rk34 alone returns a wrong
+    SUCCESS (as documented); rk34q8 does not return SUCCESS, and with a
+    max_step it does, within the tolerance; the other pairs are not blind."""
+    q, p, t = sp.symbols("q p t")
+    ham = hamrkq.Hamiltonian(p**2 / 2 - q * sp.cos(t), q=[q], p=[p], t=t)
+
+    def error(sol):
+        exact = np.column_stack([1 - np.cos(sol.t), np.sin(sol.t)])
+        return np.abs(sol.y - exact).max()
+
+    def run(method, **options):
+        return hamrkq.solve(ham, q0=[0.0], p0=[0.0], t_span=(0.0, 10.0), atol=1e-8,
+                            method=method, **options)  # fmt: skip
+
+    blind = run("rk34")
+    assert blind.status is Status.SUCCESS and error(blind) > 1.0  # measured 22
+    assert run("rk34q8").status is not Status.SUCCESS
+    # max_step bounds rk34's steps, not its error (nothing measures it:
+    # 1.9e-4 at 0.5), and gives rk34q8's quencher steps it can vouch for
+    assert 1e-8 < error(run("rk34", max_step=0.5)) < 1e-3
+    sol = run("rk34q8", max_step=0.5)
+    assert sol.status is Status.SUCCESS and error(sol) <= 1.05e-8
+    for method in ("auto", "rk45q12"):
+        sol = run(method)
+        assert sol.status is Status.SUCCESS and error(sol) <= 1.05e-8

@@ -20,6 +20,7 @@ import sympy as sp
 import hamrkq
 from hamrkq.backends import compiled, first_use, kernel
 from hamrkq.errors import HamrkqWarning, InputError
+from hamrkq.result import Status
 from hamrkq.rkq.auto_rules import (
     AUTO_FIRST_SUBSTEPS,
     AUTO_LARGE_MEMBER,
@@ -29,6 +30,7 @@ from hamrkq.rkq.auto_rules import (
     auto_tolerance,
 )
 from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.witness_rules import WITNESS_SUBSTEPS
 
 KEPLER = hamrkq.load_problem("kepler", e=0.6)
 TEN_ORBITS = (0.0, 10 * 2 * np.pi)
@@ -399,12 +401,14 @@ def _henon_heiles_chaotic():
 
 def test_output_times_already_past_the_shadows_saturation_certify_nothing():
     """rk78q12 with eight quencher steps on the chaotic Henon-Heiles orbit
-    (its shadow saturates by t = 177, below) asked for t = 500 and 1000
-    only: the first returned row was beyond the saturation already, which
-    the cut skipped, and the run returned SUCCESS; now it keeps no node."""
-    problem, q0, p0 = _henon_heiles_chaotic()
-    sol = hamrkq.solve(problem, q0=q0, p0=p0, t_span=(0, 1000), method="rk78q12",
-                       z_substeps=8, atol=1e-8, t_eval=[500.0, 1000.0])  # fmt: skip
+    (its shadow saturates by t = 177) asked for t = 500 and 1000 only: the
+    first returned row was beyond the saturation already, which the cut
+    skipped, and the run returned SUCCESS; now it keeps no node.  (With
+    eight quencher steps the witness now runs, and stops that run on the
+    rounding at t = 79 first: the Fermi-Pasta-Ulam chain at 1e-3 in four,
+    whose shadow saturates between t = 100 and 200, takes its place.)"""
+    sol = hamrkq.solve(hamrkq.load_problem("fpu"), method="rk67q9", z_substeps=4, atol=1e-3,
+                       t_eval=[195.0, 200.0])  # fmt: skip
     assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
     assert sol.t.size == 0
     assert sol.message.startswith("By the first output time the shadow track")
@@ -705,3 +709,36 @@ def test_component_scales_whole_array_form_is_the_half_by_half_rule():
         np.testing.assert_array_equal(
             component_scales(given, y0), _component_scales_by_halves(given, y0)
         )
+
+
+def test_auto_runs_the_witness_where_its_quencher_takes_many_substeps():
+    """Near a separatrix auto takes 5 to 10 quencher steps a step; the
+    truncation error, which Gamma sees, then falls far below the rounding,
+    which it does not: a pendulum 1e-4 below its separatrix at 1e-8 to
+    t = 100 returned SUCCESS with a node 6.3 times the tolerance off
+    (rk78q12, 6 substeps, Gamma 1.1e-10, the quencher 6e-8 off).  With the
+    witness the rounding is measured and the quencher runs in double-double
+    (benchmarks/separatrix_rounding.txt)."""
+    import mpmath as mp
+
+    q, p, w = sp.symbols("q p w")
+    omega = 1.3
+    ham = hamrkq.Hamiltonian(p**2 / 2 - w**2 * sp.cos(q), q=[q], p=[p], parameters={w: omega})
+    q0 = float(mp.pi - mp.mpf("1e-4"))
+    sol = hamrkq.solve(ham, q0=[q0], p0=[0.0], t_span=(0.0, 100.0), atol=1e-8)
+    assert sol.status is Status.SUCCESS
+    assert sol.options["z_substeps"] >= WITNESS_SUBSTEPS
+    mp.mp.dps = 32
+    m = mp.sin(mp.mpf(q0) / 2) ** 2
+    k, quarter = mp.sqrt(m), mp.ellipk(m)
+    rows = np.unique(np.linspace(0, len(sol.t) - 1, 120).astype(int))
+    exact = np.array(
+        [
+            [
+                float(2 * mp.asin(k * mp.ellipfun("sn", quarter + omega * t, m=m))),
+                float(2 * k * omega * mp.ellipfun("cn", quarter + omega * t, m=m)),
+            ]
+            for t in sol.t[rows]
+        ]
+    )
+    assert np.abs(sol.y[rows] - exact).max() <= 1.05e-8  # measured 0.988 (6.35 before)

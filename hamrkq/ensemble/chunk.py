@@ -99,8 +99,10 @@ def _decided_by_y0(prepared: Any, dim: int, y0: np.ndarray) -> tuple:
         auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
     witness = None
     if task.options.gamma_name == "shadow":
-        stage_rounding = member_of(task).stage_rounding_dominates
-        witness = needs_witness(task.atol, task.rtol, y0, stage_rounding)
+        member = member_of(task)
+        witness = needs_witness(
+            task.atol, task.rtol, y0, member.stage_rounding_dominates, member.z_substeps
+        )
     return auto, witness
 
 

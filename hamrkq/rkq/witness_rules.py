@@ -59,6 +59,23 @@ STAGE_ROUNDING_WEIGHTS = 4.0
 #: than this relative to the state's size (``needs_witness``).
 WITNESS_BELOW = 3e-10
 
+#: With the shadow estimate, the witness runs where the quencher takes at
+#: least this many steps per step of the pair (:func:`needs_witness`).  Each
+#: step more shrinks the quencher's truncation error per step, which Gamma
+#: sees, by ``(m / (m + 1))^z`` and leaves its rounding per step, which Gamma
+#: does not see, as it was: from 2 to 5 steps, a factor 2.5^12 = 6e4 for
+#: Feagin 12.  ``auto`` takes that many where the estimate grows fastest,
+#: which is where the rounding is amplified most: a pendulum 1e-4 below its
+#: separatrix (H = p^2/2 - 1.69 cos q, q0 = pi - 1e-4, to t = 300) at 1e-8
+#: ran ``rk78q12`` with 7 quencher steps and returned SUCCESS with a node
+#: 282 times the tolerance off, Gamma reading 1.1e-10 where the quencher was
+#: 2.8e-6 off (its rounding: 0.988 of the tolerance with the quencher in
+#: double-double); 6.9 to t = 100, 1.49 at 1e-3 below it, with 5 to 7 steps
+#: (``benchmarks/separatrix_rounding.py``).  The catalogue's runs at
+#: their tolerances take 2 to 4, the outer solar system 5 at rtol 1e-6,
+#: where the witness runs already (``tests/test_family.py``).
+WITNESS_SUBSTEPS = 5
+
 
 def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
     """The size each component's rounding error is measured against: the
@@ -90,7 +107,11 @@ def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
 
 
 def needs_witness(
-    atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray, stage_rounding: bool = False
+    atol: np.ndarray,
+    rtol: np.ndarray,
+    y0: np.ndarray,
+    stage_rounding: bool = False,
+    substeps: int = 1,
 ) -> bool:
     """Whether a run with the shadow estimate also runs the rounding witness.
 
@@ -115,9 +136,11 @@ def needs_witness(
     and returned a node of 1.74 delta; double-double stages took the
     quencher's error to 1e-11, the witness stopped the run in time
     (``benchmarks/promise_members.md``).  Such members run the witness at
-    every tolerance.
+    every tolerance, and so does a quencher of ``substeps`` steps a step,
+    :data:`WITNESS_SUBSTEPS` or more: its truncation error, which Gamma
+    sees, has fallen below its rounding, which Gamma does not.
     """
-    if stage_rounding:
+    if stage_rounding or substeps >= WITNESS_SUBSTEPS:
         return True
     # By content: a solve asks this of the same arrays several times.
     atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))

@@ -139,7 +139,10 @@ def uses_witness(task: Task) -> bool:
         return task.witness
     if name != "shadow":
         return False
-    return needs_witness(task.atol, task.rtol, task.y0, member_of(task).stage_rounding_dominates)
+    member = member_of(task)
+    return needs_witness(
+        task.atol, task.rtol, task.y0, member.stage_rounding_dominates, member.z_substeps
+    )
 
 
 def _double_double_functions(task: Task, backend: str):
