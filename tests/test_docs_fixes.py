@@ -289,3 +289,13 @@ def test_an_unknown_option_is_reported_with_the_subcommands_usage(command, capsy
     # the top-level usage "hamrkq [-h] [--version] COMMAND ..." said nothing of the options
     assert err.startswith(f"usage: hamrkq {command[0]} [-h]")
     assert "hamrkq: error: unrecognized arguments: --bogus" in err
+
+
+def test_comparison_md_says_which_methods_the_backend_runs():
+    # said "backend `numba` for RKQ; every method runs in Python", both at once
+    from hamrkq.cli.compare import _wall_times
+
+    compiled = _wall_times("numba")
+    assert "every method runs in Python" not in compiled
+    assert "run on backend `numba` (compiled)" in compiled and "SciPy's solvers" in compiled
+    assert "every method runs in Python (NumPy), the RKQ loop's too" in _wall_times("python")

@@ -135,6 +135,23 @@ def _table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def _wall_times(backend: str) -> str:
+    """What the wall times compare: the RKQ loop's methods (rk34q8, auto, the
+    family's members, rk34) run on ``backend``, every other method in Python."""
+    counted = "nfev counts right-hand-side evaluations (Jacobians not included)."
+    if backend == "python":
+        return (
+            "- Wall times: every method runs in Python (NumPy), the RKQ loop's too "
+            f"(backend `python`). {counted}"
+        )
+    return (
+        f"- Wall times: the RKQ loop's methods (rk34q8, auto, the family's members, rk34) "
+        f"run on backend `{backend}` (compiled); the others (SciPy's solvers, the "
+        "fixed-step methods) in Python (NumPy), so times compare implementations as much "
+        f"as methods. {counted}"
+    )
+
+
 def markdown(result: Comparison, *, command: str = "") -> str:
     """The text of ``comparison.md``."""
     t0, t1 = result.t_span
@@ -151,9 +168,7 @@ def markdown(result: Comparison, *, command: str = "") -> str:
         "- Energy error: max abs(H(y_i) - H(y_0)); drift slope: least-squares slope of "
         "H(y_i) - H(y_0) against t, with its standard error (which understates the "
         "uncertainty of a slowly oscillating error).",
-        f"- Wall times: backend `{result.backend}` for RKQ; every method runs in Python "
-        "(NumPy), so times compare interpreters as much as methods. nfev counts "
-        "right-hand-side evaluations (Jacobians not included).",
+        _wall_times(result.backend),
         "",
         "## Headline",
         "",
