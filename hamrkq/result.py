@@ -376,7 +376,10 @@ class Solution:
         ) as exc:
             # A foreign .npz (no "meta"), a damaged member, object arrays that
             # would need pickle, metadata of the wrong shape: all one answer.
-            what = f"missing entry {exc}" if isinstance(exc, KeyError) else str(exc)
+            what = str(exc)
+            if isinstance(exc, KeyError):  # NumPy's: "meta is not a file in the archive"
+                entry = str(exc.args[0]) if exc.args else ""
+                what = f"missing entry {entry.removesuffix(' is not a file in the archive')!r}"
             raise SolutionFileError(path, f"not a hamrkq solution file ({what})") from None
 
     def replace(self, **changes: Any) -> Solution:

@@ -299,3 +299,14 @@ def test_comparison_md_says_which_methods_the_backend_runs():
     assert "every method runs in Python" not in compiled
     assert "run on backend `numba` (compiled)" in compiled and "SciPy's solvers" in compiled
     assert "every method runs in Python (NumPy), the RKQ loop's too" in _wall_times("python")
+
+
+def test_loading_a_foreign_npz_names_the_missing_entry(tmp_path):
+    # said "(missing entry 'meta is not a file in the archive')"
+    from hamrkq.errors import SolutionFileError
+
+    path = tmp_path / "other.npz"
+    np.savez(path, a=np.zeros(3))
+    with pytest.raises(SolutionFileError) as info:
+        hamrkq.Solution.load(path)
+    assert str(info.value).endswith("not a hamrkq solution file (missing entry 'meta')")
