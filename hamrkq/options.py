@@ -313,7 +313,8 @@ def check_setting(key: str, value: Any) -> None:
     """Check one setting of a problem file's ``[integration]`` table.
 
     Tolerances (``atol``, ``rtol``: a number or a list of them) are checked
-    for their sign here and for their length when the problem is solved.
+    for their sign here; the problem-file reader checks a list's length
+    against the state's, which it knows.
 
     Raises
     ------

@@ -23,7 +23,16 @@ import numpy as np
 from hamrkq._files import atomic_file, plain
 from hamrkq.errors import SolutionFileError
 
-__all__ = ["FrozenDict", "Solution", "Status"]
+__all__ = ["FrozenDict", "Solution", "Status", "kept_nodes_note"]
+
+
+def kept_nodes_note(count: int) -> str:
+    """The sentence a run that ended early closes its message with: how many
+    nodes it keeps (one node is not "1 nodes")."""
+    if count == 1:
+        return " The 1 node computed so far is kept."
+    return f" The {count} nodes computed so far are kept."
+
 
 #: Version of the ``.npz`` layout written by :meth:`Solution.save`.
 FILE_FORMAT_VERSION = 1

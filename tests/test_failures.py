@@ -320,3 +320,11 @@ def test_a_step_limit_with_output_times_names_the_last_time_kept(method):
     assert_partial(sol, Status.MAX_STEPS, "max_steps = 50")
     if not method.startswith("scipy:"):  # SciPy's atol means less
         np.testing.assert_allclose(sol.y[:, 0], np.cos(sol.t), atol=1.1e-6)
+
+
+def test_one_kept_node_is_one_node():
+    """docs/errors.md: atol = 1e-15 on the oscillator stops at t = 0 with
+    the initial node alone, and the message said "The 1 nodes"."""
+    sol = hamrkq.solve(hamrkq.load_problem("harmonic"), atol=1e-15)
+    assert len(sol) == 1
+    assert sol.message.endswith("The 1 node computed so far is kept.")

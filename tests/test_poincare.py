@@ -377,3 +377,16 @@ def test_an_interrupted_orbit_ends_the_section_with_the_orbits_run_so_far(monkey
     monkeypatch.setattr(module, "solve", interrupt)
     sec = hamrkq.poincare(hh, "q1 = 0", q0, p0, (0.0, 300.0), atol=1e-9)
     assert len(sec.solutions) == 1 and sec.t.size == runs[0].t_events[0].size
+
+
+def test_cli_poincare_with_a_method_without_quencher_names_what_sections_need(tmp_path, capsys):
+    """poincare passed its --gamma-limit to every method, and a SciPy or
+    fixed-step method, which refuses gamma_limit, failed on that; the
+    sections' own need (the RKQ family's dense output) is what to say."""
+    from hamrkq.cli import main
+
+    out = tmp_path / "pc"
+    argv = ["poincare", "henon_heiles", "--orbits", "2", "--t-end", "10", "--out", str(out)]
+    assert main([*argv, "--method", "scipy:DOP853"]) == 2
+    err = capsys.readouterr().err
+    assert "need an RKQ-family method" in err and "gamma_limit" not in err

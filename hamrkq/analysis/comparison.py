@@ -201,7 +201,8 @@ def _checked_methods(problem: Any, methods: Sequence[str] | None, match: str) ->
         refused = [m for m in methods if m in SPLITTING_SCHEMES]
         if refused:
             raise OptionError(
-                f"{', '.join(map(repr, refused))} need a separable H = T(p) + V(q); "
+                f"{', '.join(map(repr, refused))} {'needs' if len(refused) == 1 else 'need'} "
+                "a separable H = T(p) + V(q); "
                 f"problem {problem.name!r} is not separable"
             )
     return [ANCHOR, *[m for m in dict.fromkeys(methods) if m != ANCHOR]]
@@ -270,7 +271,10 @@ def compare(
     anchor_sol, anchor_time = _timed(problem, ANCHOR, t_span, _tolerances(problem, 1.0), 1,
                                      backend)  # fmt: skip
     anchor = Run(ANCHOR, 1.0, _tolerances(problem, 1.0), anchor_sol, anchor_time)
-    note(f"{ANCHOR} {anchor.describe()}: {anchor.nfev} f evaluations, {anchor_time:.2f} s")
+    note(
+        f"{ANCHOR} {anchor.describe()}: {anchor_sol.status.name}, {anchor.nfev} f evaluations, "
+        f"{anchor_time:.2f} s"
+    )
     anchor_steps = max(anchor_sol.stats["steps"], 1)
     h_ref: dict[str, float] = {}
 

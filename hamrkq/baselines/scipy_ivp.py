@@ -33,7 +33,7 @@ from hamrkq._floats import MIN_RTOL
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.baselines import PREFIX, SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
-from hamrkq.result import Solution, Status
+from hamrkq.result import Solution, Status, kept_nodes_note
 from hamrkq.rkq.scipy_solver import RK34Q8
 
 __all__ = ["PREFIX", "SCIPY_METHODS", "USES_JACOBIAN", "solve_scipy"]
@@ -99,7 +99,7 @@ def _final_message(
     if kept:
         if output:
             message += f" The last output time kept is t = {float(kept[-1])!r}."
-        message += f" The {len(kept)} nodes computed so far are kept."
+        message += kept_nodes_note(len(kept))
     return message
 
 

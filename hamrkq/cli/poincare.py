@@ -39,6 +39,7 @@ from hamrkq.cli import (
 )
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, check_dpi, jsonable
+from hamrkq.options import refused_options
 from hamrkq.result import Status
 from hamrkq.symbolic.expressions import parse_expression
 
@@ -119,9 +120,14 @@ def poincare_command(args: argparse.Namespace) -> int:
         raise InputError(f"--orbits must be at least 1, got {args.orbits}")
     out = OutputDir(args.out or f"hamrkq-poincare/{problem.name}", force=args.force)
     q0, p0 = energy_orbits(ham, energy, args.orbits, args.section, problem.parameters)
-    options = dict(atol=args.atol, gamma_limit=args.gamma_limit, backend=args.backend)
+    options = dict(atol=args.atol, backend=args.backend)
     if args.method is not None:
         options["method"] = args.method
+    method = options.get("method") or problem.integration.get("method") or "auto"
+    if "gamma_limit" not in refused_options(method)[0]:
+        # a method without a quencher refuses it (and the sections need one:
+        # its events are found on the RKQ family's dense output)
+        options["gamma_limit"] = args.gamma_limit
     started = time.perf_counter()
     sec, indicators = _orbits(
         problem, args.section, q0, p0, (0.0, args.t_end), options, args.megno

@@ -124,9 +124,12 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         The system.  With a catalogue :class:`~hamrkq.catalogue.problems.Problem`, its
         ``q0``, ``p0``, ``t_span`` and ``integration`` settings are the
         defaults and the keywords below override them.
-    q0, p0 : sequence of n numbers
+    q0, p0 : sequence of n numbers, or mapping
         Initial coordinates and momenta: numbers, SymPy numbers or SymPy
-        expressions without free symbols.
+        expressions without free symbols, 1-D.  A mapping binds values by
+        name or symbol (``{"x": 0.4}``): with a Problem it may bind some
+        names, the others keeping the problem's initial values; with a
+        Hamiltonian it must bind every name.
     t_span : (t0, t_end)
         Two finite numbers; ``t_end < t0`` integrates backward, ``t_end ==
         t0`` returns the single initial node.

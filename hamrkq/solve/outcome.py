@@ -28,7 +28,7 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.events import terminal_cut
-from hamrkq.result import Solution, Status
+from hamrkq.result import Solution, Status, kept_nodes_note
 from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
@@ -238,7 +238,7 @@ def _breach_message(breach: Breach, t_kept: np.ndarray) -> str:
     )
     if breach.interrupted_near is not None:
         text = f"Interrupted (KeyboardInterrupt) near t = {breach.interrupted_near!r}. " + text
-    return text + f" The {len(t_kept)} nodes computed so far are kept."
+    return text + kept_nodes_note(len(t_kept))
 
 
 def _component(task: Task, index: int) -> str:
@@ -547,7 +547,7 @@ def _message(status: Status, out: RunOutput, task: Task) -> str:
         if out.t.size and out.t[-1] != t:
             # Output times (t_eval) end before where the steps reached.
             text += f" The last output time kept is t = {float(out.t[-1])!r}."
-        text += f" The {out.t.size} nodes computed so far are kept."
+        text += kept_nodes_note(out.t.size)
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps and status is not Status.TOLERANCE_UNATTAINABLE:
