@@ -189,11 +189,6 @@ def test_ensemble_members_solved_alone_equal_solve():
         _assert_member_equals_solve(ens, i, BOUNCE, t_span=SPAN, backend="python")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the compiled batch loop of hamrkq.ensemble (hamrkq/ensemble/chunk.py, _batch) "
-    "does not go through solve's assembly: a member that succeeded there is not checked",
-)
 def test_ensemble_members_in_the_batch_loop_equal_solve():
     ens = hamrkq.ensemble(
         BOUNCE, q0=[[1.0], [50.0]], p0=[[0.0], [0.0]], t_span=SPAN, workers=1, progress=False

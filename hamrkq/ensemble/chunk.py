@@ -44,6 +44,7 @@ from hamrkq.solve.auto import (
     witness_rerun_needed,
 )
 from hamrkq.solve.dispatch import integration, member_of, run_rk, shadow_departures
+from hamrkq.symbolic.values import declares_checked
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
@@ -114,6 +115,10 @@ def _batch_prepared(request: Request) -> Any:
         return None
     kwargs = request.member_kwargs(0)
     if kwargs.get("events") or kwargs.get("dense_output"):
+        return None
+    if declares_checked((*request.ham.q, *request.ham.p)):
+        # solve checks every node against the symbols' declared assumptions
+        # (Status.ASSUMPTION_VIOLATED); the batch loop keeps no nodes to check
         return None
     prepared = prepare(request.ham, **kwargs)
     task = prepared.task
