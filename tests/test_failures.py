@@ -328,3 +328,17 @@ def test_one_kept_node_is_one_node():
     sol = hamrkq.solve(hamrkq.load_problem("harmonic"), atol=1e-15)
     assert len(sol) == 1
     assert sol.message.endswith("The 1 node computed so far is kept.")
+
+
+def test_first_step_is_not_below_the_roundoff_floor_of_t0():
+    """A component at zero under a tiny atol made the initial-step heuristic
+    give 1e-15, below the loop's floor (10 eps |t|) at t0 = -50: the run
+    ended on its first step with STEP_SIZE_UNDERFLOW and a message naming no
+    remedy, where t0 = 0 or first_step=1e-6 succeeded."""
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2")
+    kepler = hamrkq.Hamiltonian((p1**2 + p2**2) / 2 - 1 / sp.sqrt(q1**2 + q2**2),
+                                q=[q1, q2], p=[p1, p2])  # fmt: skip
+    start = {"q0": [0.01, 0.0], "p0": [0.0, math.sqrt(250.0)], "t_span": (-50.0, -40.0)}
+    for method in ("auto", "rk34q8"):
+        sol = hamrkq.solve(kepler, **start, atol=1e-20, rtol=1e-9, method=method)
+        assert sol.status is hamrkq.Status.SUCCESS, sol.message

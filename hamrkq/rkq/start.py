@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from hamrkq._floats import EPS
 from hamrkq.rkq import arith
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import (
@@ -22,7 +23,7 @@ from hamrkq.rkq.layout import (
     TMP,
     U,
 )
-from hamrkq.rkq.loop import write_node
+from hamrkq.rkq.loop import FLOOR_ULPS, write_node
 
 __all__ = ["begin", "initial_step"]
 
@@ -56,7 +57,12 @@ def initial_step(rhs, t0, t_end, problem, c, work):
         h1 = max(1e-6, h0 * 1e-3)
     else:
         h1 = (0.01 / max(d1, d2)) ** c["error_exponent"]
-    return min(100.0 * h0, h1, interval, c["max_step"])
+    # No shorter than twice the step the loop's roundoff floor refuses (10
+    # eps |t|): a component at zero under a tiny atol gave 1e-15, below the
+    # floor at t0 = -50, and the run ended on its first step with
+    # STEP_SIZE_UNDERFLOW; a longer step is only rejected and shortened.
+    floor = 2.0 * FLOOR_ULPS * EPS * abs(t0)
+    return min(max(min(100.0 * h0, h1), floor), interval, c["max_step"])
 
 
 @jitable
