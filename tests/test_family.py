@@ -742,3 +742,17 @@ def test_auto_runs_the_witness_where_its_quencher_takes_many_substeps():
         ]
     )
     assert np.abs(sol.y[rows] - exact).max() <= 1.05e-8  # measured 0.988 (6.35 before)
+
+
+def test_a_finished_run_after_an_exponential_reading_measures_its_rounding():
+    """Kepler e = 0.99 at atol 1e-8: the first run read a 973-fold growth
+    and was abandoned; the next, with three quencher steps, read less over
+    its second half and returned SUCCESS without the witness, 2.9 times the
+    tolerance off at a pericentre (its rounding, which Gamma does not see).
+    Now it runs again with the witness, which finds the floor, and the
+    quencher goes to double-double (measured 0.986)."""
+    kepler = hamrkq.load_problem("kepler", e=0.99)
+    sol = hamrkq.solve(kepler, atol=1e-8)
+    assert sol.status is Status.SUCCESS
+    assert "the run before it had read an exponential growth" in sol.message
+    assert np.abs(sol.y - kepler.exact(sol.t)).max() <= 1.05e-8

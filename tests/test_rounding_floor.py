@@ -18,8 +18,11 @@ here against an exact solution:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+import sympy as sp
 from helpers import pendulum_rotation_mpmath
 
 import hamrkq
@@ -290,3 +293,36 @@ def test_the_papers_method_runs_again_with_the_witness_where_the_state_grew():
     prentice = hamrkq.load_problem("prentice2011")
     once = hamrkq.solve(prentice, t_span=(0.0, 400.0))
     assert not once.options["rounding_witness"] and "discarded_evaluations" not in once.stats
+
+
+def test_the_witness_measures_the_rounding_of_the_time():
+    """A driven oscillator from t0 = 1e8, where an ulp of t is 1.5e-8: the
+    stage times' rounding perturbs the forcing, which Gamma does not see,
+    nor the witness on the same stage times; auto returned SUCCESS 11 times
+    the tolerance off at 1e-9 (and, in double-double from t0 = 2.45e6, 3.3
+    and 11 times at 1e-10 and 1e-11).  The witness now rounds its stage
+    times stochastically and runs where the time's rounding could matter;
+    the run stops, naming the time.  From t0 = 0 it succeeds within the
+    tolerance, against the exact solution."""
+    q, p, t = sp.symbols("q p t")
+    forcing = 0.3
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 - forcing * q * sp.cos(1.7 * t),
+                             q=[q], p=[p], t=t)  # fmt: skip
+
+    def exact(times, t0, q0=0.5, p0=-0.2, w=1.7):
+        k = forcing / (1 - w**2)
+        a, b = q0 - k * math.cos(w * t0), p0 + k * w * math.sin(w * t0)
+        c1 = math.cos(t0) * a - math.sin(t0) * b
+        c2 = math.sin(t0) * a + math.cos(t0) * b
+        return np.column_stack([c1 * np.cos(times) + c2 * np.sin(times) + k * np.cos(w * times),
+                                -c1 * np.sin(times) + c2 * np.cos(times)
+                                - k * w * np.sin(w * times)])  # fmt: skip
+
+    sol = hamrkq.solve(ham, q0=[0.5], p0=[-0.2], t_span=(0.0, 300.0), atol=1e-9)
+    assert sol.status is hamrkq.Status.SUCCESS
+    assert np.abs(sol.y - exact(sol.t, 0.0)).max() <= 1.05e-9
+    for t0, atol in ((1e8, 1e-9), (2.45e6, 1e-10)):
+        sol = hamrkq.solve(ham, q0=[0.5], p0=[-0.2], t_span=(t0, t0 + 300.0), atol=atol)
+        assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+        assert sol.options["rounding_witness"] and "H depends on t" in sol.message
+        assert sol.options["quencher_precision"] == "double"  # double-double does not help

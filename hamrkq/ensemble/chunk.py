@@ -43,7 +43,13 @@ from hamrkq.solve.auto import (
     reruns_with_witness,
     witness_rerun_needed,
 )
-from hamrkq.solve.dispatch import integration, member_of, run_rk, shadow_departures
+from hamrkq.solve.dispatch import (
+    integration,
+    member_of,
+    run_rk,
+    shadow_departures,
+    time_scale,
+)
 from hamrkq.symbolic.values import declares_checked
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
@@ -102,7 +108,12 @@ def _decided_by_y0(prepared: Any, dim: int, y0: np.ndarray) -> tuple:
     if task.options.gamma_name == "shadow":
         member = member_of(task)
         witness = needs_witness(
-            task.atol, task.rtol, y0, member.stage_rounding_dominates, member.z_substeps
+            task.atol,
+            task.rtol,
+            y0,
+            member.stage_rounding_dominates,
+            member.z_substeps,
+            time_scale(task),
         )
     return auto, witness
 

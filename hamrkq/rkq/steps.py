@@ -82,14 +82,16 @@ def pair_step(rhs, t, h, tab, params, work):
 
 @jitable
 def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no objects
-    rhs, t, hi, lo, h, tab, params, work, out, first_done, reverse=False, seed=-1.0
-):
+    rhs, t, hi, lo, h, tab, params, work, out, first_done, reverse=False, seed=-1.0,
+    time_seed=-1.0,
+):  # fmt: skip
     """Stages of one quencher step of size ``h`` from the compensated state
     ``(hi, lo)`` into ``work.Kz`` and the increment into ``out``;
     ``work.Kz[0]`` is reused when ``first_done``; ``reverse`` sums the stages
     the other way round and ``seed >= 0`` rounds the stage values
     stochastically (the rounding witness; seeds ``seed``, ``seed + 1``, ...
-    over the stages and components).  Returns the evaluations."""
+    over the stages and components), ``time_seed >= 0`` the stage times
+    ``t + c_j h`` (seeds ``time_seed + j``).  Returns the evaluations."""
     Kz, y = work.Kz, work.V[YT]
     nfev = 0
     for j in range(tab.bz.shape[0]):
@@ -97,7 +99,11 @@ def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no o
             continue
         stage_seed = seed + j * y.shape[0] if seed >= 0.0 else -1.0
         arith.stage_value_compensated(hi, lo, h, tab.Az, tab.Az_low, j, Kz, y, reverse, stage_seed)
-        rhs(t + tab.cz[j] * h, y, params, Kz[j])
+        stage_time = t + tab.cz[j] * h
+        if time_seed >= 0.0:
+            u = arith.uniform(time_seed + j)
+            stage_time = arith.round_stochastically(t, tab.cz[j] * h, u)
+        rhs(stage_time, y, params, Kz[j])
         nfev += 1
     arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
     return nfev
@@ -419,10 +425,16 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     arith.copy(wlo, nwlo)
     nfev = 0
     seeds = float(tab.bz.shape[0] * whi.shape[0])  # per quencher step
+    stages = float(tab.bz.shape[0] + 1)
     for k in range(n):
         seed = (attempt * n + k) * seeds if cfg["witness_stochastic"] else -1.0
+        # Its stage times rounded stochastically too, from a substep's start
+        # rounded so: where f depends on the time, their rounding (an ulp of
+        # 1.5e-8 at t = 1e8) is the witness's to measure (time_seed).
+        time_seed = (attempt * n + k) * stages
+        base = arith.round_stochastically(t, k * hs, arith.uniform(time_seed))
         nfev += explicit_increment(
-            rhs, t + k * hs, nwhi, nwlo, hs, tab, params, work, inc, False, True, seed
+            rhs, base, nwhi, nwlo, hs, tab, params, work, inc, False, True, seed, time_seed + 1
         )
         arith.two_sum(nwhi, nwlo, inc, nwhi, nwlo)
     cover_shortfall(nwhi, nwlo, inc, substep_shortfall(h, hs, n), hs, work.Kz[0])

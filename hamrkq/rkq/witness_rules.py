@@ -13,21 +13,25 @@ import math
 
 import numpy as np
 
+from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 
 __all__ = [
     "FLOOR_STEPS",
     "STAGE_ROUNDING_WEIGHTS",
     "STATE_GROWTH",
+    "TIME_ROUNDING_MARGIN",
     "WITNESS_BELOW",
     "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
+    "WITNESS_SUBSTEPS",
     "component_scales",
     "length_factor",
     "needs_witness",
     "needs_witness_after_run",
     "state_outgrew_its_start",
     "tightest_tolerance",
+    "time_rounding_matters",
 ]
 
 
@@ -112,6 +116,7 @@ def needs_witness(
     y0: np.ndarray,
     stage_rounding: bool = False,
     substeps: int = 1,
+    time_scale: float = 0.0,
 ) -> bool:
     """Whether a run with the shadow estimate also runs the rounding witness.
 
@@ -138,9 +143,13 @@ def needs_witness(
     (``benchmarks/promise_members.md``).  Such members run the witness at
     every tolerance, and so does a quencher of ``substeps`` steps a step,
     :data:`WITNESS_SUBSTEPS` or more: its truncation error, which Gamma
-    sees, has fallen below its rounding, which Gamma does not.
+    sees, has fallen below its rounding, which Gamma does not.  Where ``H``
+    depends on the time, ``time_scale`` is the largest ``|t|`` of the run
+    (zero otherwise): :func:`time_rounding_matters`.
     """
     if stage_rounding or substeps >= WITNESS_SUBSTEPS:
+        return True
+    if time_rounding_matters(atol, rtol, y0, time_scale):
         return True
     # By content: a solve asks this of the same arrays several times.
     atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
@@ -158,6 +167,37 @@ def _tolerance_near_floor(atol_shape, atol, rtol_shape, rtol, y0_shape, y0) -> b
     )
     tolerance = component_tolerance(atol, rtol, y0)
     return bool(np.any(tolerance < WITNESS_BELOW * component_scales(atol, y0)))
+
+
+#: Where ``H`` depends on the time, the witness runs when some component's
+#: relative tolerance is below this many times the time's relative rounding,
+#: ``eps max |t|`` (:func:`time_rounding_matters`).
+TIME_ROUNDING_MARGIN = 1000.0
+
+
+def time_rounding_matters(
+    atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray, time_scale: float
+) -> bool:
+    """Whether the rounding of the time, whose stage times ``t + c h`` are
+    doubles (an ulp of 1.5e-8 at t = 1e8), could reach the tolerance of a
+    run whose ``H`` depends on ``t`` and whose largest ``|t|`` is
+    ``time_scale`` (0 for an autonomous ``H``): some component's tolerance
+    is below :data:`TIME_ROUNDING_MARGIN` ``eps time_scale`` times its size.
+    The quencher's stage times, and the double-double quencher's too, are
+    rounded so, which Gamma does not see, nor the witness unless its own are
+    rounded otherwise (stochastically: :func:`hamrkq.rkq.steps.witness_step`).  A driven
+    oscillator ``H = p^2/2 + q^2/2 - 0.3 q cos(1.7 t)`` from t0 = 1e8 at
+    1e-9 returned SUCCESS 11 times the tolerance off; from t0 = 2.45e6 at
+    1e-10 and 1e-11, in double-double, 3.3 and 11 times; from t0 = 0 over
+    300, at 1e-9 to 1e-12, within it.  Measured against 1e-3 of the
+    tolerance over the state's size: from t0 = 0 over a few thousand time
+    units at 1e-9 nothing runs the witness, from t0 = 1e4 at 1e-9 it runs."""
+    if time_scale <= 0.0:
+        return False
+    atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
+    tolerance = component_tolerance(atol, rtol, y0)
+    relative_rounding = EPS * time_scale * TIME_ROUNDING_MARGIN
+    return bool(np.any(tolerance < relative_rounding * component_scales(atol, y0)))
 
 
 #: The steps of the runs :data:`WITNESS_BELOW` was measured on (prentice2011

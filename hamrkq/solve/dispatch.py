@@ -28,7 +28,7 @@ from hamrkq.result import Solution, Status
 from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
 from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
 from hamrkq.rkq.family import MEMBERS
-from hamrkq.rkq.witness_rules import component_scales, needs_witness
+from hamrkq.rkq.witness_rules import component_scales, needs_witness, time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 if TYPE_CHECKING:
@@ -47,6 +47,8 @@ __all__ = [
     "run_rk",
     "shadow_departures",
     "start_background",
+    "time_rounding_limits",
+    "time_scale",
     "uses_witness",
     "within_linear_shadow",
 ]
@@ -141,8 +143,29 @@ def uses_witness(task: Task) -> bool:
         return False
     member = member_of(task)
     return needs_witness(
-        task.atol, task.rtol, task.y0, member.stage_rounding_dominates, member.z_substeps
+        task.atol,
+        task.rtol,
+        task.y0,
+        member.stage_rounding_dominates,
+        member.z_substeps,
+        time_scale(task),
     )
+
+
+def time_scale(task: Task) -> float:
+    """The largest ``|t|`` of ``task``'s run where its ``H`` depends on the
+    time, else 0 (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`)."""
+    if not task.ham.time_dependent:
+        return 0.0
+    return max(abs(task.t0), abs(task.t_end))
+
+
+def time_rounding_limits(task: Task) -> bool:
+    """Whether the rounding of ``task``'s stage times could reach its
+    tolerance (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`): the
+    witness then runs, and the quencher in double-double, whose stage times
+    are doubles too, does not go below that floor."""
+    return time_rounding_matters(task.atol, task.rtol, task.y0, time_scale(task))
 
 
 def _double_double_functions(task: Task, backend: str):

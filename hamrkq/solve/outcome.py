@@ -34,7 +34,14 @@ from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
-from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
+from hamrkq.solve.dispatch import (
+    MethodSpec,
+    Task,
+    member_of,
+    time_rounding_limits,
+    time_scale,
+    uses_witness,
+)
 from hamrkq.solve.event_check import Located, certificate, stored_rounding_limits
 from hamrkq.symbolic.values import first_conflict
 
@@ -312,6 +319,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "this is double precision's floor for this orbit and interval, and no member "
                 "or step size in double goes below it."
             )
+        text += _time_floor_note(task)
         if not _double_double_available(task):
             if member.stage_rounding_dominates:
                 # rk34q8 (the tangent estimate): no double-double quencher,
@@ -461,13 +469,27 @@ def _estimate_diverged(out: RunOutput, task: Task) -> str:
     )
 
 
+def _time_floor_note(task: Task) -> str:
+    """What the floor owes to the rounding of the time where ``H`` depends
+    on it (:func:`hamrkq.solve.dispatch.time_rounding_limits`), or ``""``."""
+    if not time_rounding_limits(task):
+        return ""
+    scale = time_scale(task)
+    return (
+        f" H depends on t, and at |t| up to {scale:.6g} an ulp of the time is "
+        f"{float(np.spacing(scale)):.2g}: the rounding of the stage times is part of this "
+        "floor, in double-double too. A time origin near the interval (H written in "
+        "t - t0, its phases computed once) lowers it."
+    )
+
+
 def _double_double_available(task: Task) -> bool:
     """Whether the quencher could run in double-double and does not already."""
     from hamrkq.backends import codegen
 
     if task.options.double_double or task.options.gamma_name != "shadow":
         return False
-    return not codegen.double_double_unsupported(task.ham)
+    return not (codegen.double_double_unsupported(task.ham) or time_rounding_limits(task))
 
 
 def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
@@ -610,6 +632,12 @@ def rerun_note(
                 "interval, faster than a periodic orbit's t^2: where that is exponential "
                 "growth, the rounding grows alike, which the shadow estimate does not see (the "
                 "witness measures it)"
+            )
+        elif earlier.grew_exponentially and reruns_for_rounding(earlier, run, math.inf):
+            what += (
+                "; the run before it had read an exponential growth of the estimate: more "
+                "quencher steps shrink the truncation error and leave the rounding, amplified "
+                "alike and unseen by Gamma, where it was: run again with the witness"
             )
         elif reruns_for_rounding(earlier, run, factor):
             what += (
