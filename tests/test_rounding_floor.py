@@ -326,3 +326,15 @@ def test_the_witness_measures_the_rounding_of_the_time():
         assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
         assert sol.options["rounding_witness"] and "H depends on t" in sol.message
         assert sol.options["quencher_precision"] == "double"  # double-double does not help
+
+
+def test_double_double_asked_for_where_the_time_rounding_matters_is_refused():
+    """Its stage times are doubles, so it does not go below the time's
+    rounding, and it runs no witness that would see it: asked for at
+    t0 = 2.45e6 (an ulp of 4.7e-10), it returned SUCCESS 11 times off."""
+    q, p, t = sp.symbols("q p t")
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 - 0.3 * q * sp.cos(1.7 * t), q=[q], p=[p], t=t)
+    options = {"q0": [0.5], "p0": [-0.2], "atol": 1e-11, "quencher_precision": "double-double"}
+    with pytest.raises(hamrkq.errors.OptionError, match="rounding of the time"):
+        hamrkq.solve(ham, t_span=(2.45e6, 2.45e6 + 300.0), **options)
+    assert hamrkq.solve(ham, t_span=(0.0, 1.0), **options).success

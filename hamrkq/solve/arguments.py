@@ -23,9 +23,17 @@ from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
+from hamrkq.rkq.witness_rules import time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["eval_times", "progress_callback", "step_rules", "system", "tolerances"]
+__all__ = [
+    "check_time_rounding",
+    "eval_times",
+    "progress_callback",
+    "step_rules",
+    "system",
+    "tolerances",
+]
 
 
 def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, t_end):
@@ -60,6 +68,25 @@ def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, 
                 f"{name} does not apply to the fixed-step method {options.method!r} (it has "
                 "no error control and no dense output); give step only"
             )
+
+
+def check_time_rounding(
+    options: SolveOptions, ham: Hamiltonian, atol, rtol, y0, t0: float, t_end: float
+) -> None:
+    """The quencher in double-double, asked for, where the rounding of the
+    time could reach the tolerance: refused, for it does not go below that
+    floor (its stage times are doubles) and runs no witness that would see
+    it (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`)."""
+    if not (options.double_double and ham.time_dependent):
+        return
+    scale = max(abs(t0), abs(t_end))
+    if time_rounding_matters(atol, rtol, y0, scale):
+        raise OptionError(
+            f"quencher_precision='double-double' cannot go below the rounding of the time: H "
+            f"depends on t, and at |t| up to {scale:.6g} an ulp of t is "
+            f"{float(np.spacing(scale)):.2g}, which the double stage times carry into the "
+            "forcing; write H in t - t0 (its phases computed once), or loosen the tolerance"
+        )
 
 
 def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
