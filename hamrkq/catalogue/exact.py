@@ -417,7 +417,10 @@ def kepler(
     dE = solve_kepler_equation(mean, e) - float(exact_E0)
     s = np.sin(dE)
     one_minus_c = 2.0 * np.sin(0.5 * dE) ** 2  # 1 - cos dE, without cancellation
-    r = a - (a - r0) * (1.0 - one_minus_c) + sigma0 * sqrt_a * s
+    # r0 + (a - r0)(1 - cos dE), not a - (a - r0) cos dE: near pericentre of
+    # an eccentric orbit the latter cancels down to r0 = a (1 - e), losing
+    # eps / (1 - e) of r (at e = 0.999 the momenta were 7.5e-13 off)
+    r = r0 + (a - r0) * one_minus_c + sigma0 * sqrt_a * s
     f = 1.0 - (a / r0) * one_minus_c
     g = a * sigma0 * one_minus_c + r0 * sqrt_a * s
     fdot = -sqrt_a * s / (r * r0)
