@@ -48,6 +48,7 @@ __all__ = [
     "applicable_settings",
     "check_setting",
     "refused_options",
+    "z_method_applies",
 ]
 
 #: Relative tolerances below this are raised to it (with a warning): below
@@ -204,7 +205,7 @@ def _check_z_method_applies(method: str, z_method: str) -> None:
     """``z_method`` given for a method whose quencher it cannot replace: an
     error, not an option silently ignored (it chooses among the 8th-order
     quenchers).  A problem file's ``z_method`` applies where it can."""
-    if method == f"{SCIPY_PREFIX}RK34Q8":  # the SciPy form of rk34q8
+    if z_method_applies(method):
         return
     if method not in (*MEMBERS, "auto"):
         raise OptionError(f"z_method={z_method!r} needs an RKQ method; method={method!r} has none")
@@ -213,8 +214,6 @@ def _check_z_method_applies(method: str, z_method: str) -> None:
         has = "method='auto' runs members with quenchers of order 9 to 12"
     else:
         member = MEMBERS[method]
-        if member.use_z and member.z_order == 8:
-            return
         has = f"{method!r} has " + (
             f"the order-{member.z_order} quencher {member.quencher.name!r}"
             if member.use_z
@@ -244,8 +243,13 @@ def refused_options(method: str) -> tuple[tuple[str, ...], str]:
     Given by keyword, each is an error (:meth:`SolveOptions.resolve`); in a
     problem file's ``[integration]``, a default that applies where it can
     (:func:`applicable_settings`)."""
-    if method in (f"{SCIPY_PREFIX}RK34Q8", "auto"):  # RKQ (SciPy's form of rk34q8)
+    if method == "auto":
         return (), ""
+    if method == f"{SCIPY_PREFIX}RK34Q8":  # rk34q8 as SciPy's OdeSolver: its options
+        return ("z_substeps", "quencher_precision"), (
+            "the paper's method as SciPy's OdeSolver: one DOP853 or Cooper-Verner step a "
+            "step, in double"
+        )
     if method in FIXED_STEP_METHODS:
         refused = ("atol", "rtol", "first_step", "max_step", *QUENCHER_OPTIONS)
         return (*refused, *STEP_LOOP_OPTIONS), (
@@ -264,8 +268,22 @@ def applicable_settings(method: str, settings: Mapping[str, Any]) -> dict[str, A
     """A problem file's ``[integration]`` settings that apply to ``method``:
     its ``atol`` means nothing to ``verlet``, whose run ignores it (as
     :func:`hamrkq.solve` does with a problem's defaults)."""
-    refused, _ = refused_options(method)
+    refused = set(refused_options(method)[0])
+    if method not in FIXED_STEP_METHODS:
+        refused.add("step")  # solve reads it only for a fixed-step method
+    if not z_method_applies(method):
+        refused.add("z_method")  # as solve, which applies a file's z_method where it can
     return {key: value for key, value in settings.items() if key not in refused}
+
+
+def z_method_applies(method: str) -> bool:
+    """Whether ``z_method`` (an 8th-order quencher) can replace ``method``'s
+    quencher: the paper's ``rk34q8`` (also as SciPy's OdeSolver) and the
+    members whose quencher is of order 8."""
+    if method == f"{SCIPY_PREFIX}RK34Q8":
+        return True
+    member = MEMBERS.get(method)
+    return member is not None and member.use_z and member.z_order == 8
 
 
 def _check_options_apply(method: str, given: Mapping[str, Any]) -> None:

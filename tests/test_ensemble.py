@@ -442,3 +442,26 @@ def test_fixed_step_ensemble_of_a_problem_whose_file_sets_tolerances():
         assert ens.all_success
         alone = hamrkq.solve(pend, q0=[1.0], p0=[0.0], t_span=(0, 2), method=method, step=step)
         assert np.array_equal(ens.y[1, 0], alone.y[-1])
+
+
+def test_a_files_settings_for_another_method_apply_where_they_can(tmp_path):
+    """A file whose [integration] names gauss4 with its step, or an
+    8th-order z_method, runs with any method in solve; ensemble passed the
+    file's step and z_method on as keywords and refused auto, rk78q12,
+    rk34, verlet and scipy:DOP853 (found by QA)."""
+    text = (
+        'name = "{name}"\ncoordinates = ["x"]\nmomenta = ["v"]\nhamiltonian = "(v**2 + x**2)/2"\n'
+        "[initial]\nx = [1]\nv = [0]\n[integration]\nt_span = [0, 2]\n{settings}\n"
+    )
+    files = {
+        "fixed": 'method = "gauss4"\nstep = 0.05',
+        "quencher": 'z_method = "cooper_verner"',
+    }
+    for name, settings in files.items():
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.format(name=name, settings=settings))
+        problem = hamrkq.load_problem(path)
+        for method in ("auto", "rk78q12", "rk34", "rk34q8", "scipy:DOP853"):
+            ens = hamrkq.ensemble(problem, q0=[[0.5], [1.0]], method=method, progress=False)
+            alone = hamrkq.solve(problem, q0=[1.0], method=method)
+            assert ens.all_success and np.array_equal(ens.y[1, -1], alone.y[-1]), method

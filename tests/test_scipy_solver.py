@@ -271,3 +271,16 @@ def test_fun_and_jac_get_arrays_of_their_own():
         values = np.array([y for _, y in kept])
         assert len({id(y) for _, y in kept}) == len(kept)
         assert np.all(np.isfinite(values))
+
+
+def test_quench_redo_steps_on():
+    """quench="redo" restarts a step from the quencher's value; the kernel
+    reported that restart as the end of its call, which the OdeSolver,
+    stepping once, read as the end of the run: KeyError: -1 (found by QA)."""
+    sol = solve_ivp(harmonic, (0.0, 20.0), [0.0, 1.0], method=RK34Q8, atol=1e-6,
+                    quench="redo", jac=harmonic_jac)  # fmt: skip
+    assert sol.status == 0
+    assert np.abs(sol.y - harmonic_exact(sol.t)).max() <= 1.05e-6
+    alone = hamrkq.solve(hamrkq.load_problem("harmonic"), method="rk34q8", quench="redo",
+                         t_span=(0.0, 20.0), atol=1e-6)  # fmt: skip
+    assert alone.stats["quenches"] > 0

@@ -65,6 +65,7 @@ def call(**changes):
         ({"method": "scipy:DOP853", "quench": "redo"}, OptionError, "SciPy's solver"),
         ({"method": "scipy:DOP853", "tolerance_rule": "prentice"}, OptionError, "SciPy"),
         ({"method": "rk34", "z_substeps": 3}, OptionError, "the pair alone"),
+        ({"method": "scipy:RK34Q8", "z_substeps": 3}, OptionError, "SciPy's OdeSolver"),
         ({"method": "rk34", "global_error_estimate": "off"}, OptionError, "without a quencher"),
         # y0 as SciPy takes it: 1-D (a transposed or nested array is a slip)
         ({"q0": [[0.0]]}, InputError, r"q0 must be 1-dimensional .*shape \(1, 1\)"),

@@ -86,6 +86,13 @@ MIN_FACTOR = 0.2  # never shrink by more than 5x on one rejection
 MAX_FACTOR = 5.0  # never grow by more than 5x on one acceptance
 #: A step shorter than this many ulps of t cannot advance t reliably.
 FLOOR_ULPS = 10.0
+#: :func:`quench_phase`'s "the run ends at the current node", apart from its
+#: -1, "this attempt is over" (it was ``-1 - RET_DONE``, which with
+#: ``RET_DONE = 0`` is -1 too: every rejected or redone attempt ended the
+#: kernel's call as if the run had, which the driver's loop absorbed and the
+#: SciPy solver, stepping once, took for the end: ``quench="redo"`` raised
+#: KeyError there).
+RUN_ENDS = -2
 
 
 @jitable
@@ -288,8 +295,8 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     """The quencher over the step, the quench decision, and the promise at the
     new node (``s["h"]`` holds the controller's free step, which a redo
     retries).  Returns 0 or 1 (the node is quenched), -1 (the attempt is
-    over: rejected, or restarted from the quencher's value) or ``-1 - RET_DONE``
-    (the run ends at the current node)."""
+    over: rejected, or restarted from the quencher's value) or
+    :data:`RUN_ENDS` (the run ends at the current node)."""
     V = work.V
     nhi, cand = V[NHI], V[CAND]
     if not (s["z_cached"] and s["cached_h"] == h):
@@ -320,13 +327,13 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     ratio = attainability(work, problem, c, unew, t_lo, h)
     if not record_ratio(s, c, ratio, V[NFLOOR], V[DELTA]):
         stop(ST_UNATTAINABLE, work, out, s, c)
-        return -1 - RET_DONE
+        return RUN_ENDS
     if c["project"]:
         projected = projected_ratio(work, c, s["t"] + h)
         if projected > c["project_limit"]:
             s["projected"] = projected
             stop(ST_ABANDONED, work, out, s, c)
-            return -1 - RET_DONE
+            return RUN_ENDS
     if quench:
         arith.copy(nhi, V[U])
         s["quenches"] += 1
@@ -369,7 +376,7 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
         s["h"] = h_free  # what a redo retries; an accepted step sets the next one
         quenched = quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h)
         if quenched < 0:
-            return RET_DONE if quenched == -1 - RET_DONE else -1
+            return RET_DONE if quenched == RUN_ENDS else -1
     else:
         arith.copy(work.V[CAND], work.V[U])
     if not clipped:
