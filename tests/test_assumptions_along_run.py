@@ -21,7 +21,7 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.errors import HamrkqWarning
+from hamrkq.errors import HamrkqWarning, InputError
 from hamrkq.result import Solution, Status
 from hamrkq.symbolic.values import (
     CHECKED_ASSUMPTIONS,
@@ -254,3 +254,35 @@ def test_the_check_costs_microseconds_on_a_run_of_1e5_nodes():
     for _ in range(10):
         assert first_conflict(symbols, y) is None
     assert (time.perf_counter() - started) / 10 < 0.01
+
+
+def test_the_time_span_meets_the_time_symbols_assumptions():
+    """A positive=True time symbol in sqrt(t**2), made t by SymPy, was never
+    checked: from t0 = -2 the run integrated q'' = -q - t for the written
+    q'' = -q + t and returned SUCCESS (found by QA)."""
+    q, p = sp.symbols("q p", real=True)
+    t = sp.Symbol("t", positive=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 + q * sp.sqrt(t**2), q=[q], p=[p], t=t)
+    for span in ((-2.0, -1.0), (1.0, -1.0)):
+        with pytest.raises(InputError, match=r"t_span\[\d\]: t is declared positive=True"):
+            hamrkq.solve(ham, q0=[0.0], p0=[0.0], t_span=span)
+    assert hamrkq.solve(ham, q0=[0.0], p0=[0.0], t_span=(1.0, 2.0)).success
+    nonzero = sp.Symbol("t", nonzero=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 + q / nonzero, q=[q], p=[p], t=nonzero)
+    with pytest.raises(InputError, match="passes t = 0"):
+        hamrkq.solve(ham, q0=[0.0], p0=[0.0], t_span=(-1.0, 1.0))
+
+
+def test_an_h_whose_equations_ignore_t_is_autonomous_for_the_witness():
+    """H = (p^2 + q^2)/2 + cos(t): the equations do not depend on t, yet the
+    time-rounding rule ran the witness (nfev 8833 for 5633) and refused
+    double-double (found by QA)."""
+    q, p, t = sp.symbols("q p t", real=True)
+    shifted = hamrkq.Hamiltonian((p**2 + q**2) / 2 + sp.cos(t), q=[q], p=[p], t=t)
+    plain = hamrkq.Hamiltonian((p**2 + q**2) / 2, q=[q], p=[p])
+    assert shifted.time_dependent and not shifted.equations_time_dependent
+    span = {"q0": [1.0], "p0": [0.0], "t_span": (1e8, 1e8 + 20.0), "atol": 1e-9}
+    a, b = hamrkq.solve(shifted, **span), hamrkq.solve(plain, **span)
+    assert a.options["rounding_witness"] == b.options["rounding_witness"]
+    assert a.nfev == b.nfev
+    assert hamrkq.solve(shifted, **span, quencher_precision="double-double").success

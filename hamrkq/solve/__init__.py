@@ -460,6 +460,7 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         options, given["step"], atol, rtol, given["first_step"], t_eval_v, t0, t_end
     )
     atol_v, rtol_v = arguments.tolerances(ham.dim, defaults, atol, rtol)
+    arguments.check_time_assumptions(ham, t0, t_end)
     arguments.check_time_rounding(options, ham, atol_v, rtol_v, y0, t0, t_end)
     requested = options
     options = options.with_auto(ham.dim, auto_tolerance(atol_v, rtol_v, y0))

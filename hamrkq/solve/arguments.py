@@ -25,8 +25,10 @@ from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
 from hamrkq.rkq.witness_rules import time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
+from hamrkq.symbolic.values import assumption_conflict
 
 __all__ = [
+    "check_time_assumptions",
     "check_time_rounding",
     "eval_times",
     "progress_callback",
@@ -70,6 +72,25 @@ def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, 
             )
 
 
+def check_time_assumptions(ham: Hamiltonian, t0: float, t_end: float) -> None:
+    """The time span against the assumptions declared on ``ham``'s time
+    symbol, as initial values against theirs: a ``positive=True`` t in
+    ``sqrt(t**2)``, made ``t`` by SymPy, integrated another H for t < 0
+    with SUCCESS (found by QA).  Both ends are checked (a sign holds between
+    them where it holds at both), and a ``nonzero`` t must not reach 0."""
+    symbol = ham.t
+    if symbol is None:
+        return
+    for label, value in (("t_span[0]", t0), ("t_span[1]", t_end)):
+        conflict = assumption_conflict(symbol, value)
+        if conflict is not None:
+            raise InputError(f"{label}: {conflict}")
+    if min(t0, t_end) < 0.0 < max(t0, t_end):
+        conflict = assumption_conflict(symbol, 0.0)
+        if conflict is not None:
+            raise InputError(f"t_span ({t0!r}, {t_end!r}) passes t = 0: {conflict}")
+
+
 def check_time_rounding(
     options: SolveOptions, ham: Hamiltonian, atol, rtol, y0, t0: float, t_end: float
 ) -> None:
@@ -77,7 +98,7 @@ def check_time_rounding(
     time could reach the tolerance: refused, for it does not go below that
     floor (its stage times are doubles) and runs no witness that would see
     it (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`)."""
-    if not (options.double_double and ham.time_dependent):
+    if not (options.double_double and ham.equations_time_dependent):
         return
     scale = max(abs(t0), abs(t_end))
     if time_rounding_matters(atol, rtol, y0, scale):
@@ -85,7 +106,8 @@ def check_time_rounding(
             f"quencher_precision='double-double' cannot go below the rounding of the time: H "
             f"depends on t, and at |t| up to {scale:.6g} an ulp of t is "
             f"{float(np.spacing(scale)):.2g}, which the double stage times carry into the "
-            "forcing; write H in t - t0 (its phases computed once), or loosen the tolerance"
+            "forcing; integrate from t = 0 (t_span shifted, H's phases moved by w t0 computed "
+            "once), or loosen the tolerance"
         )
 
 

@@ -153,9 +153,9 @@ def uses_witness(task: Task) -> bool:
 
 
 def time_scale(task: Task) -> float:
-    """The largest ``|t|`` of ``task``'s run where its ``H`` depends on the
-    time, else 0 (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`)."""
-    if not task.ham.time_dependent:
+    """The largest ``|t|`` of ``task``'s run where Hamilton's equations
+    depend on the time, else 0 (:func:`hamrkq.rkq.witness_rules.time_rounding_matters`)."""
+    if not task.ham.equations_time_dependent:
         return 0.0
     return max(abs(task.t0), abs(task.t_end))
 

@@ -478,8 +478,9 @@ def _time_floor_note(task: Task) -> str:
     return (
         f" H depends on t, and at |t| up to {scale:.6g} an ulp of the time is "
         f"{float(np.spacing(scale)):.2g}: the rounding of the stage times is part of this "
-        "floor, in double-double too. A time origin near the interval (H written in "
-        "t - t0, its phases computed once) lowers it."
+        "floor, in double-double too. Integrating from t = 0 lowers it: t_span shifted "
+        "to start at 0, and H written for the shifted time, its phases moved by w t0 "
+        "computed once (cos(w t + phi), phi = w t0 mod 2 pi)."
     )
 
 

@@ -278,6 +278,13 @@ class Hamiltonian:
         return _drop_delta(sp.Matrix(dq + dp))
 
     @cached_property
+    def equations_time_dependent(self) -> bool:
+        """True when Hamilton's equations depend explicitly on t (H may
+        depend on it through a term that moves no state, ``cos(t)`` added
+        alone, and the equations not)."""
+        return self.time_dependent and self._t in self.rhs.free_symbols
+
+    @cached_property
     def equations(self) -> list[sp.Eq]:
         """Hamilton's equations as ``Eq(Derivative(y_k, t), rhs_k)``."""
         return [
