@@ -64,6 +64,23 @@ def test_a_hand_written_exact_solution_is_checked_not_only_its_start(tmp_path):
     np.testing.assert_allclose(problem.exact(1.0), [[np.sin(2) / 2, np.cos(2)]])
 
 
+def test_an_exact_solution_far_from_t_0_is_checked_on_steps_above_an_ulp(tmp_path):
+    """At t0 = 1e8 the check's smallest steps (2e-10) were below an ulp of t
+    (1.5e-8): their 0/0 slope was taken for the best reading and a correct
+    solution was refused (found by QA)."""
+    start = 100_000_000
+    text = OSCILLATOR.replace("t_span = [0, 10]", f"t_span = [{start}, {start + 20}]")
+    for name, q, ok in (("shifted", "sin(w*(t - {s}))/w", True), ("wrong", "sin(t - {s})", False)):
+        exact = f'q = ["{q.format(s=start)}"]\np = ["cos(w*(t - {start}))"]'
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.format(name=name, w=2, exact=exact))
+        if ok:
+            assert hamrkq.load_problem(path).exact is not None
+        else:
+            with pytest.raises(ProblemFileError, match="at t = 1000000"):
+                hamrkq.load_problem(path)
+
+
 def test_a_builtin_of_another_dimension_is_refused_when_read(tmp_path):
     path = tmp_path / "two.toml"
     path.write_text(
