@@ -70,6 +70,9 @@ def call(**changes):
         # y0 as SciPy takes it: 1-D (a transposed or nested array is a slip)
         ({"q0": [[0.0]]}, InputError, r"q0 must be 1-dimensional .*shape \(1, 1\)"),
         ({"p0": np.ones((1, 1))}, InputError, "p0 must be 1-dimensional"),
+        # a SymPy matrix is a vector only as a row or a column (a 2 x 3 one was
+        # flattened row by row)
+        ({"q0": sp.zeros(2, 2)}, InputError, r"q0 must be 1-dimensional .*\(2, 2\)"),
         ({"safety": 0.0}, InputError, "safety must be a positive number, got 0.0"),
         ({"safety": 1.5}, InputError, "safety must be at most 1.0, got 1.5"),
         ({"quench_threshold": -1}, InputError, "quench_threshold.*-1"),

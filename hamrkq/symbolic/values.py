@@ -399,7 +399,7 @@ def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: 
             array = np.asarray(values, dtype=object)
         except (TypeError, ValueError):
             raise InputTypeError(f"{label} must be a sequence of numbers") from None
-        if array.ndim > 1 and not isinstance(values, sp.MatrixBase):
+        if array.ndim > 1 and not (isinstance(values, sp.MatrixBase) and min(array.shape) == 1):
             # As SciPy's y0: flattening a (2, 1) or a transposed array hid a slip.
             raise InputError(
                 f"{label} must be 1-dimensional (n values), got an array of shape {array.shape}"
@@ -407,8 +407,8 @@ def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: 
         seq = list(array.ravel())
         if len(seq) != n:
             raise InputError(
-                f"{label} has {len(seq)} values but the system has {n} "
-                f"degree{'s' if n != 1 else ''} of freedom"
+                f"{label} has {len(seq)} value{'s' if len(seq) != 1 else ''} but the system "
+                f"has {n} degree{'s' if n != 1 else ''} of freedom"
             )
         parts.extend(as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
     labels = [f"q0[{i}]" for i in range(n)] + [f"p0[{i}]" for i in range(n)]
