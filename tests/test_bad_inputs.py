@@ -55,7 +55,7 @@ LIBRARY = [
     pytest.param(lambda: solve1(q0=[0.0, 1.0]), InputError,
                  r"q0 has 2 values but the system has 1 degree of freedom", id="q0-length"),
     pytest.param(lambda: hamrkq.solve(HAM2, [0, 0], [1], (0, 1)), InputError,
-                 r"p0 has 1 values but the system has 2 degrees", id="p0-length"),
+                 r"p0 has 1 value but the system has 2 degrees", id="p0-length"),
     pytest.param(lambda: solve1(q0=[np.nan]), InputError, r"q0\[0\].*finite.*nan", id="q0-nan"),
     pytest.param(lambda: solve1(p0=[-np.inf]), InputError, r"p0\[0\].*finite.*inf", id="p0-inf"),
     pytest.param(lambda: solve1(q0="0.5"), InputTypeError, r"q0 must be a sequence of numbers",
