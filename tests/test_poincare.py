@@ -387,6 +387,12 @@ def test_cli_poincare_with_a_method_without_quencher_names_what_sections_need(tm
 
     out = tmp_path / "pc"
     argv = ["poincare", "henon_heiles", "--orbits", "2", "--t-end", "10", "--out", str(out)]
-    assert main([*argv, "--method", "scipy:DOP853"]) == 2
-    err = capsys.readouterr().err
-    assert "need an RKQ-family method" in err and "gamma_limit" not in err
+    for method in ("scipy:DOP853", "gauss4"):  # gauss4 said "step (h) must be given"
+        assert main([*argv, "--method", method]) == 2
+        err = capsys.readouterr().err
+        assert "dense output of the RKQ family" in err and "gamma_limit" not in err
+        assert not out.exists()
+    # an explicit --gamma-limit is solve's to refuse where it does not apply
+    # (it was dropped silently for rk34)
+    assert main([*argv, "--method", "rk34", "--gamma-limit", "0.05"]) == 2
+    assert "gamma_limit=0.05 does not apply to method='rk34'" in capsys.readouterr().err

@@ -82,6 +82,14 @@ def call(**changes):
         ({"keep_every": 0}, InputError, "keep_every must be a positive integer"),
         ({"first_step": -0.1}, InputError, "first_step must be a positive number"),
         ({"first_step": 2.0}, InputError, "first_step=2.0 exceeds the length of t_span"),
+        # below the loop's roundoff floor (10 eps |t|): the run ended on its
+        # first step with "The step size 0 fell below ...", naming neither
+        (
+            {"t_span": (1e8, 1e8 + 1), "first_step": 1e-9},
+            InputError,
+            "first_step=1e-09 is below the shortest step the time's rounding allows",
+        ),
+        ({"t_span": (-50, -40), "max_step": 1e-14}, InputError, "max_step=1e-14 is below"),
         ({"gamma_limit": 0}, InputError, "gamma_limit must be a positive number"),
         ({"t_eval": [0.5, 2.0]}, InputError, "t_eval must lie within t_span"),
         ({"t_eval": [0.5, 0.2]}, InputError, "strictly monotonic"),

@@ -28,6 +28,7 @@ from hamrkq.analysis.chaos import indicator_of
 from hamrkq.analysis.energy_surface import energy_orbits
 from hamrkq.analysis.poincare import PoincareSection, poincare
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.catalogue.problem import Problem
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.cli import (
@@ -38,6 +39,7 @@ from hamrkq.cli import (
     signals_received,
 )
 from hamrkq.errors import InputError
+from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.io.report import OutputDir, check_dpi, jsonable
 from hamrkq.options import refused_options
 from hamrkq.result import Status
@@ -69,7 +71,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--gamma-limit",
         type=float,
-        default=math.inf,
+        default=None,
         help="solve's gamma_limit (default inf: chaotic orbits run to the end; the "
         "pointwise promise is lost after a few Lyapunov times, the section is not)",
     )
@@ -124,10 +126,15 @@ def poincare_command(args: argparse.Namespace) -> int:
     if args.method is not None:
         options["method"] = args.method
     method = options.get("method") or problem.integration.get("method") or "auto"
-    if "gamma_limit" not in refused_options(method)[0]:
-        # a method without a quencher refuses it (and the sections need one:
-        # its events are found on the RKQ family's dense output)
-        options["gamma_limit"] = args.gamma_limit
+    if method in FIXED_STEP_METHODS or method.startswith(SCIPY_PREFIX):
+        raise InputError(
+            f"poincare finds the crossings on the dense output of the RKQ family: method "
+            f"{method!r} has none; use --method auto, rk34q8 or another member"
+        )
+    if args.gamma_limit is not None:
+        options["gamma_limit"] = args.gamma_limit  # solve refuses it where it does not apply
+    elif "gamma_limit" not in refused_options(method)[0]:
+        options["gamma_limit"] = math.inf  # chaotic orbits run to the end
     started = time.perf_counter()
     sec, indicators = _orbits(
         problem, args.section, q0, p0, (0.0, args.t_end), options, args.megno

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from hamrkq._floats import EPS
 from hamrkq._progress import ProgressBar
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
@@ -23,6 +24,7 @@ from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
+from hamrkq.rkq.loop import FLOOR_ULPS
 from hamrkq.rkq.witness_rules import time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 from hamrkq.symbolic.values import assumption_conflict
@@ -36,6 +38,24 @@ __all__ = [
     "system",
     "tolerances",
 ]
+
+
+def _above_roundoff_floor(options: SolveOptions, t0: float, t_end: float) -> None:
+    """``first_step`` and ``max_step`` no shorter than the steps the loop's
+    roundoff floor refuses (``FLOOR_ULPS`` eps |t|, at t0 and at the span's
+    largest |t|): first_step=1e-9 from t0 = 1e8 ended on its first step with
+    'The step size 0 fell below the roundoff floor', naming neither."""
+    for name, value, at in (
+        ("first_step", options.first_step, abs(t0)),
+        ("max_step", options.max_step, max(abs(t0), abs(t_end))),
+    ):
+        floor = FLOOR_ULPS * EPS * at
+        if value is not None and value < floor:
+            raise InputError(
+                f"{name}={value!r} is below the shortest step the time's rounding allows "
+                f"at |t| = {at:.6g} ({FLOOR_ULPS:g} eps |t| = {floor:.3g}); give a longer "
+                f"{name}, or an interval nearer t = 0"
+            )
 
 
 def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, t_end):
@@ -54,6 +74,7 @@ def step_rules(options: SolveOptions, step, atol, rtol, first_step, t_eval, t0, 
                     f"first_step={options.first_step!r} exceeds the length of t_span "
                     f"({abs(t_end - t0)!r})"
                 )
+        _above_roundoff_floor(options, t0, t_end)
         return
     if options.step is None:
         raise InputError(
