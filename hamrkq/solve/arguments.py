@@ -27,7 +27,7 @@ from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
 from hamrkq.rkq.loop import FLOOR_ULPS
 from hamrkq.rkq.witness_rules import time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
-from hamrkq.symbolic.values import assumption_conflict
+from hamrkq.symbolic.values import assumption_conflict, declares_checked
 
 __all__ = [
     "check_time_assumptions",
@@ -100,8 +100,8 @@ def check_time_assumptions(ham: Hamiltonian, t0: float, t_end: float) -> None:
     with SUCCESS (found by QA).  Both ends are checked (a sign holds between
     them where it holds at both), and a ``nonzero`` t must not reach 0."""
     symbol = ham.t
-    if symbol is None:
-        return
+    if symbol is None or not declares_checked((symbol,)):
+        return  # (most: a plain t costs a solve nothing here)
     for label, value in (("t_span[0]", t0), ("t_span[1]", t_end)):
         conflict = assumption_conflict(symbol, value)
         if conflict is not None:
