@@ -23,7 +23,7 @@ import sympy as sp
 import hamrkq
 from hamrkq.errors import HamrkqWarning, InputError
 from hamrkq.result import Solution, Status
-from hamrkq.symbolic.values import (
+from hamrkq.symbolic.assumptions import (
     CHECKED_ASSUMPTIONS,
     assumption_conflict,
     declares_checked,

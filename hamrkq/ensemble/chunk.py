@@ -50,7 +50,7 @@ from hamrkq.solve.dispatch import (
     shadow_departures,
     time_scale,
 )
-from hamrkq.symbolic.values import declares_checked
+from hamrkq.symbolic.assumptions import declares_checked
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 

@@ -49,7 +49,7 @@ from hamrkq.options import (
 )
 from hamrkq.result import Solution
 from hamrkq.rkq.auto_rules import auto_tolerance
-from hamrkq.solve import arguments, auto, outcome
+from hamrkq.solve import arguments, assumptions, auto, outcome
 from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
@@ -309,7 +309,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             # compile_s and integrate_s in every run's stats, as the RKQ
             # family's (a baseline runs in Python: what it compiled is f).
             timing = {"integrate_s": elapsed, "compile_s": prepared.compile_s}
-            out = outcome.solution_within_assumptions(task, out)
+            out = assumptions.solution_within_assumptions(task, out)
             return _with_events_note(out.replace(stats={**out.stats, **timing}), prepared)
         out.stats.setdefault("integrate_s", elapsed)
         # Loading the compiled code mid-run (a background compile), or
@@ -362,8 +362,8 @@ def _solution(
     """The :class:`Solution` of an RKQ-family run ``out`` of ``task``: its
     message with the runs ``discarded`` before it, and its events; ended
     before the first node whose state contradicts an assumption declared on
-    its symbols (:func:`outcome.within_assumptions`), as a baseline's is."""
-    out, located, breach = outcome.within_assumptions(task, out, located, prepared.events)
+    its symbols (:func:`assumptions.within_assumptions`), as a baseline's is."""
+    out, located, breach = assumptions.within_assumptions(task, out, located, prepared.events)
     sol = outcome.solution(task, prepared.spec, out, chosen, breach)
     if discarded:
         note = outcome.rerun_note(

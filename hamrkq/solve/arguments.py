@@ -26,8 +26,8 @@ from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
 from hamrkq.rkq.loop import FLOOR_ULPS
 from hamrkq.rkq.witness_rules import time_rounding_matters
+from hamrkq.symbolic.assumptions import assumption_conflict, declares_checked
 from hamrkq.symbolic.hamiltonian import Hamiltonian
-from hamrkq.symbolic.values import assumption_conflict, declares_checked
 
 __all__ = [
     "check_time_assumptions",

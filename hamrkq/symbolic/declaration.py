@@ -18,7 +18,8 @@ import numpy as np
 import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError
-from hamrkq.symbolic.values import as_number, assumption_conflict
+from hamrkq.symbolic.assumptions import assumption_conflict
+from hamrkq.symbolic.values import as_number
 
 __all__ = [
     "TIME",
