@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 import hamrkq
+import hamrkq.cli.interrupts
 from hamrkq.cli import EXIT_FAILED
 from hamrkq.result import Solution, Status
 from hamrkq.solve import event_check
@@ -311,7 +312,7 @@ def test_sigterm_while_a_run_locates_its_events_writes_the_nodes(tmp_path):
     assert summary["status"] == "INTERRUPTED" and summary["partial"] is True
     assert summary["t_final"] == 20000.0
     assert "stopped by SIGTERM (handled like Ctrl-C)" in summary["notes"]
-    assert hamrkq.cli.QUICK_REPORT in summary["notes"]
+    assert hamrkq.cli.interrupts.QUICK_REPORT in summary["notes"]
     assert summary["settings"]["reference"] == "none"
     saved = Solution.load(out / "solution.npz")
     assert saved.status is Status.INTERRUPTED and len(saved) == summary["nodes"]
@@ -497,5 +498,5 @@ def test_sigterm_while_the_results_are_written_still_writes_them(moment, tmp_pat
     assert saved.status is Status.SUCCESS and len(saved) == summary["nodes"]
     if moment == "solution.npz":  # before the report: the quick one
         assert sorted(p.name for p in out.iterdir()) == ["solution.npz", "summary.json"]
-        assert hamrkq.cli.QUICK_REPORT in summary["notes"]
+        assert hamrkq.cli.interrupts.QUICK_REPORT in summary["notes"]
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL

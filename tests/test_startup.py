@@ -114,7 +114,7 @@ def test_an_interrupt_inside_a_c_callback_is_delivered_to_the_command():
     line delivers it again to the main thread, where it stops the command."""
     import ctypes
 
-    from hamrkq import cli
+    from hamrkq.cli import interrupts
 
     @ctypes.CFUNCTYPE(None)
     def callback():
@@ -125,7 +125,7 @@ def test_an_interrupt_inside_a_c_callback_is_delivered_to_the_command():
     # here once, never alone): Python's own handler, as a command has it.
     previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        with cli._interrupts_in_callbacks_delivered(), pytest.raises(KeyboardInterrupt):
+        with interrupts.interrupts_in_callbacks_delivered(), pytest.raises(KeyboardInterrupt):
             callback()  # ctypes reports the exception through sys.unraisablehook
             deadline = time.monotonic() + 10.0  # at the next bytecode boundaries
             while time.monotonic() < deadline:
@@ -137,7 +137,7 @@ def test_an_interrupt_inside_a_c_callback_is_delivered_to_the_command():
     previous = sys.unraisablehook
     sys.unraisablehook = seen.append
     try:
-        with cli._interrupts_in_callbacks_delivered():
+        with interrupts.interrupts_in_callbacks_delivered():
 
             @ctypes.CFUNCTYPE(None)
             def failing():
@@ -155,6 +155,7 @@ def test_an_interrupted_command_drops_what_it_left_half_built_quietly(monkeypatc
     AttributeError" with a traceback after "hamrkq: interrupted" (the
     Ctrl-C test above failed so now and then)."""
     from hamrkq import cli
+    from hamrkq.cli import interrupts
 
     class HalfBuilt:
         def __init__(self):
@@ -173,7 +174,7 @@ def test_an_interrupted_command_drops_what_it_left_half_built_quietly(monkeypatc
     assert "hamrkq: interrupted" in capsys.readouterr().err
     assert seen == []
     # and outside an interruption, a failing finalizer is shown as Python shows it
-    with cli._interrupts_in_callbacks_delivered():
+    with interrupts.interrupts_in_callbacks_delivered():
         HalfBuilt.__init__ = lambda self: None
         HalfBuilt()
     assert [type(u.exc_value) for u in seen] == [AttributeError]

@@ -34,7 +34,7 @@ import numpy as np
 
 from hamrkq.analysis.comparison import MATCH_MODES, Comparison, compare, default_methods
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import raise_if_interrupted
+from hamrkq.cli.interrupts import raise_if_interrupted
 from hamrkq.io.report import OutputDir, check_dpi, package_versions
 
 if TYPE_CHECKING:

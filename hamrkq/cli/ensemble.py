@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import (
+from hamrkq.cli.interrupts import (
     QUICK_REPORT,
     interrupted,
     interrupts_held,

@@ -31,7 +31,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.catalogue.problem import Problem
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import (
+from hamrkq.cli.interrupts import (
     QUICK_REPORT,
     interrupted,
     interrupts_held,

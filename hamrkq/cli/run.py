@@ -30,8 +30,8 @@ import numpy as np
 
 from hamrkq.analysis.diagnostics import diagnose_for_report
 from hamrkq.catalogue.problems import load_problem
-from hamrkq.cli import (
-    EXIT_WRITE_FAILED,
+from hamrkq.cli import EXIT_WRITE_FAILED
+from hamrkq.cli.interrupts import (
     QUICK_REPORT,
     interrupted,
     interrupts_held,
