@@ -225,7 +225,10 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         time near the step's start is passed, and its value is dense output
         (one quencher step from the nearer node, as ``sol.sol`` gives it,
         within the same bound), so times denser than the steps cost one
-        quencher step each, not a step each (``docs/algorithm.md``).
+        quencher step each, not a step each (``docs/algorithm.md``).  With
+        ``dense_output`` or ``events`` every node is kept and the values at
+        these times come from the dense output, checked alike
+        (:mod:`hamrkq.solve.output_times`).
     backend : {"auto", "numba", "python"}, default "auto"
         Where the step loop of ``rk34q8``/``rk34`` runs: ``"numba"``
         compiles it with the generated functions (cached on disk, see
@@ -470,16 +473,23 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             f"keep_every={options.keep_every!r} and t_eval cannot be combined: t_eval already "
             "chooses the nodes that are kept"
         )
-    located = spec.run is run_rk and options.keep_every == 1 and t_eval_v is None
-    event_list, events_note = _event_list(events, system_or_problem, ham, params, located)
+    located = spec.run is run_rk and options.keep_every == 1
+    # A file's events are a default: with t_eval they are left out, so that
+    # t_eval keeps memory flat unless events are asked for (every node kept).
+    files_located = located and (t_eval_v is None or events is not None)
+    event_list, events_note = _event_list(events, system_or_problem, ham, params, files_located)
     if (dense_output or event_list) and not located:
         raise InputError(
             "dense_output and events need an RKQ-family method with every node kept "
-            f"(method={options.method!r}, keep_every={options.keep_every!r}, "
-            f"t_eval {'given' if t_eval_v is not None else 'not given'}): they are "
+            f"(method={options.method!r}, keep_every={options.keep_every!r}): they are "
             "found on the dense output between consecutive nodes; run rk34q8, auto "
-            "or another family member, and thin the nodes afterwards (sol.t[::k])"
+            "or another family member, and thin the nodes afterwards (sol.t[::k], or "
+            "t_eval)"
         )
+    output_times = None
+    if t_eval_v is not None and (dense_output or event_list):
+        # every node kept for the dense output; t_eval's values from it
+        output_times, t_eval_v = t_eval_v, None
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()
     if options.double_double:
@@ -503,7 +513,12 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     task = Task(
         ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
     )
-    task = replace(task, project=auto.projects(requested, task), auto=requested.method == "auto")
+    task = replace(
+        task,
+        project=auto.projects(requested, task),
+        auto=requested.method == "auto",
+        output_times=output_times,
+    )
     return Prepared(task, spec, chosen, compile_s, event_list, requested, events_note)
 
 

@@ -92,6 +92,11 @@ class Task:
     grew_exponentially: bool = False
     #: Run for ``method="auto"`` (``options.method`` is the member it chose).
     auto: bool = False
+    #: The caller's ``t_eval`` where events or dense output need every node:
+    #: the run keeps every node (``t_eval`` is then None), its values at these
+    #: times are dense output, checked as the kernel checks an output time
+    #: (:mod:`hamrkq.solve.output_times`), and they are the rows returned.
+    output_times: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
+from hamrkq.solve import output_times
 from hamrkq.solve.dispatch import MethodSpec, Task, dense_tolerance, member_of
 
 __all__ = [
@@ -123,7 +124,8 @@ def certified_at_events(
     turned off) are returned as they are.  An interrupted run, or one whose
     events are being located when Ctrl-C or SIGTERM lands, is returned with
     status ``INTERRUPTED`` and the events :func:`_located_in_time` finds."""
-    if not specs or out.t.shape[0] < 2:
+    sampled = task.output_times is not None
+    if not (specs or sampled) or out.t.shape[0] < 2:
         return out, None
     if out.status == Status.INTERRUPTED.code:
         return out, _located_in_time(task, out, specs, backend)
@@ -138,6 +140,13 @@ def certified_at_events(
         if out.gamma is None or not limit < math.inf:
             return out, located
         failure = _first_failure(task, out, specs, found, limit)
+        if sampled:
+            # the output times up to a terminal event's (SciPy's t_eval)
+            stop = found[stop_by][0][-1] if stop_by >= 0 else None
+            at_output = output_times.first_failure(task, out, dense, stop)
+            key = 1.0 if out.t[-1] >= out.t[0] else -1.0
+            if at_output is not None and (failure is None or key * at_output.t < key * failure.t):
+                return output_times.cut_before(out, at_output), None
     except KeyboardInterrupt:
         # Ctrl-C or SIGTERM while the events of a run (finished or not) were
         # located: the nodes stand, and the events among the first of them.
@@ -277,7 +286,7 @@ def run_certified(
     which return a finished :class:`~hamrkq.result.Solution`), and the
     events located on it."""
     out = spec.run(task, backend)
-    if isinstance(out, Solution) or not specs:
+    if isinstance(out, Solution) or not (specs or task.output_times is not None):
         return out, None
     return certified_at_events(task, out, specs, backend)
 
@@ -311,11 +320,15 @@ def with_events(
             task.ham, member_of(task), backend, task.params, sol.t, sol.y, sol.z,
             dense_tolerance(task), checked,
         )  # fmt: skip
-    if not specs:
-        return sol.replace(sol=dense)
     z_dense = None if sol.z is None else dense.through(sol.t, sol.z, None)
 
     def energy(t, Y):
         return numeric_of(task.ham).energy(t, Y, task.params)
 
-    return _events.apply(sol, specs, dense, energy, z_dense, keep_dense, found)
+    if specs:
+        sol = _events.apply(sol, specs, dense, energy, z_dense, keep_dense, found)
+    elif keep_dense:
+        sol = sol.replace(sol=dense)
+    if task.output_times is None:
+        return sol
+    return output_times.sampled(sol, task, dense, z_dense, energy)
