@@ -138,3 +138,24 @@ def test_a_problem_files_events_are_still_left_out_with_t_eval(kepler, tmp_path)
         sol = hamrkq.solve(problem, t_eval=[0.0, 5.0, 10.0])
     assert sol.t_events is None
     np.testing.assert_array_equal(sol.t, [0.0, 5.0, 10.0])
+
+
+def test_an_interrupted_run_returns_the_output_times_it_can_certify(kepler):
+    """An interrupted run is neither cut nor run again: its output times
+    are kept up to the first whose value fails the check (4 pi, above)."""
+    calls = [0]
+
+    def raising(t, y):
+        calls[0] += 1
+        if calls[0] == 1:  # at the nodes, once the run has finished
+            raise KeyboardInterrupt
+        return y[3]
+
+    times = _pericentre_times(kepler)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = hamrkq.solve(kepler, method="rk67q10", atol=1e-9, rtol=1e-6, t_eval=times,
+                           events=raising)  # fmt: skip
+    assert sol.status is Status.INTERRUPTED
+    np.testing.assert_array_equal(sol.t, times[times < 4 * np.pi])
+    assert _over_tolerance(sol, kepler.exact) <= 1.05

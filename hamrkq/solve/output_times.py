@@ -110,6 +110,11 @@ def sampled(
     times = within_run(task.output_times, sol.t, task.t0)
     before = dense.nfev + (0 if z_dense is None else z_dense.nfev)
     y = dense.values_unchecked(times)
+    if sol.status is Status.INTERRUPTED:
+        # not checked by first_failure (an interrupted run is neither cut
+        # nor run again): the times up to the first that fails are kept
+        kept = _certified_prefix(times, y, dense, task)
+        times, y = times[:kept], y[:kept]
     changes: dict = {"t": times, "y": y, "energy": energy(times, y)}
     key = _key(sol.t) if sol.t.size > 1 else 1.0
     at_node = np.minimum(np.searchsorted(key * sol.t, key * times), sol.t.size - 1)
@@ -126,6 +131,21 @@ def sampled(
     after = dense.nfev + (0 if z_dense is None else z_dense.nfev)
     stats = {**sol.stats, "nfev": int(sol.stats.get("nfev", 0)) + after - before}
     return sol.replace(stats=stats, **changes)
+
+
+def _certified_prefix(
+    times: np.ndarray, values: np.ndarray, dense: DenseOutput, task: Task
+) -> int:
+    """How many of the first ``values`` pass the dense output's certificate."""
+    if dense.certificate is None or dense.t.size < 2:
+        return times.size
+    gamma, rounding, limit = dense.certificate
+    nodes = dense.y if dense.z is None else dense.z
+    ratios = attainability(times, values, dense.t, nodes, gamma, dense_tolerance(task), rounding)[
+        0
+    ]
+    bad = np.flatnonzero(~(ratios <= limit))
+    return times.size if bad.size == 0 else int(bad[0])
 
 
 def _interpolated(t_nodes: np.ndarray, rows: np.ndarray, times: np.ndarray) -> np.ndarray:
