@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import hamrkq
 from hamrkq.rkq.driver import Integration, Settings
@@ -136,3 +137,50 @@ def test_under_rtol_an_output_time_at_a_zero_checks_the_quenchers_error_there(me
     else:
         assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
         assert sol.t[-1] < sol.options["t_span"][1]
+
+
+def _decoupled_oscillators():
+    """Two oscillators coupled by q1^2 q2^2 / 2, released with q2 = p2 = 0:
+    q1 = 0.3 cos s + 0.4 sin s exactly (s = t - 10), q2 stays 0."""
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2")
+    ham = hamrkq.Hamiltonian(
+        (p1**2 + q1**2) / 2 + (p2**2 + q2**2) / 2 + q1**2 * q2**2 / 2, q=[q1, q2], p=[p1, p2]
+    )
+    phase = np.arctan2(0.4, 0.3)
+    zeros = 10.0 + np.pi / 2 + phase + np.pi * np.arange(3)  # of q1, in (10, 20)
+
+    def exact(t):
+        s = t - 10.0
+        zero = np.zeros_like(s)
+        return np.column_stack([0.3 * np.cos(s) + 0.4 * np.sin(s), zero,
+                                0.4 * np.cos(s) - 0.3 * np.sin(s), zero])  # fmt: skip
+
+    return ham, zeros, exact
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"method": "rk78q12", "quencher_precision": "double-double", "z_substeps": 12}],
+    ids=["auto", "rk78q12-double-double"],
+)
+def test_an_output_time_at_a_zero_under_a_tiny_atol_is_not_certified(options):
+    """QA: under rtol 1e-8 with atol 1e-20, asked for q1's zeros, auto (the
+    quencher in double-double after its reruns) returned SUCCESS with values
+    1120 times the tolerance off.  The value at an output time inside a
+    step is stepped with the quencher's stages in double, whose rounding
+    (an ulp of the state's size, 5e-18) the kernel's check counted only as
+    an ulp of the value (1e-32), and the double-double quencher's modelled
+    rounding is far below it.  Now the run stops there at once, naming the
+    atol that works, and with it succeeds within the tolerance."""
+    ham, zeros, exact = _decoupled_oscillators()
+    start = {"q0": [0.3, 0.0], "p0": [0.4, 0.0], "t_span": (10.0, 20.0), "t_eval": zeros}
+    sol = hamrkq.solve(ham, **start, atol=1e-20, rtol=1e-8, **options)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.t.size == 0
+    assert "a larger atol (at least 8.8e-15) is what works" in sol.message
+    # auto knows no rerun reduces it: one run
+    assert "discarded_evaluations" not in sol.stats
+    fixed = hamrkq.solve(ham, **start, atol=8.8e-15, rtol=1e-8)
+    assert fixed.status is hamrkq.Status.SUCCESS
+    truth = exact(fixed.t)
+    assert np.max(np.abs(fixed.y - truth) / np.maximum(8.8e-15, 1e-8 * np.abs(truth))) <= 1.05

@@ -13,7 +13,7 @@ import math
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith
 from hamrkq.rkq.jit import jitable
-from hamrkq.rkq.layout import DELTA, FLOOR, GNEW, K1, NFLOOR, NHI, NOISE, RHO2, TMP2, U
+from hamrkq.rkq.layout import DELTA, FLOOR, GNEW, K1, NFLOOR, NHI, NOISE, RHO2, TMP2, ZHI, ZOLD, U
 
 __all__ = [
     "attainability",
@@ -46,7 +46,8 @@ def attainability(work, problem, cfg, unew, t_lo, h):
 def quencher_share(rho2, z, gamma, floor):
     """``|Gamma| + rho + eps |z| + floor`` of one component: what the
     quencher's value may be off by (its estimated error, its rounding,
-    modelled and measured, and the rounding of the stored value)."""
+    modelled and measured, and the rounding of the stored value, ``z``
+    its size)."""
     return ((math.sqrt(rho2) + abs(z) * EPS) + abs(gamma)) + floor
 
 
@@ -60,11 +61,21 @@ def dense_attainability(work, z, gamma):
     nodes does not see.  Kepler at ``rtol`` 1e-6 (``atol`` 1e-9) with
     ``rk78q12``, asked for the pericentre times: the value there, where
     ``p1 = 0`` and the tolerance is ``atol``, was 1.63 tolerances off, the
-    quencher's own error, where the run with those times as nodes stopped."""
+    quencher's own error, where the run with those times as nodes stopped.
+
+    The value's own rounding is an ulp of the larger of it and the two
+    nodes' quencher values (``V[ZOLD]``, ``V[ZHI]``), as
+    :func:`hamrkq.rkq.dense.attainability` takes it: the value is stepped
+    with the quencher's stages in double, whose rounding is the state's
+    size's, not the value's where a component crosses zero.  With the
+    quencher in double-double, whose modelled rounding is far below it,
+    an output time at a zero of a component under ``atol`` 1e-20 returned
+    SUCCESS 1120 times the tolerance off (``tests/test_t_eval_dense.py``)."""
     V = work.V
     ratios = V[TMP2]
     for i in range(z.shape[0]):
-        ratios[i] = quencher_share(V[RHO2, i], z[i], gamma[i], V[FLOOR, i]) / V[DELTA, i]
+        size = max(abs(z[i]), abs(V[ZOLD, i]), abs(V[ZHI, i]))
+        ratios[i] = quencher_share(V[RHO2, i], size, gamma[i], V[FLOOR, i]) / V[DELTA, i]
     return arith.vmax(ratios)
 
 

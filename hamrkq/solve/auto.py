@@ -52,6 +52,7 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
+from hamrkq.solve.output_times import output_rounding_limits
 
 __all__ = [
     "MIN_GROWTH_STEPS",
@@ -152,6 +153,8 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         return None  # the stored values' own rounding: more substeps cannot help
     if stored_rounding_limits(out.event_failure, task.options.gamma_limit):
         return None  # the same at an event state
+    if output_rounding_limits(out, task):
+        return None  # and at an output time inside a step
     if out.at_rounding_floor:
         # Double precision's floor for this orbit: the quencher in
         # double-double goes below it, where f has a double-double form.

@@ -34,6 +34,11 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
+from hamrkq.solve.output_times import (
+    atol_above_output_rounding,
+    output_rounding,
+    output_rounding_limits,
+)
 
 __all__ = ["rerun_note", "solution"]
 
@@ -126,13 +131,11 @@ def _component(task: Task, index: int) -> str:
     return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
 
 
-def _unattainable(out: RunOutput, task: Task) -> str:
+def _where_it_failed(out: RunOutput, task: Task) -> tuple[str, bool]:
+    """The first sentences for an unattainable tolerance: where and by how
+    much; and whether they are the whole message (the value's own rounding
+    at an event state or an output time, where one remedy works)."""
     o = task.options
-    t = out.t_last
-    if out.saturated:
-        return _shadow_saturated(out, task)
-    if not math.isfinite(out.max_ratio):
-        return _estimate_diverged(out, task)
     if out.event_failure is not None:
         text = _event_failed(out, task)
         if stored_rounding_limits(out.event_failure, o.gamma_limit):
@@ -142,14 +145,36 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "it, whose last bit is an ulp of the state's size there, not of the component "
                 "near zero; more quencher steps or the quencher in double-double do not go "
                 "below it. A larger atol is what works."
-            )
-    else:
-        text = (
-            f"At t = {float(t)!r} the quencher's estimated global error plus its rounding would "
-            f"reach {out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), so "
-            "the tolerance can no longer be certified; the run ends at the last node where it "
-            "held."
-        )
+            ), True
+        return text, False
+    text = (
+        f"At t = {float(out.t_last)!r} the quencher's estimated global error plus its rounding "
+        f"would reach {out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), "
+        "so the tolerance can no longer be certified; the run ends at the last node where it "
+        "held."
+    )
+    if output_rounding_limits(out, task):
+        return text + (
+            " That is an output time of t_eval inside a step, whose value is stepped with "
+            "the quencher's stages in double: its own rounding is an ulp of the state's "
+            f"size, {output_rounding(out, task):.3g} x atol, and where a component passes "
+            "zero under rtol its tolerance there is atol alone. More quencher steps or the "
+            "quencher in double-double do not go below it; a larger atol (at least "
+            f"{atol_above_output_rounding(out, task):.2g}) "
+            "is what works."
+        ), True
+    return text, False
+
+
+def _unattainable(out: RunOutput, task: Task) -> str:
+    o = task.options
+    if out.saturated:
+        return _shadow_saturated(out, task)
+    if not math.isfinite(out.max_ratio):
+        return _estimate_diverged(out, task)
+    text, final = _where_it_failed(out, task)
+    if final:
+        return text
     if out.y.size:
         y = np.abs(out.y[-1])
         floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))

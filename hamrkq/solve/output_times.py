@@ -29,12 +29,22 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hamrkq._floats import EPS
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.solve.dispatch import Task, dense_tolerance
 
-__all__ = ["OutputFailure", "cut_before", "first_failure", "sampled", "within_run"]
+__all__ = [
+    "OutputFailure",
+    "atol_above_output_rounding",
+    "cut_before",
+    "first_failure",
+    "output_rounding",
+    "output_rounding_limits",
+    "sampled",
+    "within_run",
+]
 
 
 class OutputFailure(NamedTuple):
@@ -80,6 +90,52 @@ def first_failure(
         return None
     j = int(bad[0])
     return OutputFailure(float(times[j]), float(ratios[j]), float(rounding[j]))
+
+
+def output_rounding(out: RunOutput, task: Task) -> float:
+    """For a run that ended at an output time inside a step (``t_eval``, by
+    the kernel or sampled here): the value's own rounding over ``atol``,
+    ``max_k eps u_k / atol_k`` with ``u_k`` the component's largest size
+    along the run; 0 for a run that did not.  The value is stepped with the
+    quencher's stages in double (whatever the quencher's precision), so
+    its rounding is an ulp of the state's size, and where a component
+    passes zero under ``rtol`` its tolerance there is ``atol`` alone: no
+    quencher goes below that, a larger ``atol`` does."""
+    times = task.t_eval if task.output_times is None else task.output_times
+    if (
+        times is None
+        or out.status != Status.TOLERANCE_UNATTAINABLE.code
+        or not np.any(times == out.t_last)
+    ):
+        return 0.0
+    return float(np.max(EPS * _state_size(out, task) / task.atol))
+
+
+def atol_above_output_rounding(out: RunOutput, task: Task) -> float:
+    """The ``atol`` at which the value's own rounding at an output time is
+    at most a quarter of ``gamma_limit`` (:func:`output_rounding`), leaving
+    the rest for the quencher's error: the remedy the message names."""
+    return 4.0 * EPS * float(np.max(_state_size(out, task))) / task.options.gamma_limit
+
+
+def _state_size(out: RunOutput, task: Task) -> np.ndarray:
+    """Each component's largest ``|y|`` over the run (the kernel's, where
+    rows are thinned), at least ``|y0|``."""
+    size = np.abs(task.y0)
+    if out.y_max is not None:
+        size = np.maximum(size, out.y_max)
+    if out.y.shape[0]:
+        size = np.maximum(size, np.abs(out.y).max(axis=0))
+    return size
+
+
+def output_rounding_limits(out: RunOutput, task: Task) -> bool:
+    """Whether a run ended at an output time on the value's own rounding
+    (:func:`output_rounding` at least half of ``gamma_limit``), which no
+    rerun reduces: what ``method="auto"`` does not run again for, and what
+    the message then says (the same for an event state:
+    :func:`hamrkq.solve.event_check.stored_rounding_limits`)."""
+    return output_rounding(out, task) >= 0.5 * task.options.gamma_limit
 
 
 def cut_before(out: RunOutput, failure: OutputFailure) -> RunOutput:
