@@ -342,3 +342,52 @@ def test_first_step_is_not_below_the_roundoff_floor_of_t0():
     for method in ("auto", "rk34q8"):
         sol = hamrkq.solve(kepler, **start, atol=1e-20, rtol=1e-9, method=method)
         assert sol.status is hamrkq.Status.SUCCESS, sol.message
+
+
+OSCILLATOR = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2, q=[q], p=[p])
+
+
+@pytest.mark.parametrize("span", [-1.0, 1.1, -3.0])
+def test_the_last_steps_at_a_large_t_do_not_stretch_into_endless_rejections(span):
+    """QA: at t = 1e12 the roundoff floor (10 eps |t|) is 2.2e-3, a quarter
+    of the oscillator's steps at 1e-10.  A free step leaving less than the
+    floor before the end was stretched to land there, rejected, shrunk by
+    the controller, stretched again: 19 869 rejected attempts and MAX_STEPS
+    0.0089 from the end.  Now it goes half the way instead."""
+    t0 = 1e12
+    sol = hamrkq.solve(OSCILLATOR, q0=[0.3], p0=[0.4], t_span=(t0, t0 + span), method="rk34q8",
+                       atol=1e-10, max_steps=20_000)  # fmt: skip
+    assert sol.status is Status.SUCCESS
+    assert sol.stats["rejected"] <= 5
+    s = sol.t - t0  # exact: t is within 3 of t0 (Sterbenz)
+    exact = np.column_stack([0.3 * np.cos(s) + 0.4 * np.sin(s), 0.4 * np.cos(s) - 0.3 * np.sin(s)])
+    assert np.max(np.abs(sol.y - exact)) <= 1.05e-10
+
+
+def test_a_span_below_the_roundoff_floor_underflows_at_once():
+    """At t = 1e15 the floor is 2.2: a span of 1 retried its landing step a
+    million times (MAX_STEPS, 12 M evaluations with auto); now, once the
+    controller asks for less than the floor, it is STEP_SIZE_UNDERFLOW."""
+    for method in ("rk34q8", "auto"):
+        sol = hamrkq.solve(OSCILLATOR, q0=[0.3], p0=[0.4], t_span=(1e15, 1e15 + 1.0),
+                           method=method, atol=1e-10)  # fmt: skip
+        assert sol.status is Status.STEP_SIZE_UNDERFLOW
+        assert sol.stats["rejected"] <= 2
+        assert "fell below the roundoff floor" in sol.message
+
+
+def test_the_odesolver_finishes_near_a_large_t_bound():
+    """The same stretch hung ``hamrkq.RK34Q8.step()`` (it retries until a
+    step is accepted)."""
+
+    def jac(t, y):
+        return np.array([[0.0, 1.0], [-1.0, 0.0]])
+
+    solver = hamrkq.RK34Q8(lambda t, y: np.array([y[1], -y[0]]), 1e12, [0.3, 0.4], 1e12 - 1.0,
+                           jac=jac, atol=1e-10)  # fmt: skip
+    for _ in range(1000):
+        if solver.status != "running":
+            break
+        solver.step()
+    assert solver.status == "finished"
+    assert solver.t == 1e12 - 1.0
