@@ -157,10 +157,19 @@ def auto_retry_substeps(
     int or None
         None when the stop was not the quencher's truncation error (its
         estimate is below half the limit: rounding stopped it, and more
-        quencher steps do not help), when ``AUTO_MAX_SUBSTEPS`` is reached,
-        or, for an exponential growth, when it would not reach the end.
+        quencher steps do not help; or it is not finite), when
+        ``AUTO_MAX_SUBSTEPS`` is reached, or, for an exponential growth,
+        when it would not reach the end.
     """
     if not (0.0 < reached < 1.0) or not gamma_ratio >= 0.5 * gamma_limit:
+        return None
+    if math.isinf(gamma_ratio):
+        # An estimate that stopped being finite measures no truncation error
+        # that more quencher steps shrink (a diverged shadow track, whose
+        # error does not depend on them, or a rounding variance whose square
+        # overflowed): the oscillator at |y| = 5e169, atol 3e169, stopped at
+        # t = 2.27 of 10, and auto raised OverflowError turning the infinite
+        # ratio into quencher steps.  The run keeps its own status.
         return None
     if growth is None:
         return _grown_substeps(substeps, z_order, gamma_ratio / reached**2, gamma_limit)
@@ -181,6 +190,10 @@ def _grown_substeps(substeps: int, z_order: int, projected: float, gamma_limit: 
     if substeps >= AUTO_MAX_SUBSTEPS:
         return None
     needed = 2.0 * projected / gamma_limit
+    if needed == math.inf:
+        # a finite ratio over a tiny share of the interval squared: as many
+        # as a large finite projection gets (the power of inf has no ceil)
+        return AUTO_MAX_SUBSTEPS
     grown = math.ceil(substeps * needed ** (1.0 / z_order) - 1e-9)
     return min(AUTO_MAX_SUBSTEPS, max(substeps + 1, grown))
 
