@@ -44,6 +44,7 @@ from hamrkq.rkq.witness_rules import needs_witness_after_run, state_outgrew_its_
 from hamrkq.solve.dispatch import (
     METHODS,
     Task,
+    can_witness,
     largest_state,
     member_of,
     run_rk,
@@ -127,6 +128,8 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # Kepler orbit's pericentre passages early in a run): more quencher steps
     # only push the stop a little later and carry the shadow out of its
     # linear regime, and the rounding grows alike.
+    if out.status not in (ST_ABANDONED, Status.TOLERANCE_UNATTAINABLE.code):
+        return None  # finished, or ended where no rerun helps
     unstable = exponential and task.grew_exponentially
     task = replace(task, grew_exponentially=exponential)  # for the next run's decision
     if out.status == ST_ABANDONED:
@@ -139,8 +142,16 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
         )
         assert substeps is not None  # only a run that can run again projects
         return _with_substeps(requested, task, substeps)
-    if out.status != Status.TOLERANCE_UNATTAINABLE.code:
-        return None
+    return _after_a_stop(requested, task, out, factor if unstable else None)
+
+
+def _after_a_stop(
+    requested: SolveOptions, task: Task, out: Any, growth: float | None
+) -> Task | None:
+    """:func:`rerun` of a run stopped with ``TOLERANCE_UNATTAINABLE`` (not
+    abandoned): ``method="auto"`` with more quencher steps, or the quencher
+    in double-double, where that can help; ``growth``: the estimate's
+    growth where it was exponential twice in a row, else None."""
     if requested.method != "auto" or requested.z_substeps is not None:
         return None
     if out.gamma is None:
@@ -166,7 +177,7 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # Unless the stop was close enough to the end that the growth, projected,
     # leaves it within reach (the Arenstorf orbit at rtol 1e-6, stopped at
     # 0.99998 of its period).
-    substeps = retry_substeps(out, task, growth=factor if unstable else None)
+    substeps = retry_substeps(out, task, growth=growth)
     if substeps is None:
         return None
     return _with_substeps(requested, task, substeps)
@@ -325,12 +336,9 @@ def _witnessed(task: Task) -> Task | None:
     """``task`` with the rounding witness; None where the witness ran
     already or cannot (the paper's estimate, or the quencher in
     double-double)."""
-    if uses_witness(task) or task.options.double_double:
+    if not can_witness(task.options) or uses_witness(task):
         return None
-    task = replace(task, witness=True)
-    if not uses_witness(task):  # the tangent or the paper's estimate: no witness
-        return None
-    return task
+    return replace(task, witness=True)
 
 
 def _with_witness(requested: SolveOptions, task: Task) -> Task | None:

@@ -39,6 +39,7 @@ __all__ = [
     "TERMINAL_BUDGET",
     "MethodSpec",
     "Task",
+    "can_witness",
     "dense_tolerance",
     "integration",
     "largest_state",
@@ -130,6 +131,12 @@ def dense_tolerance(task: Task) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return task.atol, task.rtol, np.array([relative, o.codes()["rule"], o.quench_threshold, m])
 
 
+def can_witness(options: SolveOptions) -> bool:
+    """Whether a run with these options can run the rounding witness: the
+    shadow's or the tangent's estimate, the quencher in double."""
+    return options.gamma_name in ("shadow", "tangent") and not options.double_double
+
+
 def uses_witness(task: Task) -> bool:
     """Whether an RKQ-family task runs the rounding witness: the shadow
     estimate at a tolerance near double precision's floor, or with a
@@ -139,12 +146,11 @@ def uses_witness(task: Task) -> bool:
     estimate, :func:`hamrkq.solve.auto.witness_rerun_needed`).  The tangent
     estimate (``rk34q8``'s) does not run it from the start, so that the
     paper's runs stay the paper's; the paper's own estimate never runs it."""
-    name = task.options.gamma_name
-    if name not in ("shadow", "tangent") or task.options.double_double:
+    if not can_witness(task.options):
         return False
     if task.witness is not None:
         return task.witness
-    if name != "shadow":
+    if task.options.gamma_name != "shadow":
         return False
     member = member_of(task)
     return needs_witness(

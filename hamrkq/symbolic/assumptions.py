@@ -176,6 +176,8 @@ def _broken(symbol: Any, value: float) -> tuple[str, bool] | None:
     """The assumption on ``symbol`` that ``value`` contradicts, as the user
     wrote it where one of those is broken (``nonnegative=True`` rather than
     SymPy's derived ``negative=False``), or None."""
+    if _declared(symbol) is None:  # nothing checked is declared (remembered per symbol)
+        return None
     declared = getattr(symbol, "assumptions0", {})
     written = getattr(symbol, "_assumptions_orig", None) or {}
     order = [n for n in CHECKED_ASSUMPTIONS if written.get(n) is not None]
