@@ -9,6 +9,7 @@ against it.
 import math
 
 import numpy as np
+import pytest
 import sympy as sp
 
 import hamrkq
@@ -52,3 +53,63 @@ def test_auto_returns_the_runs_own_status_where_its_estimate_stops_being_finite(
         # and its nodes are right: within 3e-4 of the tolerance
         exact = oscillator_exact(sol.t - span[0], 3e169, 4e169)
         assert np.max(np.abs(sol.y - exact)) / 3e169 < 3e-4
+
+
+HUGE_STATE_MESSAGE = (
+    "At t = 10.0 the quencher's modelled rounding is no longer finite, so the tolerance can "
+    "no longer be certified; the run ends at the last node where it held. The model sums the "
+    "squares of eps times the quencher's increments, and a square overflows a double once "
+    "that passes 1.34e+154: from a state of about 1e169 on, and the state's largest "
+    "component here is 4e+199. It is the state's size, not the orbit or the tolerance: a "
+    "looser tolerance or another estimate of the quencher's error does not help. What works: "
+    "variables rescaled to bring the state well below 1e169 (q = s Q and p = s P, with "
+    "H(s Q, s P) / s^2 as the Hamiltonian: the same t). The 1 node computed so far is kept."
+)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"method": "auto"},
+        {"method": "rk34q8"},
+        {"method": "rk78q12", "global_error_estimate": "tangent"},
+        {"method": "rk34q8", "global_error_estimate": "off"},
+    ],
+)
+def test_a_state_whose_rounding_model_overflows_is_named_as_the_cause(options):
+    # |y| = 5e199, atol = 1e199: f and the exact solution are finite, Gamma
+    # too (4e186 at the first step), but eps times an increment is 1e184,
+    # whose square overflows.  The message blamed Gamma ("no longer finite"),
+    # with auto a diverged shadow "near an unstable equilibrium or a
+    # separatrix, or on a chaotic orbit", and named a looser tolerance and
+    # global_error_estimate='tangent', with 'off' (no Gamma at all) too.
+    sol = hamrkq.solve(
+        OSCILLATOR, q0=[3e199], p0=[4e199], t_span=(10.0, 0.0), atol=1e199, **options
+    )
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.t.tolist() == [10.0]
+    assert sol.message == HUGE_STATE_MESSAGE
+
+
+def test_the_rescaled_state_that_the_message_names_succeeds():
+    # s = 1e190: Q0 = 3e9, P0 = 4e9, H(s Q, s P) / s^2 is the same oscillator;
+    # s Q is within the tolerance of the exact solution at 5e199 (0.015 of it).
+    sol = hamrkq.solve(OSCILLATOR, q0=[3e9], p0=[4e9], t_span=(10.0, 0.0), atol=1e9)
+    assert sol.success
+    exact = oscillator_exact(sol.t - 10.0, 3e199, 4e199)
+    assert np.max(np.abs(1e190 * sol.y - exact)) / 1e199 < 1.05
+
+
+def test_a_diverged_shadow_at_a_small_state_still_says_so():
+    # H = p^2/2 + exp(q^2) from p = 30 at atol 10: rk78q12's shadow, one step
+    # a step, evaluates exp(q^2) beyond a double at t0.  The state is 30: no
+    # overflow of the rounding model, and the message names the shadow.
+    ham = hamrkq.Hamiltonian(p**2 / 2 + sp.exp(q**2), q=[q], p=[p])
+    sol = hamrkq.solve(ham, q0=[0.0], p0=[30.0], t_span=(0.0, 3.0), atol=10.0, method="rk78q12")
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.t.tolist() == [0.0]
+    assert sol.message.startswith(
+        "At t = 0.0 the estimate of the quencher's global error (Gamma) is no longer finite"
+    )
+    assert "it diverged" in sol.message
+    assert "modelled rounding" not in sol.message

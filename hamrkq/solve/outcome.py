@@ -11,6 +11,7 @@ first.
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,7 @@ from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
 from hamrkq.solve.dispatch import (
     MethodSpec,
     Task,
+    largest_state,
     member_of,
     time_rounding_limits,
     time_scale,
@@ -346,9 +348,68 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     )
 
 
+#: The largest rounding level whose square is a double.  The quencher's
+#: modelled rounding ``rho_k`` is the root of a sum of squares of ``eps``
+#: times its increments (:func:`hamrkq.rkq.steps.quencher_step`,
+#: docs/algorithm.md), so it overflows where those pass this, from a state of
+#: about ``ROUNDING_SQUARE_LIMIT / eps`` = 6e169 on (1e169 for the oscillator
+#: over 1000 time units, whose squares add up), however finite f and the
+#: solution are.
+ROUNDING_SQUARE_LIMIT = math.sqrt(sys.float_info.max)
+#: A ratio that stopped being finite at a state whose ``eps |y|`` is at least
+#: this share of :data:`ROUNDING_SQUARE_LIMIT` (``|y|`` from 6e165) is put
+#: down to that overflow: the squares of a run of ``N`` steps add up to
+#: ``N (eps |y| h w)^2`` (``w`` the orbit's frequency, ``h w`` below one), so
+#: a million radians of an orbit at ``h w = 0.5`` overflow from ``|y|`` =
+#: 8.5e166; below 6e165, only runs of 4e8 steps or more.
+ROUNDING_OVERFLOW_SHARE = 1e-4
+
+
+def _rounding_overflows(out: RunOutput) -> bool:
+    """Whether a run whose ratio stopped being finite reached a state large
+    enough for the quencher's modelled rounding to overflow
+    (:data:`ROUNDING_OVERFLOW_SHARE`)."""
+    return EPS * _state_size(out) >= ROUNDING_OVERFLOW_SHARE * ROUNDING_SQUARE_LIMIT
+
+
+def _state_size(out: RunOutput) -> float:
+    """The largest ``|y_k|`` over every node of a run, kept or not (its
+    start too: a run that ends at t0 keeps only that)."""
+    size = float(np.max(largest_state(out), initial=0.0))
+    if out.y_max is not None:
+        size = max(size, float(np.max(out.y_max, initial=0.0)))
+    return size
+
+
+def _rounding_overflowed(out: RunOutput) -> str:
+    """The message for a run ended where the quencher's modelled rounding
+    overflowed (:func:`_rounding_overflows`): the oscillator at ``|y|`` =
+    5e199 with ``atol`` 1e199, whose f and exact solution are finite, ended
+    at t0 with every member, and the message said Gamma was no longer
+    finite, then blamed a chaotic orbit and named a looser tolerance and
+    ``global_error_estimate='tangent'``, with no Gamma at all
+    (``global_error_estimate='off'``) too."""
+    return (
+        f"At t = {float(out.t_last)!r} the quencher's modelled rounding is no longer finite, "
+        "so the tolerance can no longer be certified; the run ends at the last node where it "
+        "held. The model sums the squares of eps times the quencher's increments, and a "
+        f"square overflows a double once that passes {ROUNDING_SQUARE_LIMIT:.3g}: from a "
+        f"state of about 1e169 on, and the state's largest component here is "
+        f"{_state_size(out):.3g}. "
+        "It is the state's size, not the orbit or the tolerance: a looser tolerance or "
+        "another estimate of the quencher's error does not help. What works: variables "
+        "rescaled to bring the state well below 1e169 (q = s Q and p = s P, with "
+        "H(s Q, s P) / s^2 as the Hamiltonian: the same t)."
+    )
+
+
 def _estimate_diverged(out: RunOutput, task: Task) -> str:
-    """The message for an estimate of Gamma that stopped being finite."""
+    """The message for an estimate of Gamma that stopped being finite, or
+    of the quencher's rounding (:func:`_rounding_overflowed`; without Gamma,
+    ``global_error_estimate='off'``, only that can)."""
     o = task.options
+    if o.gamma_name == "off" or _rounding_overflows(out):
+        return _rounding_overflowed(out)
     text = (
         f"At t = {float(out.t_last)!r} the estimate of the quencher's global error (Gamma) "
         "is no longer finite, so the tolerance can no longer be certified; the run ends at "
