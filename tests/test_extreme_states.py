@@ -1,5 +1,6 @@
 """States of extreme size, and the runs they end: ``solve`` returns a status
-and a message that names the true cause, never raises.
+and a message that names the true cause, never raises; and a fixed step
+longer than the interval, which the message states as taken.
 
 The harmonic oscillator ``H = (p^2 + q^2)/2`` is linear, so any scale of its
 state is exact (``q = q0 cos t + p0 sin t``): the nodes kept are checked
@@ -113,3 +114,25 @@ def test_a_diverged_shadow_at_a_small_state_still_says_so():
     )
     assert "it diverged" in sol.message
     assert "modelled rounding" not in sol.message
+
+
+def test_a_fixed_step_longer_than_the_interval_is_stated_as_taken():
+    # step=20 over (10, 0): one step of -10, which said "in 1 steps of 20.0".
+    sol = hamrkq.solve(
+        OSCILLATOR, q0=[0.3], p0=[0.4], t_span=(10.0, 0.0), method="gauss4", step=20.0
+    )
+    assert sol.success
+    assert sol.t.tolist() == [10.0, 0.0]
+    assert sol.message == "gauss4 reached t=0.0 in 1 step of -10.0"
+    # several steps: signed, and the last where it was shortened to land on t1
+    for span, step, taken in [
+        ((1.0, 0.0), 0.1, "10 steps of -0.1"),
+        ((10.0, 0.0), 3.0, "4 steps of -3.0, the last -1.0"),
+        ((0.0, 10.0), 3.0, "4 steps of 3.0, the last 1.0"),
+    ]:
+        sol = hamrkq.solve(
+            OSCILLATOR, q0=[0.3], p0=[0.4], t_span=span, method="midpoint", step=step
+        )
+        assert sol.message == f"midpoint reached t={span[1]!r} in {taken}"
+        # the last step as stated: -0.1 up to the rounding of t_9 = 1 - 9 x 0.1
+        assert np.diff(sol.t)[-1] == pytest.approx(float(taken.split()[-1]), rel=1e-15)

@@ -128,6 +128,23 @@ def _make_mesh(t0: float, t1: float, h: float, keep_every: int, max_steps: int |
     return Mesh(t0, t1, math.copysign(h, t1 - t0), steps, keep_every, stop)
 
 
+def _steps_taken(mesh: Mesh) -> str:
+    """The steps of a run over the whole ``mesh`` as taken: signed (negative
+    backward), and the last where it was shortened to land on ``t1`` (beyond
+    the slack of a mesh that divides the interval).  The step asked for was
+    said before: ``gauss4`` with ``step=20`` over (10, 0) took one step of
+    -10 and said "in 1 steps of 20.0"."""
+    if mesh.steps == 0:
+        return "0 steps"
+    last = mesh.step_length(mesh.steps - 1)
+    if mesh.steps == 1:
+        return f"1 step of {last!r}"
+    text = f"{mesh.steps} steps of {mesh.h!r}"
+    if abs(last - mesh.h) > MESH_SLACK * abs(mesh.t1 - mesh.t0):
+        text += f", the last {last!r}"
+    return text
+
+
 _STATUS = {
     None: Status.SUCCESS,
     "newton": Status.NEWTON_FAILED,
@@ -242,7 +259,7 @@ def integrate_fixed(
             f"({mesh.steps} steps needed to reach t1={t1!r})"
         )
     else:
-        message = f"{method} reached t={t1!r} in {reached} steps of {h!r}"
+        message = f"{method} reached t={t1!r} in {_steps_taken(mesh)}"
     idx = mesh.kept_indices(reached)
     t = mesh.t0 + idx * mesh.h
     if reached == mesh.steps:
