@@ -69,22 +69,23 @@ def test_megno_grows_linearly_on_a_chaotic_orbit():
     q0, p0 = energy_orbits(hh.hamiltonian, 1 / 6, 5)
     y = megno(hh, q0[0], p0[0], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
     lam = lyapunov(hh, q0[0], p0[0], (0.0, 2000.0), atol=1e-10, gamma_limit=math.inf)
-    # <Y> ~ lambda t / 2: measured 34.6, 74.1, 141.3 at t = 500, 1000, 2000.
+    # <Y> ~ lambda t / 2: 40.4, 77.1, 145.1 at t = 500, 1000, 2000 (the same orbit in
+    # docs/figures/make_events_figures.txt).
     late = y.t > 500
     slope = np.polyfit(y.t[late], y.value[late], 1)[0]
     assert y.value[-1] > 50
     assert 0.25 * lam.value[-1] < slope < 1.0 * lam.value[-1]
-    assert lam.value[-1] > 0.05  # measured 0.131
+    assert lam.value[-1] > 0.05  # 0.148 (docs/figures/make_events_figures.txt)
 
 
 @pytest.mark.slow
 def test_lyapunov_exponent_of_the_henon_heiles_sea_agrees_with_the_published_value():
     """Sprott, Chaos and Time-Series Analysis (2003), Appendix A.6.5: 0.0450
     for the orbit (x, y, px, py) = (0.499, 0, 0, 0.03160676) at E = 1/8.  One
-    orbit's finite-time value wanders (measured on Sprott's orbit: 0.0381 at
-    t = 7.5e4, 0.0415 at 1e5, 0.0466 at 1e6; benchmarks/lyapunov.txt), so the
-    check is the mean over eight orbits of the same chaotic sea to t = 5e4
-    (measured 0.0445, single orbits 0.0385 to 0.0523)."""
+    orbit's finite-time value wanders (on Sprott's orbit 0.0462 at t = 1e5,
+    0.0479 at 2.5e5, 0.0456 at 1e6: benchmarks/lyapunov.txt), so the check is
+    the mean over eight orbits of the same chaotic sea to t = 5e4 (0.0459,
+    single orbits 0.0388 to 0.0531, the same file)."""
     hh = load_problem("henon_heiles")
     x0, py0 = 0.499, 0.03160676
     energy = 0.5 * (x0**2 + py0**2)

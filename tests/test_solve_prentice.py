@@ -3,7 +3,8 @@
 
 The reference is hamrkq.analysis.reference.periodic_reference: SciPy's DOP853 over one
 period at rtol = 100 eps with the period refined by Newton's method, read off
-modulo the period; its own estimated error (~3e-11) is checked to be at least
+modulo the period; its own estimated error (8.5e-11, benchmarks/reproduce/summary.json) is
+checked to be at least
 100 times below the tolerance.  The pure-Python loop takes ~30 s for the
 ~62 000 steps, so the runs are shared through module-scoped fixtures.
 """
