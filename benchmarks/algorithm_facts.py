@@ -613,12 +613,20 @@ def collision():
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sol = hamrkq.solve(ham, q0=[1.0], p0=[-2.0], t_span=(0.0, 2.0), atol=1e-6, method="auto")
+        common = dict(q0=[1.0], p0=[-2.0], t_span=(0.0, 2.0), atol=1e-6)
+        sol = hamrkq.solve(ham, method="auto", **common)
+        many = hamrkq.solve(ham, method="rk78q12", z_substeps=32,
+                            quencher_precision="double-double", **common)  # fmt: skip
     before = float(t_collision - mp.mpf(float(sol.t[-1])))
     yield (
-        f"{sol.status.name} {g(before)} before the collision ({sol.options['z_substeps']} "
+        f"auto: {sol.status.name} {g(before)} before the collision ({sol.options['z_substeps']} "
         f"quencher steps, in {sol.options['quencher_precision']}), largest node "
         f"{over_tolerance(sol.y, exact(sol.t), 1e-6):.3f} delta"
+    )
+    yield (
+        f"rk78q12 with 32 quencher steps in double-double: {many.status.name}, the quencher "
+        f"{g(worst(many.z - exact(many.t)))} from the 40-digit solution (rounded to double) "
+        f"at its {many.t.size} nodes"
     )
 
 
