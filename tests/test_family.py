@@ -238,9 +238,10 @@ def test_auto_rerun_rule_after_an_exponential_growth_projects_it_to_the_end():
 def test_auto_abandon_rule_grows_the_quenchers_steps_by_the_projection():
     from hamrkq.rkq.auto_rules import AUTO_MAX_SUBSTEPS, auto_abandon_substeps
 
-    # prentice2011 at 1e-6 in 2 steps a step: projected at 46 x the limit from
-    # t = 80; 2 (2 x 46)^(1/12) = 2.9, so 3 steps.
-    assert auto_abandon_substeps(2, 12, 46 * 0.05, 0.05) == 3
+    # prentice2011 at 1e-6 in 2 steps a step: projected at 0.585 of the
+    # tolerance, 11.7 x the limit, from t = 80 (benchmarks/algorithm_facts.txt);
+    # 2 (2 x 11.7)^(1/12) = 2.6, so 3 steps.
+    assert auto_abandon_substeps(2, 12, 0.585, 0.05) == 3
     assert auto_abandon_substeps(2, 12, 0.051, 0.05) == 3  # at least one more
     assert auto_abandon_substeps(AUTO_MAX_SUBSTEPS, 12, 1.0, 0.05) is None
 
