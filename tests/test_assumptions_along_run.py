@@ -74,10 +74,16 @@ def test_qa_example_ends_before_x_leaves_its_declared_sign():
     )
     assert "Abs(x)" in message
     assert message.endswith(f"The {len(sol)} nodes computed so far are kept.")
-    # The remedy works: the |x| dynamics, x(4) = -0.3137.
+    # The remedy works: the |x| dynamics, x(4) = -0.3137.  Certified, the run
+    # ends before the kink at x = 0 (hamrkq.solve.smoothness); without the
+    # certificate it goes on, as the message says.
     with pytest.warns(HamrkqWarning, match="not differentiable"):  # at the kink, as said
         remedied = hamrkq.Hamiltonian(P**2 / 2 + sp.Abs(XR), [XR], [P])
-    sol = hamrkq.solve(remedied, [1.0], [0.0], SPAN, atol=1e-9)
+    certified = hamrkq.solve(remedied, [1.0], [0.0], SPAN, atol=1e-9)
+    assert certified.status is Status.TOLERANCE_UNATTAINABLE
+    assert "where H is not smooth (Abs(x))" in certified.message
+    assert "gamma_limit=numpy.inf" in message
+    sol = hamrkq.solve(remedied, [1.0], [0.0], SPAN, atol=1e-9, gamma_limit=np.inf)
     assert sol.success
     s = 4.0 - np.sqrt(2.0)  # x = -sqrt(2) s + s^2/2 after the kink at t = sqrt(2)
     assert sol.y[-1, 0] == pytest.approx(-np.sqrt(2.0) * s + s**2 / 2, abs=1e-6)

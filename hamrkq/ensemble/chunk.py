@@ -51,6 +51,7 @@ from hamrkq.solve.dispatch import (
     time_scale,
 )
 from hamrkq.symbolic.assumptions import declares_checked
+from hamrkq.symbolic.kinks import kinks
 
 __all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
 
@@ -127,9 +128,10 @@ def _batch_prepared(request: Request) -> Any:
     kwargs = request.member_kwargs(0)
     if kwargs.get("events") or kwargs.get("dense_output"):
         return None
-    if declares_checked((*request.ham.q, *request.ham.p)):
+    if declares_checked((*request.ham.q, *request.ham.p)) or kinks(request.ham.H):
         # solve checks every node against the symbols' declared assumptions
-        # (Status.ASSUMPTION_VIOLATED); the batch loop keeps no nodes to check
+        # (Status.ASSUMPTION_VIOLATED) and the kinks of H (hamrkq.solve.smoothness);
+        # the batch loop keeps no nodes to check
         return None
     prepared = prepare(request.ham, **kwargs)
     task = prepared.task

@@ -49,7 +49,7 @@ from hamrkq.options import (
 )
 from hamrkq.result import Solution
 from hamrkq.rkq.auto_rules import auto_tolerance
-from hamrkq.solve import arguments, assumptions, auto, outcome
+from hamrkq.solve import arguments, assumptions, auto, outcome, smoothness
 from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
@@ -65,6 +65,7 @@ from hamrkq.solve.event_check import (
     run_certified,
     with_events,
 )
+from hamrkq.symbolic.kinks import kinks
 
 __all__ = [
     "BACKENDS",
@@ -313,6 +314,7 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             # family's (a baseline runs in Python: what it compiled is f).
             timing = {"integrate_s": elapsed, "compile_s": prepared.compile_s}
             out = assumptions.solution_within_assumptions(task, out)
+            out = smoothness.solution_within_smooth_region(task, out, prepared.spec.rk8)
             return _with_events_note(out.replace(stats={**out.stats, **timing}), prepared)
         out.stats.setdefault("integrate_s", elapsed)
         # Loading the compiled code mid-run (a background compile), or
@@ -367,7 +369,10 @@ def _solution(
     before the first node whose state contradicts an assumption declared on
     its symbols (:func:`assumptions.within_assumptions`), as a baseline's is."""
     out, located, breach = assumptions.within_assumptions(task, out, located, prepared.events)
+    out, located, crossing = smoothness.within_smooth_region(task, out, located, prepared.events)
     sol = outcome.solution(task, prepared.spec, out, chosen, breach)
+    if crossing is not None and breach is None:
+        sol = sol.replace(message=smoothness.crossing_message(crossing, task.ham, out.t))
     if discarded:
         note = outcome.rerun_note(
             task,
@@ -376,7 +381,7 @@ def _solution(
             auto=prepared.requested.method == "auto",
         )
         sol = sol.replace(message=sol.message + note)
-    if dense_output or prepared.events:
+    if dense_output or prepared.events or task.output_times is not None:
         sol = with_events(
             task, sol, chosen, prepared.events, dense_output, located, certificate(task, out)
         )
@@ -487,8 +492,17 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
             "t_eval)"
         )
     output_times = None
-    if t_eval_v is not None and (dense_output or event_list):
-        # every node kept for the dense output; t_eval's values from it
+    kinked = smoothness.checks_kinks(ham, options.gamma_limit, spec.run is run_rk and spec.rk8)
+    if kinked and options.keep_every != 1:
+        raise InputError(
+            f"keep_every={options.keep_every!r} would hide where the run crosses a kink of H "
+            f"({', '.join(k.term for k in kinks(ham.H))}), beyond which its tolerance cannot "
+            "be certified: keep every node and thin them afterwards (sol.t[::k]), or pass "
+            "gamma_limit=numpy.inf to run without the certificate"
+        )
+    if t_eval_v is not None and (dense_output or event_list or kinked):
+        # every node kept (for the dense output, or to see a kink crossed
+        # between output times); t_eval's values from the dense output
         output_times, t_eval_v = t_eval_v, None
     bar = arguments.progress_callback(progress, options.method)
     started = time.perf_counter()

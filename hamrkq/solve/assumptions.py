@@ -28,7 +28,14 @@ from hamrkq.solve.dispatch import Task
 from hamrkq.solve.event_check import Located, certificate
 from hamrkq.symbolic.assumptions import first_conflict
 
-__all__ = ["Breach", "breach_message", "solution_within_assumptions", "within_assumptions"]
+__all__ = [
+    "Breach",
+    "breach_message",
+    "first_rows",
+    "located_within",
+    "solution_within_assumptions",
+    "within_assumptions",
+]
 
 
 class Breach(NamedTuple):
@@ -81,10 +88,10 @@ def within_assumptions(
         breach = breach._replace(interrupted_near=float(out.t_last))
     else:
         cut = replace(cut, status=Status.ASSUMPTION_VIOLATED.code, t_last=breach.t)
-    return cut, _located_within(task, located, cut, specs), breach
+    return cut, located_within(task, located, cut, specs), breach
 
 
-def _located_within(
+def located_within(
     task: Task, located: Located | None, out: RunOutput, specs: list
 ) -> Located | None:
     """``located`` on the nodes ``out`` kept of the run it was found on:
@@ -113,17 +120,23 @@ def solution_within_assumptions(task: Task, sol: Solution) -> Solution:
     breach = _breach(task, sol.t, sol.y)
     if breach is None:
         return sol
-    keep = slice(breach.row)
-    arrays = {
-        name: getattr(sol, name)[keep]
-        for name in ("t", "y", "energy", "z", "global_error", "gamma", "quenched")
-        if getattr(sol, name) is not None
-    }
+    arrays = first_rows(sol, breach.row)
     status = Status.ASSUMPTION_VIOLATED
     if sol.status is Status.INTERRUPTED:
         status = Status.INTERRUPTED
         breach = breach._replace(interrupted_near=float(sol.t[-1]))
     return sol.replace(**arrays, status=status, message=breach_message(breach, arrays["t"]))
+
+
+def first_rows(sol: Solution, count: int) -> dict:
+    """The arrays of ``sol``'s first ``count`` nodes, by field name (those
+    it has): what a check after a baseline's run keeps when it cuts it."""
+    keep = slice(count)
+    return {
+        name: getattr(sol, name)[keep]
+        for name in ("t", "y", "energy", "z", "global_error", "gamma", "quenched")
+        if getattr(sol, name) is not None
+    }
 
 
 def breach_message(breach: Breach, t_kept: np.ndarray) -> str:
@@ -147,8 +160,10 @@ def breach_message(breach: Breach, t_kept: np.ndarray) -> str:
     text += f" (t = {float(t_kept[-1])!r})." if len(t_kept) else "."
     text += (
         f" If {name} may go there, declare its symbol real (Symbol({name!r}, real=True)) and "
-        f"write H for the whole line (Abs({name}), or sqrt({name}**2) of a real {name}); if it "
-        "may not, the model or the initial values carry it out of its domain."
+        f"write H for the whole line (Abs({name}), or sqrt({name}**2) of a real {name}, whose "
+        f"kink at {name} = 0 a certified run does not cross: integrate each side with its own "
+        "H, or pass gamma_limit=numpy.inf); if it may not, the model or the initial values "
+        "carry it out of its domain."
     )
     if breach.interrupted_near is not None:
         text = f"Interrupted (KeyboardInterrupt) near t = {breach.interrupted_near!r}. " + text
