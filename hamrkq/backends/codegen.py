@@ -18,10 +18,13 @@ into the text of two small Python modules of plain scalar functions, its
 
 The text is printed by SymPy's :class:`~sympy.printing.pycode.PythonCodePrinter`
 (``math`` functions) from the output of :func:`sympy.cse`
-(:mod:`hamrkq.backends.scalar_printer`).  Every symbol is
-printed as ``y[i]``, ``params[j]``, ``t``, ``v[k]`` or a numbered temporary, so
-no user-chosen name ever appears in the source, and the expression tree is
-checked against a whitelist of node types first (:func:`check_supported`):
+(:mod:`hamrkq.backends.scalar_printer`).  Every symbol, whatever its class
+(a ``Dummy`` too) or name, is printed as ``y[i]``, ``params[j]``, ``t``,
+``v[k]`` or a numbered temporary (none equal to a declared symbol), and the
+reason written into the module when there is no double-double form names a
+function, not an expression, so no user-chosen name ever appears in the
+source; the expression tree is checked against a whitelist of node types
+first (:func:`check_supported`):
 the compiled text comes from SymPy's printers over parsed expressions, never
 from raw file text.
 
@@ -88,7 +91,7 @@ __all__ = [
 
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 13
+CODEGEN_VERSION = 14
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
 _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -295,7 +298,9 @@ def _system_part(ham: Hamiltonian, names: dict, parameters: frozenset) -> list[s
 
 def _tangent_part(ham: Hamiltonian, names: dict, parameters: frozenset) -> list[str]:
     dim = ham.dim
-    vector = sp.symbols(f"_v0:{dim}", real=True)
+    # Equal to no declared symbol (one named _v0 would be printed as v[0]).
+    numbered = sp.numbered_symbols("_v", exclude=names, real=True)
+    vector = [next(numbered) for _ in range(dim)]
     names = {**names, **{s: f"v[{k}]" for k, s in enumerate(vector)}}
     rhs = list(ham.rhs)
     jac = ham.jacobian

@@ -114,8 +114,8 @@ class _Printer:
             return repr(float(expr)), "0.0"
         if expr in (sp.pi, sp.E):
             return _constant(mpmath.pi if expr == sp.pi else mpmath.e)
-        if expr.is_Symbol:
-            raise CodegenError(f"cannot generate double-double code for the symbol {expr}")
+        if expr.is_Symbol:  # not the system's (its name is not quoted: see rhs_dd_block)
+            raise CodegenError("cannot generate double-double code for a symbol not of the system")
         if expr.is_Add:
             return self._fold("dd_add", expr.args)
         if expr.is_Mul:
@@ -187,7 +187,7 @@ class _Printer:
             ah, _ = self.emit(expr.args[0])
             return self._new(f"(1.0 if {ah} > 0.0 else (-1.0 if {ah} < 0.0 else 0.0), 0.0)")
         raise CodegenError(
-            f"cannot generate double-double code for {type(expr).__name__} ({expr}): "
+            f"cannot generate double-double code for {type(expr).__name__}: "
             "supported are + * **, sin, cos, tan, exp, log, cosh, Abs and sign"
         )
 
@@ -195,12 +195,18 @@ class _Printer:
 def rhs_dd_block(ham) -> list[str]:
     """Lines of ``def rhs_dd(t, y, params, ylo, out, outlo, JM)`` for ``ham``.
 
+    Every symbol is printed as its slot (``y[i]``, ``ylo[i]``, ``params[j]``,
+    ``t``), whatever its class or name, and the errors name the function, not
+    the expression: their text is written into the generated module
+    (``DD_UNSUPPORTED``), where no user-chosen name appears.
+
     Raises
     ------
     CodegenError
         If the right-hand side contains a function with no double-double form.
     """
-    temps = sp.numbered_symbols("_d")
+    # Temporaries equal to no symbol of the system (whose values they would replace).
+    temps = sp.numbered_symbols("_d", exclude=[*ham.state, *ham.parameters, ham.t])
     replacements, reduced = sp.cse(list(ham.rhs), symbols=temps, order="none")
     exprs = [value for _, value in replacements] + list(reduced)
     sines = {a.args[0] for e in exprs for a in e.atoms(sp.sin)}

@@ -48,9 +48,14 @@ class _ScalarPrinter(PythonCodePrinter):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
         self._names = names
 
-    def _print_Symbol(self, expr: sp.Symbol) -> str:
-        # check_supported has already proved every symbol is in the table.
-        return self._names[expr]
+    def _print(self, expr, **kwargs) -> str:
+        # Every symbol, whatever its class, is printed from the table
+        # (check_supported has already proved that it is there): SymPy's own
+        # methods print a Dummy as its name and index (``q_8977807``) and a
+        # Wild as its name, user-chosen text in the generated source.
+        if isinstance(expr, sp.Symbol):
+            return self._names[expr]
+        return super()._print(expr, **kwargs)
 
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
         # Integer powers are spelled out so that every backend computes the
@@ -218,9 +223,11 @@ def _body(
     """CSE of ``exprs``: the lines assigning the constant offsets (named
     ``<temp_prefix>k0, <temp_prefix>k0_lo, ...``) and the temporaries (named
     ``<temp_prefix>0, 1, ...``), and those assigning each target."""
-    offset_symbols = sp.numbered_symbols("_k")
+    # Temporaries equal to no symbol of the table: one that did (a coordinate
+    # named _c0) would have its entry overwritten.
+    offset_symbols = sp.numbered_symbols("_k", exclude=names)
     exprs, offsets = _constant_offsets(exprs, parameters, offset_symbols)
-    temps = sp.numbered_symbols("_c")
+    temps = sp.numbered_symbols("_c", exclude=names)
     replacements, reduced = sp.cse(list(exprs), symbols=temps, order="none")
     replacements, reduced = _hoist_power_bases(replacements, reduced, temps)
     names = dict(names)

@@ -1,0 +1,161 @@
+"""Edge cases of the symbolic layer and of the code generated from it: symbols
+of other classes (``sympy.Dummy``) and with any name, constants outside double
+range, symbols that share a name, warnings' locations and the double-double
+right-hand side's constants."""
+
+from __future__ import annotations
+
+import types
+import warnings
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import hamrkq
+from hamrkq.backends import codegen
+from hamrkq.backends.numeric import numeric_of
+
+# -- 1. every declared symbol is printed as its slot ---------------------------
+
+MARKER = "USER TEXT EXECUTED"
+PAYLOAD = f"print({MARKER!r}) or 1.0 if 1 else "
+
+
+def _dummy_cases(cls):
+    """The three systems of QA's dummy_symbols.py, their symbols of class ``cls``
+    (a Dummy coordinate, a Dummy parameter, a Dummy time)."""
+    q, p = sp.symbols("q p", real=True)
+    qd, a, tau = cls("q", real=True), cls("a", positive=True), cls("tau", real=True)
+    return [
+        hamrkq.Hamiltonian(p**2 / 2 + qd**2 / 2, [qd], [p]),
+        hamrkq.Hamiltonian(p**2 / 2 + a * q**2 / 2, [q], [p], parameters={a: 2.0}),
+        hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 + q * sp.cos(tau), [q], [p], t=tau),
+    ]
+
+
+@pytest.mark.parametrize("backend", ["python", "numba"])
+def test_dummy_coordinate_parameter_and_time_integrate_like_symbols(backend):
+    # Before: NameError: name 'q_8977807' is not defined (the Dummy's own
+    # name printed into the source), after a warning blaming numba.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no fallback warning either
+        for plain, dummy in zip(_dummy_cases(sp.Symbol), _dummy_cases(sp.Dummy), strict=True):
+            runs = [
+                hamrkq.solve(h, q0=[1.0], p0=[0.0], t_span=(0, 1), atol=1e-8, backend=backend)
+                for h in (plain, dummy)
+            ]
+            assert runs[1].status.name == "SUCCESS"
+            np.testing.assert_array_equal(runs[1].t, runs[0].t)
+            np.testing.assert_array_equal(runs[1].y, runs[0].y)
+
+
+def _two_dof(cls):
+    q1, q2, p1, p2 = (cls(n, real=True) for n in ("q1", "q2", "p1", "p2"))
+    a, b, t = cls("a", positive=True), cls("b", real=True), cls("t", real=True)
+    H = (
+        (p1**2 + p2**2) / 2 + a * (q1**2 + q2**2) / 2 + b * q1**2 * q2 - q2**3 / 3
+        + q1 * sp.cos(t) / 10 + (q1 + a - 1) ** 2 / 7 + sp.sqrt(1 + q1**2)
+    )  # fmt: skip
+    return hamrkq.Hamiltonian(H, [q1, q2], [p1, p2], parameters={a: 1.0, b: 1.0}, t=t)
+
+
+def test_a_system_of_dummies_computes_what_the_same_symbols_compute(tmp_path):
+    # Every function of both parts, rhs_dd too.  SymPy orders the terms of a
+    # sum of Dummies otherwise than those of Symbols (by class name), so the
+    # operations may come in another order: equal to rounding, not bit for bit.
+    plain, dummy = (_two_dof(cls) for cls in (sp.Symbol, sp.Dummy))
+    assert codegen.double_double_unsupported(dummy) == ""
+    mods = [_module(h, tmp_path) for h in (plain, dummy)]
+    for out_plain, out_dummy in zip(*(_evaluate(m, 4) for m in mods), strict=True):
+        np.testing.assert_allclose(out_dummy, out_plain, rtol=1e-14, atol=1e-15)
+    runs = [
+        hamrkq.solve(h, q0=[0.1, 0.2], p0=[0.3, 0.1], t_span=(0, 5), atol=1e-10, backend="python")
+        for h in (plain, dummy)
+    ]
+    assert runs[1].status.name == "SUCCESS"
+    np.testing.assert_allclose(runs[1].y[-1], runs[0].y[-1], rtol=0, atol=1e-12)
+
+
+def _module(ham, directory):
+    system = codegen.load_module(ham, directory)
+    tangent = codegen.load_module(ham, directory, part="tangent")
+    return types.SimpleNamespace(**{**vars(system), **vars(tangent)})
+
+
+def _evaluate(module, dim, t=0.3):
+    """Every generated function of ``module`` at one state (parameters 1.0, 1.0)."""
+    rng = np.random.default_rng(1)
+    y, v, params = rng.uniform(0.1, 0.9, dim), rng.uniform(-1, 1, dim), np.ones(module.NPARAMS)
+    rhs, jac, jvp = np.empty(dim), np.empty((dim, dim)), np.empty(dim)
+    fused, dfused = np.empty(dim), np.empty(dim)
+    hi, lo = np.empty(dim), np.empty(dim)
+    module.rhs(t, y, params, rhs)
+    module.jac(t, y, params, jac)
+    module.jvp(t, y, params, v, jvp)
+    module.rhs_jvp(t, y, params, v, fused, dfused, np.empty((dim, dim)))
+    module.rhs_dd(t, y, params, np.zeros(dim), hi, lo, np.empty((dim, dim)))
+    energy = module.energy(t, y, params)
+    return [rhs, jac, jvp, fused, dfused, hi + lo, np.array([energy])]
+
+
+def test_a_dummys_name_text_never_reaches_the_source(tmp_path, capsys):
+    # Before: QA's dummy_inject.py printed USER TEXT EXECUTED: the name was
+    # copied into the generated module and executed.
+    q, a, tau = (sp.Dummy(PAYLOAD + n, real=True) for n in ("q", "a", "tau"))
+    p = sp.Symbol("p", real=True)
+    plain_q, plain_a, plain_tau = sp.symbols("q a tau", real=True)
+
+    def build(q, a, tau, extra=0):
+        H = p**2 / 2 + a * q**2 / 2 + q * sp.cos(tau) / 10 + extra
+        return hamrkq.Hamiltonian(H, [q], [p], parameters={a: 2.0}, t=tau)
+
+    ham = build(q, a, tau)
+    # tanh has no double-double form: the reason written into the module
+    # (DD_UNSUPPORTED) names the function, not the expression.
+    no_dd = build(q, a, tau, sp.tanh(q) / 100)
+    for system in (ham, no_dd):
+        for part in codegen.PARTS:
+            source = codegen.generate_source(system, part)
+            assert MARKER not in source and "print" not in source
+    assert codegen.double_double_unsupported(no_dd).startswith(
+        "cannot generate double-double code for tanh:"
+    )
+    reference = hamrkq.solve(
+        build(plain_q, plain_a, plain_tau), q0=[1.0], p0=[0.0], t_span=(0, 1), atol=1e-8
+    )
+    for backend in ("python", "numba"):
+        sol = hamrkq.solve(ham, q0=[1.0], p0=[0.0], t_span=(0, 1), atol=1e-8, backend=backend)
+        np.testing.assert_array_equal(sol.y, reference.y)
+    sol = hamrkq.solve(ham, q0=[1.0], p0=[0.0], t_span=(0, 1), atol=1e-8, method="scipy:Radau")
+    assert sol.success
+    # The energy and gradient through lambdify, whose symbols are dummies of its own.
+    numeric, Y = numeric_of(ham), np.array([[1.0, 0.5]])
+    assert numeric.energy(0.0, Y, np.array([2.0]))[0] == 0.125 + 1.0 + np.cos(0.0) / 10
+    np.testing.assert_allclose(numeric.gradient(0.0, Y, np.array([2.0])), [[2.1, 0.5]])
+    assert MARKER not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        ("_c0", "_c1", "mu", "t"),  # CSE temporaries (UnboundLocalError: c0)
+        ("_k0", "p", "_k1", "t"),  # a constant offset's (silently wrong by 0.44)
+        ("q", "p", "mu", "_k0"),
+        ("_v0", "p", "mu", "t"),  # the tangent's vector, real=True (NameError: v)
+        ("_d0", "_d1", "_d2", "_d3"),  # rhs_dd's temporaries
+    ],
+)
+@pytest.mark.parametrize("real", [True, False])
+def test_a_symbol_named_like_a_temporary_is_still_its_slot(tmp_path, names, real):
+    def build(qn, pn, mun, tn):
+        q, p, mu, t = (
+            sp.Symbol(n, real=True) if real else sp.Symbol(n) for n in (qn, pn, mun, tn)
+        )
+        H = p**2 / 2 + (q + mu - 1) ** 2 / 2 + sp.cos(q) ** 3 + q * p * sp.cos(t) / 10
+        return hamrkq.Hamiltonian(H, [q], [p], parameters={mu: 0.3}, t=t)
+
+    odd, plain = build(*names), build("q", "p", "mu", "t")
+    expected = _evaluate(_module(plain, tmp_path), 2)
+    for got, want in zip(_evaluate(_module(odd, tmp_path), 2), expected, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
