@@ -159,3 +159,49 @@ def test_a_symbol_named_like_a_temporary_is_still_its_slot(tmp_path, names, real
     expected = _evaluate(_module(plain, tmp_path), 2)
     for got, want in zip(_evaluate(_module(odd, tmp_path), 2), expected, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
+
+
+# -- 2. a number of H beyond the range of a double ------------------------------
+
+
+@pytest.mark.parametrize(
+    ("number", "named"),
+    [
+        (sp.Integer(10) ** 400, "1.0e+400 (Integer)"),
+        (sp.Float("1e400"), "1.0e+400 (Float)"),
+        (sp.Integer(2) ** 1024, "1.7976931348623159e+308 (Integer)"),
+        (-sp.Rational(10**500, 3), "-3.3333333333333333e+499 (Rational)"),
+    ],
+)
+def test_a_number_beyond_double_range_is_refused_by_the_hamiltonian(number, named):
+    # Before: accepted; solve raised OverflowError ("integer division result
+    # too large for a float") or NameError ("name 'inf' is not defined"),
+    # after a warning blaming numba.
+    q, p = sp.symbols("q p", real=True)
+    with pytest.raises(hamrkq.errors.HamiltonianError, match="beyond the range of a double") as e:
+        hamrkq.Hamiltonian(p**2 / 2 + number * q**2, [q], [p])
+    assert named in str(e.value)
+    assert isinstance(e.value, hamrkq.errors.HamrkqError)
+
+
+def test_every_number_beyond_double_range_is_named_once():
+    q, p = sp.symbols("q p", real=True)
+    big = sp.Integer(10) ** 400
+    with pytest.raises(hamrkq.errors.HamiltonianError) as e:
+        hamrkq.Hamiltonian(p**2 / 2 + big * q**2 + q**big + sp.Float("-2e400") * q, [q], [p])
+    assert str(e.value).count("1.0e+400 (Integer)") == 1
+    assert "-2.0e+400 (Float)" in str(e.value)
+
+
+@pytest.mark.parametrize(
+    "number",
+    [
+        sp.Float("1.7976931348623157e308"),  # the largest double
+        sp.Integer(2) ** 1023,
+        sp.Rational(10**400 + 1, 10**400),  # huge terms, a value near 1
+        sp.Rational(1, 10**400),  # underflows to 0, as in a problem file
+    ],
+)
+def test_a_number_a_double_holds_is_accepted(number):
+    q, p = sp.symbols("q p", real=True)
+    hamrkq.Hamiltonian(p**2 / 2 + number * q**2, [q], [p])

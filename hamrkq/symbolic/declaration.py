@@ -10,10 +10,12 @@ assumptions, ``Abs`` of a symbol not declared real.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import mpmath
 import numpy as np
 import sympy as sp
 
@@ -27,11 +29,15 @@ __all__ = [
     "check_scalar",
     "complex_kinks",
     "declared_parameters",
+    "numbers_beyond_double",
     "shadowed_constants",
     "symbol_tuple",
     "time_symbol",
     "undeclared_hints",
 ]
+
+#: The largest double: a number of H beyond it is refused (numbers_beyond_double).
+MAX_DOUBLE = float(np.finfo(float).max)
 
 #: The time symbol used when H does not bring its own ``t``.
 TIME = sp.Symbol("t", real=True)
@@ -167,6 +173,50 @@ def complex_kinks(H: sp.Expr) -> list[str]:
         "it as a complex function (re, im), which cannot be evaluated; declare the "
         f"symbols real, sympy.symbols('{' '.join(sorted(loose))}', real=True)"
     ]
+
+
+def numbers_beyond_double(exprs: Iterable[sp.Expr], where: str) -> list[str]:
+    """A problem naming the numbers of ``exprs`` (``where`` says what they
+    are) that no double holds, or none: ``Integer(10)**400``,
+    ``Integer(2)**1024``, ``Float("1e400")`` (SymPy's numbers have no range).
+    Printed into the generated code, the first two raised OverflowError (in
+    an integer division or conversion), the third printed as ``inf``, an
+    undefined name.  Each is named by its value to 17 digits and its class.
+    (Non-finite ones, ``oo`` and ``Float("inf")``, are :func:`check_supported`'s;
+    a number that underflows to 0 or a subnormal is a double, as in a problem
+    file.)"""
+    found: dict[sp.Number, None] = {}
+    for expr in exprs:
+        for number in expr.atoms(sp.Rational, sp.Float):
+            if number.is_finite and not _is_double(number):
+                found[number] = None
+    if not found:
+        return []
+    named = "; ".join(f"{_value_text(n)} ({type(n).__name__})" for n in sorted(found, key=abs))
+    return [
+        f"{where} holds a number beyond the range of a double (magnitude above "
+        f"{MAX_DOUBLE:.4g}), which no backend can evaluate: {named}; rescale the "
+        "variables (q = s Q) or the units"
+    ]
+
+
+def _is_double(number: sp.Number) -> bool:
+    try:
+        value = number.p / number.q if number.is_Rational else float(number)
+    except OverflowError:  # int / int beyond the largest double
+        return False
+    return math.isfinite(value)
+
+
+def _value_text(number: sp.Number) -> str:
+    """To 17 digits, or a Float's own if fewer (2**1024 is
+    1.7976931348623159e+308, the largest double 1.7976931348623157e+308)."""
+    if number.is_Float:
+        with mpmath.workprec(number._prec):
+            digits = min(17, mpmath.libmp.prec_to_dps(number._prec))
+            return mpmath.nstr(mpmath.mpf(number), digits)
+    with mpmath.workdps(30):
+        return mpmath.nstr(mpmath.mpf(int(number.p)) / int(number.q), 17)
 
 
 def _assumptions(values: Mapping[str, bool]) -> str:

@@ -30,6 +30,7 @@ from hamrkq.symbolic.declaration import (
     check_scalar,
     complex_kinks,
     declared_parameters,
+    numbers_beyond_double,
     shadowed_constants,
     symbol_tuple,
     time_symbol,
@@ -97,7 +98,8 @@ class Hamiltonian:
         duplicated symbols, a non-scalar H, undeclared free symbols
         (:class:`~hamrkq.errors.UndeclaredSymbolError`), bad parameter values,
         and anything the numerical backends cannot evaluate: H may use
-        finite real numbers, ``pi``, ``E``, ``+ * **`` and the elementary
+        real numbers within the range of a double (not ``Integer(10)**400``
+        or ``Float("1e400")``), ``pi``, ``E``, ``+ * **`` and the elementary
         functions (trigonometric, hyperbolic and their inverses, ``exp``,
         ``log``, ``Abs``, ``sign``), not undefined functions, integrals,
         ``I`` or infinities.
@@ -150,6 +152,7 @@ class Hamiltonian:
             )
         if H is not None:
             problems += complex_kinks(H)
+            problems += numbers_beyond_double([H], "H")
             # Only what every numerical backend can evaluate: elementary
             # functions, finite real numbers, the declared symbols.
             try:
