@@ -61,22 +61,29 @@ def _expected(values, scale):
 
 
 def _compile(entry, once: bool, counter: list[int] | None = None):
+    from numba.core.compiler_lock import global_compiler_lock
+
     signature = numba.float64(numba.float64[::1], numba.float64)
-    plain_finalize = codegen.CPUCodeLibrary.finalize
-    if counter is not None:
+    # Under numba's (reentrant) compiler lock: a compile still running in
+    # another thread of this process (an earlier test's) would otherwise
+    # restore the finalize it saved over the counting one (the suite once
+    # counted one finalisation of the plain compile).
+    with global_compiler_lock:
+        plain_finalize = codegen.CPUCodeLibrary.finalize
+        if counter is not None:
 
-        def counting(self):
-            counter.append(1)
-            return plain_finalize(self)
+            def counting(self):
+                counter.append(1)
+                return plain_finalize(self)
 
-        codegen.CPUCodeLibrary.finalize = counting
-    try:
-        if once:
-            with numba_linking.callees_optimised_once():
-                return numba.njit(signature)(entry)
-        return numba.njit(signature)(entry)
-    finally:
-        codegen.CPUCodeLibrary.finalize = plain_finalize
+            codegen.CPUCodeLibrary.finalize = counting
+        try:
+            if once:
+                with numba_linking.callees_optimised_once():
+                    return numba.njit(signature)(entry)
+            return numba.njit(signature)(entry)
+        finally:
+            codegen.CPUCodeLibrary.finalize = plain_finalize
 
 
 def test_the_compiled_chain_computes_what_the_plain_compile_does():
