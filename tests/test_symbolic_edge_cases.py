@@ -205,3 +205,56 @@ def test_every_number_beyond_double_range_is_named_once():
 def test_a_number_a_double_holds_is_accepted(number):
     q, p = sp.symbols("q p", real=True)
     hamrkq.Hamiltonian(p**2 / 2 + number * q**2, [q], [p])
+
+
+# -- 3. different symbols with one name -----------------------------------------
+
+
+def _same_name_cases():
+    x, x_real, x_dummy = sp.Symbol("x"), sp.Symbol("x", real=True), sp.Dummy("x")
+    p1, p2 = sp.symbols("p1 p2")
+    kinetic = (p1**2 + p2**2) / 2
+    return {
+        # QA's same_name.py: accepted, names ('x', 'x', 'p1', 'p2'), then
+        # q0={"x": 1.0} raised "q0: no value for x".
+        "two coordinates": (
+            dict(H=kinetic + x**2 / 2 + 2 * x_real**2, q=[x, x_real], p=[p1, p2]),
+            "the coordinate x (no assumptions), the coordinate x (real=True)",
+        ),
+        "a coordinate and a momentum": (
+            dict(H=x**2 / 2 + x_real**2 / 2 + p1**2, q=[x, p2], p=[x_real, p1]),
+            "the coordinate x (no assumptions), the momentum x (real=True)",
+        ),
+        "a coordinate and a parameter": (
+            dict(H=p1**2 / 2 + x_real * x**2, q=[x], p=[p1], parameters={x_real: 1.0}),
+            "the coordinate x (no assumptions), the parameter x (real=True)",
+        ),
+        "a coordinate and the time": (
+            dict(H=p1**2 / 2 + x**2 + sp.cos(x_real), q=[x], p=[p1], t=x_real),
+            "the coordinate x (no assumptions), the time x (real=True)",
+        ),
+        "a Symbol and a Dummy": (
+            dict(H=kinetic + x**2 + x_dummy**2, q=[x, x_dummy], p=[p1, p2]),
+            "the coordinate x (no assumptions), the coordinate x (no assumptions, a Dummy)",
+        ),
+    }
+
+
+@pytest.mark.parametrize("case", list(_same_name_cases()))
+def test_different_symbols_with_one_name_are_refused(case):
+    declaration, named = _same_name_cases()[case]
+    parameters = declaration.pop("parameters", None)
+    with pytest.raises(hamrkq.errors.HamiltonianError) as e:
+        hamrkq.Hamiltonian(parameters=parameters, **declaration)
+    message = str(e.value)
+    assert "2 different symbols are named x: " + named in message
+    assert "duplicated" not in message
+    assert len(e.value.problems) == 1
+
+
+def test_the_same_symbol_twice_is_still_reported_as_duplicated():
+    q, p = sp.symbols("q p")
+    with pytest.raises(hamrkq.errors.HamiltonianError) as e:
+        hamrkq.Hamiltonian(p**2 / 2 + q**2, [q, q], [p, p])
+    assert "duplicated symbols: p, q" in str(e.value)
+    assert "different symbols" not in str(e.value)

@@ -31,6 +31,7 @@ __all__ = [
     "declared_parameters",
     "numbers_beyond_double",
     "shadowed_constants",
+    "shared_names",
     "symbol_tuple",
     "time_symbol",
     "undeclared_hints",
@@ -142,8 +143,48 @@ def time_symbol(t: Any, free: set, q: tuple, p: tuple, problems: list[str]) -> s
                 "(for example 'theta'), or pass the time symbol explicitly "
                 "(t=sympy.Symbol('tau'))"
             )
-            return sp.Dummy("t", real=True)
+            return _NO_TIME
     return t
+
+
+#: The time symbol returned with a coordinate or momentum named ``t``: that
+#: problem is reported, and the placeholder is no duplicate of the coordinate
+#: nor (shared_names) a namesake.
+_NO_TIME = sp.Dummy("t", real=True)
+
+
+def shared_names(
+    q: Sequence[sp.Symbol], p: Sequence[sp.Symbol], params: Sequence[sp.Symbol], t: sp.Symbol
+) -> list[str]:
+    """One problem for each name that different declared symbols share:
+    ``Symbol("x")`` and ``Symbol("x", real=True)`` as two coordinates, a
+    coordinate and a parameter, or a ``Dummy("q")`` beside a ``Symbol("q")``.
+    SymPy tells them apart by their assumptions (a Dummy by its index), but
+    values are bound by name (``q0={"x": 1.0}``, ``parameters={"a": 2}``) and
+    results are labelled by it.  (The same symbol twice is a duplicate,
+    reported as such.)"""
+    roles = [("coordinate", q), ("momentum", p), ("parameter", params)]
+    if t is not _NO_TIME:
+        roles.append(("time", (t,)))
+    by_name: dict[str, dict[sp.Symbol, str]] = {}
+    for role, symbols in roles:
+        for symbol in symbols:
+            by_name.setdefault(symbol.name, {}).setdefault(symbol, role)
+    return [
+        f"{len(symbols)} different symbols are named {name}: "
+        + ", ".join(f"the {role} {_described(symbol)}" for symbol, role in symbols.items())
+        + "; SymPy tells them apart by their assumptions (a Dummy by its index), but "
+        f"hamrkq binds values by name (q0={{'{name}': 1.0}}) and labels results by it: "
+        "give each its own name"
+        for name, symbols in by_name.items()
+        if len(symbols) > 1
+    ]
+
+
+def _described(symbol: sp.Symbol) -> str:
+    written = getattr(symbol, "_assumptions_orig", None) or {}
+    kind = ", a Dummy" if isinstance(symbol, sp.Dummy) else ""
+    return f"{symbol.name} ({_assumptions(written)}{kind})"
 
 
 def shadowed_constants(H: sp.Expr, params: tuple[sp.Symbol, ...]) -> list[str]:

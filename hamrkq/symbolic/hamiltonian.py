@@ -32,6 +32,7 @@ from hamrkq.symbolic.declaration import (
     declared_parameters,
     numbers_beyond_double,
     shadowed_constants,
+    shared_names,
     symbol_tuple,
     time_symbol,
     undeclared_hints,
@@ -95,7 +96,8 @@ class Hamiltonian:
     ------
     HamiltonianError
         Listing every problem found at once: q and p of different lengths,
-        duplicated symbols, a non-scalar H, undeclared free symbols
+        duplicated symbols, different symbols with one name (values are
+        bound by name), a non-scalar H, undeclared free symbols
         (:class:`~hamrkq.errors.UndeclaredSymbolError`), bad parameter values,
         and anything the numerical backends cannot evaluate: H may use
         real numbers within the range of a double (not ``Integer(10)**400``
@@ -145,6 +147,7 @@ class Hamiltonian:
         duplicated = sorted({str(s) for s in declared if s in seen or seen.add(s)})
         if duplicated:
             problems.append(f"duplicated symbols: {', '.join(duplicated)}")
+        problems += shared_names(q, p, params, t)
         undeclared = {s for s in free if s not in set(declared)}
         if undeclared:
             raise UndeclaredSymbolError(
