@@ -5,6 +5,7 @@ right-hand side's constants."""
 
 from __future__ import annotations
 
+import sys
 import types
 import warnings
 
@@ -258,3 +259,24 @@ def test_the_same_symbol_twice_is_still_reported_as_duplicated():
         hamrkq.Hamiltonian(p**2 / 2 + q**2, [q, q], [p, p])
     assert "duplicated symbols: p, q" in str(e.value)
     assert "different symbols" not in str(e.value)
+
+
+# -- 4a. the Abs/sign warning names the caller's line ---------------------------
+
+
+def test_the_abs_warning_of_a_problem_file_names_the_callers_line(tmp_path):
+    # Before: it pointed at hamrkq/catalogue/problem_file.py:232 (a fixed
+    # stacklevel=2 is right only for a direct Hamiltonian(...) call).
+    path = tmp_path / "vwell2.toml"
+    path.write_text(
+        'name = "vwell2"\ntitle = "t"\ncoordinates = ["q"]\nmomenta = ["p"]\n'
+        'hamiltonian = "p**2/2 + Abs(q)"\n\n[initial]\nq = 1\np = 0\n\n'
+        "[integration]\nt_span = [0, 1]\n"
+    )
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        line = sys._getframe().f_lineno + 1
+        hamrkq.load_problem(path)
+    [warning] = [w for w in record if "not differentiable everywhere" in str(w.message)]
+    assert (warning.filename, warning.lineno) == (__file__, line)
+    assert issubclass(warning.category, hamrkq.errors.HamrkqWarning)

@@ -10,7 +10,6 @@ symbols (parameter and initial values) by :mod:`~hamrkq.symbolic.values`.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
 from functools import cached_property
 from typing import Any
@@ -21,8 +20,8 @@ import sympy as sp
 from hamrkq.errors import (
     CodegenError,
     HamiltonianError,
-    HamrkqWarning,
     UndeclaredSymbolError,
+    warn,
 )
 from hamrkq.symbolic.declaration import (
     TIME,
@@ -169,13 +168,11 @@ class Hamiltonian:
         if problems:
             raise HamiltonianError(problems)
         if H.has(sp.Abs, sp.sign):
-            warnings.warn(
+            warn(  # pointing at the first caller outside hamrkq (load_problem's too)
                 f"H = {H} is not differentiable everywhere (Abs or sign): Hamilton's "
                 "equations and the Jacobian hold away from the kinks (the Jacobian's "
                 "DiracDelta terms are dropped), and the error estimates of a step that "
-                "crosses a kink are not reliable",
-                HamrkqWarning,
-                stacklevel=2,
+                "crosses a kink are not reliable"
             )
         object.__setattr__(self, "_H", H)
         object.__setattr__(self, "_q", q)
