@@ -280,3 +280,39 @@ def test_the_abs_warning_of_a_problem_file_names_the_callers_line(tmp_path):
     [warning] = [w for w in record if "not differentiable everywhere" in str(w.message)]
     assert (warning.filename, warning.lineno) == (__file__, line)
     assert issubclass(warning.category, hamrkq.errors.HamrkqWarning)
+
+
+# -- 4b. a Float coefficient in rhs_dd keeps its own precision ------------------
+
+
+@pytest.mark.parametrize(
+    ("coefficient", "bound"),
+    [
+        # Before: 5.6e-17, the Float rounded to a double; now 5.3e-32, of which
+        # 4.9e-32 is the Float's own (103 bits) distance from 0.1.
+        (sp.Float("0.1", 30), 6e-32),
+        (sp.Float("0.1", 40), 1e-32),  # 136 bits: as exact as the Rational
+        (sp.Rational(1, 10), 1e-32),  # 2.2e-33
+    ],
+)
+def test_rhs_dd_keeps_a_floats_precision(tmp_path, coefficient, bound):
+    # QA's dd_float_precision.py: -dH/dq at q = 0.7 (the double) against 40 digits.
+    mpmath = pytest.importorskip("mpmath")
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + coefficient * q**2, [q], [p])
+    module = codegen.load_module(ham, tmp_path)
+    out, lo = np.empty(2), np.empty(2)
+    module.rhs_dd(0.0, np.array([0.7, 0.0]), np.zeros(0), np.zeros(2), out, lo, np.empty((2, 2)))
+    with mpmath.workdps(40):
+        truth = -2 * mpmath.mpf("0.1") * mpmath.mpf(0.7)
+        error = abs(mpmath.mpf(out[1]) + mpmath.mpf(lo[1]) - truth) / abs(truth)
+    assert error < bound
+
+
+def test_a_double_float_is_still_a_double_in_rhs_dd():
+    # A Float of 53 bits (from a Python float) has the low word 0: a double
+    # times a double-double, as before.
+    q, p = sp.symbols("q p", real=True)
+    source = codegen.generate_source(hamrkq.Hamiltonian(p**2 / 2 + 0.1 * q**2, [q], [p]))
+    rhs_dd = source[source.index("def rhs_dd") : source.index("DD_UNSUPPORTED")]
+    assert "dd_mul_d(y[0], ylo[0], -0.2)" in rhs_dd

@@ -17,7 +17,9 @@ the same.
 
 Common subexpressions are shared (:func:`sympy.cse`); parameters and time
 enter as doubles (``(p, 0)``), rationals and ``pi``, ``E`` as double-double
-constants computed here exactly.  Supported: ``+ * **`` (integer and
+constants computed here exactly, a SymPy Float to its own precision (one of
+more than 53 bits, ``Float("0.1", 30)``, as the double-double nearest it,
+not rounded to a double).  Supported: ``+ * **`` (integer and
 half-integer powers exactly, others as ``exp(b log a)``), ``sin cos tan exp
 log cosh Abs sign``; anything else raises :class:`~hamrkq.errors.CodegenError`
 naming it (the inverse trigonometric and hyperbolic functions, ``sinh`` and
@@ -61,8 +63,9 @@ def _split(value: Fraction) -> tuple[float, float]:
 
 
 def _constant(value) -> tuple[str, str]:
-    """Literal text of a double-double constant (an exact rational or an
-    mpmath number)."""
+    """Literal text of a double-double constant (an exact rational, an
+    mpmath number or a SymPy Float; one of 53 bits or fewer has the low
+    word 0.0)."""
     if not isinstance(value, Fraction):
         with mpmath.workdps(60):
             hi = float(value)
@@ -110,8 +113,8 @@ class _Printer:
     def _emit(self, expr: sp.Expr) -> tuple[str, str]:
         if expr.is_Integer or expr.is_Rational:
             return _constant(Fraction(int(expr.p), int(expr.q)))
-        if expr.is_Float:
-            return repr(float(expr)), "0.0"
+        if expr.is_Float:  # to its own precision: Float("0.1", 30) is not rounded to a double
+            return _constant(expr)
         if expr in (sp.pi, sp.E):
             return _constant(mpmath.pi if expr == sp.pi else mpmath.e)
         if expr.is_Symbol:  # not the system's (its name is not quoted: see rhs_dd_block)
