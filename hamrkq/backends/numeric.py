@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy as sp
 
+from hamrkq.symbolic.kinks import kinks
+
 if TYPE_CHECKING:
     from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -148,6 +150,18 @@ class NumericHamiltonian:
     @cached_property
     def _rhs_many(self) -> Callable:
         return vectorized(self._ham, list(self._ham.rhs))
+
+    @cached_property
+    def _switching(self) -> Callable:
+        found = kinks(self._ham.H)
+        guards = [sp.Integer(-1) if k.guard is None else k.guard for k in found]
+        return vectorized(self._ham, [k.argument for k in found] + guards)
+
+    def switching(self, t, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """At the rows of ``Y``: each kink's argument, then its guard (-1
+        where it has none), shape (N, 2K) for the K kinks of
+        :func:`hamrkq.symbolic.kinks.kinks`."""
+        return self._switching(t, Y, params)
 
     def _call_scalar(self, name: str, t, y, params, out: np.ndarray) -> None:
         """The generated function ``name``; where the interpreter raises on a

@@ -21,15 +21,13 @@ a kinked H keeps every node (:mod:`hamrkq.solve.output_times`) and refuses
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
-import sympy as sp
 
-from hamrkq.backends.numeric import vectorized
+from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status, kept_nodes_note
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.solve.assumptions import first_rows, located_within
@@ -65,21 +63,12 @@ def checks_kinks(ham: Hamiltonian, gamma_limit: float, certified: bool) -> bool:
     return certified and gamma_limit < math.inf and bool(kinks(ham.H))
 
 
-@functools.lru_cache(maxsize=64)
-def _switching(ham: Hamiltonian):
-    """``f(t, Y, params) -> (N, 2K)``: each kink's argument, then its guard
-    (-1 where there is none), at the rows of ``Y``."""
-    found = kinks(ham.H)
-    guards = [sp.Integer(-1) if k.guard is None else k.guard for k in found]
-    return vectorized(ham, [k.argument for k in found] + guards)
-
-
 def _first_crossing(task: Task, t: np.ndarray, y: np.ndarray) -> Crossing | None:
     """The first step between consecutive nodes ``(t, y)`` across a kink."""
     if t.shape[0] < 2:
         return None
     found = kinks(task.ham.H)
-    values = _switching(task.ham)(t, y, task.params)
+    values = numeric_of(task.ham).switching(t, y, task.params)
     count = len(found)
     a, guard = values[:, :count], values[:, count:]
     # A sign change, or one node on the kink and the other off it (f there
