@@ -33,7 +33,7 @@ from hamrkq._floats import EPS
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
-from hamrkq.solve.dispatch import Task, dense_tolerance
+from hamrkq.solve.dispatch import Task, dense_tolerance, largest_state
 
 __all__ = [
     "OutputFailure",
@@ -119,14 +119,10 @@ def atol_above_output_rounding(out: RunOutput, task: Task) -> float:
 
 
 def _state_size(out: RunOutput, task: Task) -> np.ndarray:
-    """Each component's largest ``|y|`` over the run (the kernel's, where
-    rows are thinned), at least ``|y0|``."""
-    size = np.abs(task.y0)
-    if out.y_max is not None:
-        size = np.maximum(size, out.y_max)
-    if out.y.shape[0]:
-        size = np.maximum(size, np.abs(out.y).max(axis=0))
-    return size
+    """Each component's largest ``|y|`` over the run
+    (:func:`~hamrkq.solve.dispatch.largest_state`), at least ``|y0|``: a
+    run can end before it keeps a row."""
+    return np.maximum(np.abs(task.y0), largest_state(out))
 
 
 def output_rounding_limits(out: RunOutput, task: Task) -> bool:
