@@ -99,6 +99,12 @@ class Task:
     #: (:mod:`hamrkq.solve.output_times`), and they are the rows returned.
     output_times: np.ndarray | None = None
 
+    @property
+    def requested_times(self) -> np.ndarray | None:
+        """The ``t_eval`` the caller gave: the kernel's, or the times sampled
+        from the dense output (:attr:`output_times`)."""
+        return self.t_eval if self.output_times is None else self.output_times
+
 
 @dataclass(frozen=True)
 class MethodSpec:

@@ -83,7 +83,7 @@ def solution(
         "max_step": None if math.isinf(o.max_step) else o.max_step,
         "max_steps": o.max_steps,
         "keep_every": o.keep_every,
-        "t_eval": _output_times(task),
+        "t_eval": None if task.requested_times is None else task.requested_times.tolist(),
         "parameters": {
             s.name: float(v) for s, v in zip(task.ham.parameters, task.params, strict=True)
         },
@@ -285,13 +285,6 @@ def _near_zero(out: RunOutput, task: Task) -> str:
         f"falls to atol = {task.atol[k]:.3g} at zero, so there the limit is atol's: a "
         "larger atol (the error acceptable where a component is near zero) helps too."
     )
-
-
-def _output_times(task: Task) -> list | None:
-    """The ``t_eval`` the caller gave, for the record: the kernel's, or the
-    times sampled from the dense output (events or ``sol.sol`` beside it)."""
-    times = task.t_eval if task.output_times is None else task.output_times
-    return None if times is None else times.tolist()
 
 
 def _event_failed(out: RunOutput, task: Task) -> str:

@@ -101,7 +101,7 @@ def output_rounding(out: RunOutput, task: Task) -> float:
     its rounding is an ulp of the state's size, and where a component
     passes zero under ``rtol`` its tolerance there is ``atol`` alone: no
     quencher goes below that, a larger ``atol`` does."""
-    times = task.t_eval if task.output_times is None else task.output_times
+    times = task.requested_times
     if (
         times is None
         or out.status != Status.TOLERANCE_UNATTAINABLE.code
