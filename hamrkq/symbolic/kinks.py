@@ -5,8 +5,9 @@ A Runge-Kutta step's error expansion, and with it the pair's estimate, the
 quencher's order and Gamma, assume a smooth right-hand side.  A step across
 ``q = 0`` of ``H = p^2/2 + |q|`` (``dp/dt`` jumps from -1 to 1) is off by far
 more than any of them says: ``auto`` returned SUCCESS 84 times the tolerance
-off at 1e-8 on it, and 796 times on an ``atan2(y, x)`` term whose value jumps
-by 2 pi where the orbit crosses the negative x-axis.  :func:`kinks` lists the
+off at 1e-8 on it, and 796 times at 1e-10 on an ``atan2(y, x)`` term whose
+value jumps by 2 pi where the orbit crosses the negative x-axis (measured at
+6724968, before :mod:`hamrkq.solve.smoothness`).  :func:`kinks` lists the
 switching functions whose sign change marks such a place; the solver ends a
 certified run before the first step that crosses one
 (:mod:`hamrkq.solve.smoothness`).
