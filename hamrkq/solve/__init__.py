@@ -17,8 +17,12 @@ The package's modules:
   Problem supplies;
 - :mod:`hamrkq.solve.dispatch`: :class:`Task`, :class:`MethodSpec` and the
   dispatch table :data:`METHODS` with each method's runner;
-- :mod:`hamrkq.solve.outcome`: the Solution of an RKQ-family run, with the
-  message that names what ended it and what helps.
+- :mod:`hamrkq.solve.outcome`: the Solution of an RKQ-family run, and
+  :mod:`hamrkq.solve.messages` its message, naming what ended it and what
+  helps;
+- :mod:`hamrkq.solve.assumptions`, :mod:`hamrkq.solve.smoothness` and
+  :mod:`hamrkq.solve.output_times`: the checks after a run (declared
+  assumptions, kinks of H, output times sampled beside events).
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from hamrkq.options import (
 )
 from hamrkq.result import Solution
 from hamrkq.rkq.auto_rules import auto_tolerance
-from hamrkq.solve import arguments, assumptions, auto, outcome, smoothness
+from hamrkq.solve import arguments, assumptions, auto, messages, outcome, smoothness
 from hamrkq.solve.dispatch import (
     METHODS,
     MethodSpec,
@@ -374,7 +378,7 @@ def _solution(
     if crossing is not None and breach is None:
         sol = sol.replace(message=smoothness.crossing_message(crossing, task.ham, out.t))
     if discarded:
-        note = outcome.rerun_note(
+        note = messages.rerun_note(
             task,
             discarded,
             out.stats["discarded_evaluations"],

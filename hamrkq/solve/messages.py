@@ -1,0 +1,538 @@
+"""The messages of a finished RKQ-family run: what ended it, at which
+``t``, and for an unattainable tolerance the remedy that works
+(:func:`message`); what ``method="auto"``'s discarded runs did
+(:func:`rerun_note`).  :mod:`hamrkq.solve.outcome` puts them on the
+:class:`~hamrkq.result.Solution`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from hamrkq._floats import EPS
+from hamrkq._tolerance import component_tolerance
+from hamrkq.result import Status, kept_nodes_note
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
+from hamrkq.rkq.driver import RunOutput
+from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.layout import ST_ABANDONED
+from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
+from hamrkq.solve.dispatch import (
+    Task,
+    largest_state,
+    member_of,
+    time_rounding_limits,
+    time_scale,
+    uses_witness,
+)
+from hamrkq.solve.event_check import stored_rounding_limits
+from hamrkq.solve.output_times import (
+    atol_above_output_rounding,
+    output_rounding,
+    output_rounding_limits,
+)
+
+__all__ = ["message", "rerun_note"]
+
+
+def _component(task: Task, index: int) -> str:
+    """Which derivative a state component's right-hand side is, in words."""
+    ham = task.ham
+    n = ham.n
+    if index < 0:
+        return "the right-hand side"
+    if index < n:
+        return f"d{ham.q[index]}/dt = dH/d{ham.p[index]}"
+    return f"d{ham.p[index - n]}/dt = -dH/d{ham.q[index - n]}"
+
+
+def _where_it_failed(out: RunOutput, task: Task) -> tuple[str, bool]:
+    """The first sentences for an unattainable tolerance: where and by how
+    much; and whether they are the whole message (the value's own rounding
+    at an event state or an output time, where one remedy works)."""
+    o = task.options
+    if out.event_failure is not None:
+        text = _event_failed(out, task)
+        if stored_rounding_limits(out.event_failure, o.gamma_limit):
+            return text + (
+                f" Of that, {out.event_failure.stored_ratio:.3g} x the tolerance is the value's "
+                "own rounding: it is stepped in double from the node stored in double before "
+                "it, whose last bit is an ulp of the state's size there, not of the component "
+                "near zero; more quencher steps or the quencher in double-double do not go "
+                "below it. A larger atol is what works."
+            ), True
+        return text, False
+    text = (
+        f"At t = {float(out.t_last)!r} the quencher's estimated global error plus its rounding "
+        f"would reach {out.max_ratio:.3g} x the tolerance (gamma_limit = {o.gamma_limit:g}), "
+        "so the tolerance can no longer be certified; the run ends at the last node where it "
+        "held."
+    )
+    if output_rounding_limits(out, task):
+        return text + (
+            " That is an output time of t_eval inside a step, whose value is stepped with "
+            "the quencher's stages in double: its own rounding is an ulp of the state's "
+            f"size, {output_rounding(out, task):.3g} x atol, and where a component passes "
+            "zero under rtol its tolerance there is atol alone. More quencher steps or the "
+            "quencher in double-double do not go below it; a larger atol (at least "
+            f"{atol_above_output_rounding(out, task):.2g}) "
+            "is what works."
+        ), True
+    return text, False
+
+
+def _unattainable(out: RunOutput, task: Task) -> str:
+    o = task.options
+    if out.saturated:
+        return _shadow_saturated(out, task)
+    if not math.isfinite(out.max_ratio):
+        return _estimate_diverged(out, task)
+    text, final = _where_it_failed(out, task)
+    if final:
+        return text
+    if out.y.size:
+        y = np.abs(out.y[-1])
+        floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))
+        if floor >= 0.5 * o.gamma_limit:
+            return text + (
+                f" The tolerance is at double precision's floor for this state (the rounding "
+                f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
+            )
+        if out.event_failure is None:
+            text += _near_zero(out, task)
+    if out.at_rounding_floor:
+        text += (
+            f" The quencher's own rounding error, measured by the rounding witness (the "
+            f"quencher run again with its sums in the opposite order), is "
+            f"{out.floor_ratio:.3g} x the tolerance: "
+        )
+        member = member_of(task)
+        if member.stage_rounding_dominates:
+            pair = task.options.method.split("q")[0]
+            quiet = [
+                name
+                for name, other in MEMBERS.items()
+                if name.startswith(pair + "q") and not other.stage_rounding_dominates
+            ]
+            weights = float(np.abs(member.quencher.b).sum())
+            text += (
+                "this is this quencher's floor for this orbit and interval (its weights, whose "
+                f"absolute values sum to {weights:.3g}, magnify the rounding of its stages); "
+                f"the same pair with another quencher ({', '.join(map(repr, quiet))}) goes "
+                "below it."
+            )
+        else:
+            text += (
+                "this is double precision's floor for this orbit and interval, and no member "
+                "or step size in double goes below it."
+            )
+        text += _time_floor_note(task)
+        if not _double_double_available(task):
+            if member.stage_rounding_dominates:
+                # rk34q8 (the tangent estimate): no double-double quencher,
+                # but another member, or auto, goes below this floor
+                return text + (
+                    " What works: one of those, method='auto' (which chooses a member and "
+                    "runs its quencher in double-double where needed), a looser tolerance "
+                    "or a shorter interval."
+                )
+            return text + " A looser tolerance or a shorter interval is what works."
+        return text + (
+            " What works: quencher_precision='double-double' (the quencher's stages and f "
+            "in double-double, 5 to 7 times the cost per evaluation; method='auto' switches "
+            "to it by itself unless quencher_precision='double' is given), a looser "
+            "tolerance or a shorter interval."
+        )
+    factor = growth(out, task)
+    exponential = factor > EXPONENTIAL_GROWTH
+    if exponential:
+        text += (
+            f" The estimate grew {factor:.3g}-fold over the second half of the "
+            "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
+            "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
+            "like exp(lambda t)"
+        )
+        text += (
+            "; more quencher steps only delay the stop."
+            if _retry_substeps(out, task, factor) is None
+            else "."
+        )
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps:
+        return text + (
+            " The quencher's error has reached double precision's rounding floor here: a "
+            "looser tolerance, or a shorter interval (the horizon of double precision for "
+            "this orbit), is what works."
+        )
+    return text + " What helps: " + "; ".join(_remedies(out, task, factor)) + "."
+
+
+#: A component whose tolerance at the last node is below this fraction of its
+#: largest along the run is passing close to zero (with ``rtol``).
+NEAR_ZERO = 0.1
+
+
+def _near_zero(out: RunOutput, task: Task) -> str:
+    """A sentence for a stop where ``rtol`` shrank the tolerance of the
+    component closest to its limit because that component passes close to
+    zero (its tolerance is then ``atol`` alone), or "".
+
+    With a tiny ``atol`` (1e-20, say) nothing is certified there, and the
+    first remedy is an ``atol`` the size of the error one accepts near zero
+    (Kepler at rtol 1e-8, atol 1e-20 with rk34q8 stopped as q1 crossed zero
+    at t = 68.7, and the message named only other members)."""
+    if out.gamma is None or not np.any(task.rtol > 0) or out.y.shape[0] < 2:
+        return ""
+    delta = component_tolerance(task.atol, task.rtol, out.y)
+    last = delta[-1]
+    k = int(np.argmax(np.abs(out.gamma[-1]) / last))
+    typical = float(np.max(delta[:, k]))
+    if task.rtol[k] <= 0 or last[k] >= NEAR_ZERO * typical:
+        return ""
+    name = task.ham.names[k]
+    return (
+        f" The component closest to its limit, {name} = {out.y[-1, k]:.3g}, is passing "
+        f"close to zero: its tolerance max(atol, rtol |{name}|) is {last[k]:.3g} there, "
+        f"{last[k] / typical:.2g} of its largest along the run ({typical:.3g}), and it "
+        f"falls to atol = {task.atol[k]:.3g} at zero, so there the limit is atol's: a "
+        "larger atol (the error acceptable where a component is near zero) helps too."
+    )
+
+
+def _event_failed(out: RunOutput, task: Task) -> str:
+    """The first sentences for a run ended before an event state where its
+    promise failed (:mod:`hamrkq.solve.event_check`)."""
+    failure = out.event_failure
+    k = failure.component
+    name = task.ham.names[k]
+    text = (
+        f"At the state of event {failure.label!r} at t = {failure.t!r} the quencher's "
+        f"estimated global error and rounding (Gamma between the nodes around it, and the "
+        f"rounding of the value) would reach "
+        f"{failure.ratio:.3g} x the tolerance there (gamma_limit = "
+        f"{task.options.gamma_limit:g}), so that state cannot be certified; the run ends at "
+        "the last node before it."
+    )
+    delta = component_tolerance(task.atol, task.rtol, failure.state)[k]
+    if task.rtol[k] > 0 and delta <= task.atol[k]:
+        text += (
+            f" There {name} = {failure.state[k]:.3g}: it passes zero at the event, where its "
+            f"tolerance max(atol, rtol |{name}|) is atol = {task.atol[k]:.3g}, far below "
+            f"the nodes' on either side; a larger atol (the error acceptable where {name} is "
+            "near zero) helps too."
+        )
+    return text
+
+
+def _shadow_saturated(out: RunOutput, task: Task) -> str:
+    """The message for a run ended where its shadow track left the linear
+    regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`)."""
+    member = member_of(task)
+    # With no node kept, the first output time was beyond already.
+    when = f"After t = {float(out.t_last)!r}" if out.t.shape[0] else "By the first output time"
+    text = (
+        f"{when} the shadow track behind the estimate of the "
+        f"quencher's global error (Gamma: the quencher in one step a step, whose error is "
+        f"{member.z_substeps}^{member.z_order} times the quencher's) had moved "
+        f"{out.saturated:.3g} of the orbit's size away from the quencher, more than "
+        f"{SHADOW_SATURATION:g}: it no longer grows with the quencher's error (it "
+        "saturates), so Gamma can no longer certify the tolerance; the run ends at the last "
+        "node where it held."
+    )
+    if growth(out, task) > EXPONENTIAL_GROWTH:
+        text += (
+            " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
+            "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
+            "is what works."
+        )
+    return text + (
+        " What helps: a smaller max_step (the shadow's error falls like "
+        f"h^{member.z_order}; more quencher steps do not change it); "
+        "global_error_estimate='tangent' (the error carried by the Jacobian, no shadow); a "
+        "shorter interval."
+    )
+
+
+#: The largest rounding level whose square is a double.  The quencher's
+#: modelled rounding ``rho_k`` is the root of a sum of squares of ``eps``
+#: times its increments (:func:`hamrkq.rkq.steps.quencher_step`,
+#: docs/algorithm.md), so it overflows where those pass this, from a state of
+#: about ``ROUNDING_SQUARE_LIMIT / eps`` = 6e169 on (1e169 for the oscillator
+#: over 1000 time units, whose squares add up), however finite f and the
+#: solution are.
+ROUNDING_SQUARE_LIMIT = math.sqrt(sys.float_info.max)
+#: A ratio that stopped being finite at a state whose ``eps |y|`` is at least
+#: this share of :data:`ROUNDING_SQUARE_LIMIT` (``|y|`` from 6e165) is put
+#: down to that overflow: the squares of a run of ``N`` steps add up to
+#: ``N (eps |y| h w)^2`` (``w`` the orbit's frequency, ``h w`` below one), so
+#: a million radians of an orbit at ``h w = 0.5`` overflow from ``|y|`` =
+#: 8.5e166; below 6e165, only runs of 4e8 steps or more.
+ROUNDING_OVERFLOW_SHARE = 1e-4
+
+
+def _rounding_overflows(out: RunOutput) -> bool:
+    """Whether a run whose ratio stopped being finite reached a state large
+    enough for the quencher's modelled rounding to overflow
+    (:data:`ROUNDING_OVERFLOW_SHARE`)."""
+    return EPS * _state_size(out) >= ROUNDING_OVERFLOW_SHARE * ROUNDING_SQUARE_LIMIT
+
+
+def _state_size(out: RunOutput) -> float:
+    """The largest ``|y_k|`` over every node of a run, kept or not (its
+    start too: a run that ends at t0 keeps only that)."""
+    size = float(np.max(largest_state(out), initial=0.0))
+    if out.y_max is not None:
+        size = max(size, float(np.max(out.y_max, initial=0.0)))
+    return size
+
+
+def _rounding_overflowed(out: RunOutput) -> str:
+    """The message for a run ended where the quencher's modelled rounding
+    overflowed (:func:`_rounding_overflows`): the oscillator at ``|y|`` =
+    5e199 with ``atol`` 1e199, whose f and exact solution are finite, ended
+    at t0 with every member, and the message said Gamma was no longer
+    finite, then blamed a chaotic orbit and named a looser tolerance and
+    ``global_error_estimate='tangent'``, with no Gamma at all
+    (``global_error_estimate='off'``) too."""
+    return (
+        f"At t = {float(out.t_last)!r} the quencher's modelled rounding is no longer finite, "
+        "so the tolerance can no longer be certified; the run ends at the last node where it "
+        "held. The model sums the squares of eps times the quencher's increments, and a "
+        f"square overflows a double once that passes {ROUNDING_SQUARE_LIMIT:.3g}: from a "
+        f"state of about 1e169 on, and the state's largest component here is "
+        f"{_state_size(out):.3g}. "
+        "It is the state's size, not the orbit or the tolerance: a looser tolerance or "
+        "another estimate of the quencher's error does not help. What works: variables "
+        "rescaled to bring the state well below 1e169 (q = s Q and p = s P, with "
+        "H(s Q, s P) / s^2 as the Hamiltonian: the same t)."
+    )
+
+
+def _estimate_diverged(out: RunOutput, task: Task) -> str:
+    """The message for an estimate of Gamma that stopped being finite, or
+    of the quencher's rounding (:func:`_rounding_overflowed`; without Gamma,
+    ``global_error_estimate='off'``, only that can)."""
+    o = task.options
+    if o.gamma_name == "off" or _rounding_overflows(out):
+        return _rounding_overflowed(out)
+    text = (
+        f"At t = {float(out.t_last)!r} the estimate of the quencher's global error (Gamma) "
+        "is no longer finite, so the tolerance can no longer be certified; the run ends at "
+        "the last node where it held."
+    )
+    if o.gamma_name != "shadow":
+        return text + " A looser tolerance or a shorter interval is what works."
+    member = member_of(task)
+    amplification = float(member.z_substeps) ** member.z_order
+    return text + (
+        f" The shadow track behind the estimate runs without quenching and carries "
+        f"{member.z_substeps}^{member.z_order} = {amplification:.3g} times the quencher's "
+        "error; it diverged, which happens where errors grow fast along the orbit (near an "
+        "unstable equilibrium or a separatrix, or on a chaotic orbit). What helps: a looser "
+        "tolerance or a shorter interval; global_error_estimate='tangent' (the error carried "
+        "linearly by the Jacobian, with no amplified track to diverge; about twice the cost)."
+    )
+
+
+def _time_floor_note(task: Task) -> str:
+    """What the floor owes to the rounding of the time where ``H`` depends
+    on it (:func:`hamrkq.solve.dispatch.time_rounding_limits`), or ``""``."""
+    if not time_rounding_limits(task):
+        return ""
+    scale = time_scale(task)
+    return (
+        f" H depends on t, and at |t| up to {scale:.6g} an ulp of the time is "
+        f"{float(np.spacing(scale)):.2g}: the rounding of the stage times is part of this "
+        "floor, in double-double too. Integrating from t = 0 lowers it: t_span shifted "
+        "to start at 0, and H written for the shifted time, its phases moved by w t0 "
+        "computed once (cos(w t + phi), phi = w t0 mod 2 pi)."
+    )
+
+
+def _double_double_available(task: Task) -> bool:
+    """Whether the quencher could run in double-double and does not already."""
+    from hamrkq.backends import codegen
+
+    if task.options.double_double or task.options.gamma_name != "shadow":
+        return False
+    return not (codegen.double_double_unsupported(task.ham) or time_rounding_limits(task))
+
+
+def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
+    """The quencher steps per step that carry a run stopped on its
+    quencher's truncation error to its end (the rule auto's reruns use,
+    :func:`hamrkq.rkq.auto_rules.auto_retry_substeps`, with the estimate's
+    growth ``factor`` where it is exponential), or None."""
+    if task.options.gamma_name != "shadow":
+        return None
+    return retry_substeps(out, task, growth=factor if factor > EXPONENTIAL_GROWTH else None)
+
+
+def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
+    """What carries the quencher further when its truncation error stopped
+    the run, the most specific first (``factor``: the estimate's growth; an
+    exponential one makes more quencher steps no remedy, unless the stop
+    was close to the end)."""
+    o = task.options
+    member = member_of(task)
+    exponential = factor > EXPONENTIAL_GROWTH
+    remedies = []
+    if exponential:
+        remedies.append("a looser tolerance or a shorter interval")
+    substeps = _retry_substeps(out, task, factor)
+    if substeps is not None:
+        how = (
+            "if its error keeps growing as it did over the second half of the run"
+            if exponential
+            else "if its error keeps growing like t^2, as on a periodic orbit"
+        )
+        remedies.append(
+            f"z_substeps={substeps} (quencher steps per step, {member.z_substeps} in this run: "
+            f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
+            f"{how})"
+        )
+    if not task.auto and not exponential:
+        remedies.append(
+            "method='auto', which chooses a member and runs again with more quencher steps "
+            "when a run stops on the quencher's truncation error"
+        )
+    remedies.append(f"a smaller max_step (the quencher's error falls like h^{member.z_order})")
+    better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
+    if better:
+        remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
+    if not exponential:
+        remedies.append("a looser tolerance only if the quencher's error grows with the step")
+    return remedies
+
+
+def message(status: Status, out: RunOutput, task: Task) -> str:
+    t = out.t_last
+    if status is Status.SUCCESS:
+        text = f"The integration reached the end of the interval (t = {float(t)!r})."
+    elif status is Status.STEP_SIZE_UNDERFLOW:
+        text = (
+            f"The step size {abs(out.h_fail):.3g} fell below the roundoff floor "
+            f"(10 eps |t|) at t = {float(t)!r}."
+        )
+    elif status is Status.NON_FINITE:
+        text = (
+            "The state or the right-hand side became non-finite (inf or nan) at "
+            f"t = {float(t)!r}: "
+            f"{_component(task, out.bad_component)} could not be evaluated to a finite value "
+            "there (a singularity, or H outside its domain)."
+        )
+    elif status is Status.MAX_STEPS:
+        text = (
+            f"The step limit max_steps = {task.options.max_steps} was reached at t = {float(t)!r}."
+        )
+    elif status is Status.INTERRUPTED:
+        text = f"Interrupted (KeyboardInterrupt) near t = {float(t)!r}."
+    elif status is Status.TOLERANCE_UNATTAINABLE:
+        text = _unattainable(out, task)
+    else:  # pragma: no cover - other statuses come from other methods
+        text = f"{status.description} (t = {float(t)!r})"
+    if not status.success:
+        if out.t.size and out.t[-1] != t:
+            # Output times (t_eval) end before where the steps reached.
+            text += f" The last output time kept is t = {float(out.t[-1])!r}."
+        text += kept_nodes_note(out.t.size)
+    steps = out.stats.get("steps", 0)
+    rounded = out.stats.get("roundoff_steps", 0)
+    if steps and 2 * rounded > steps and status is not Status.TOLERANCE_UNATTAINABLE:
+        text += (
+            f" Note: on {rounded} of {steps} steps the quencher's local error was below "
+            "double-precision rounding; there the Richardson estimate (and Gamma) "
+            "measures rounding, not truncation."
+        )
+    return text
+
+
+def rerun_note(
+    task: Task, discarded: list[tuple[Task, RunOutput]], evaluations: int, auto: bool = True
+) -> str:
+    """What the discarded runs (``(their task, run)``, with ``evaluations``
+    between them) of ``method="auto"`` (``auto``) or of a member run again
+    with the rounding witness did, for the message."""
+    notes = []
+    for earlier, run in discarded:
+        if run.status == Status.SUCCESS.code:
+            what = (
+                f"reached t = {run.t_last!r}, the quencher's estimated error at most "
+                f"{run.max_ratio:.3g} x the tolerance"
+            )
+        elif run.status == ST_ABANDONED:
+            what = (
+                f"was abandoned at t = {run.t_last!r}, where the quencher's estimated error, "
+                f"growing like t^2, was on course for {run.projected:.3g} x the tolerance "
+                "at t_end"
+            )
+        elif run.saturated:
+            what = (
+                f"stopped after t = {run.t_last!r}, where its shadow track had moved "
+                f"{run.saturated:.3g} of the orbit's size from the quencher (saturated: "
+                "a smaller max_step brings it back, more quencher steps do not)"
+            )
+        elif run.event_failure is not None:
+            what = (
+                f"stopped before the state of event {run.event_failure.label!r} at t = "
+                f"{run.t_last!r}, where the quencher's estimated error and rounding reached "
+                f"{run.max_ratio:.3g} x the tolerance"
+            )
+            if run.at_rounding_floor:
+                what += f" ({run.floor_ratio:.3g} of it rounding: double precision's floor)"
+        elif run.at_rounding_floor:
+            what = (
+                f"stopped at t = {run.t_last!r}, where the quencher's estimated error "
+                f"reached {run.max_ratio:.3g} x the tolerance, of which its rounding "
+                f"(measured by the witness) is {run.floor_ratio:.3g}: double precision's floor"
+            )
+        else:
+            what = (
+                f"stopped at t = {run.t_last!r}, where the quencher's "
+                f"estimated error reached {run.max_ratio:.3g} x the tolerance"
+            )
+        factor = growth(run, earlier)
+        if factor > EXPONENTIAL_GROWTH:
+            what += (
+                f"; the estimate had grown {factor:.3g}-fold over the second half of its "
+                "interval, faster than a periodic orbit's t^2: where that is exponential "
+                "growth, the rounding grows alike, which the shadow estimate does not see (the "
+                "witness measures it)"
+            )
+        elif earlier.grew_exponentially and reruns_for_rounding(earlier, run, math.inf):
+            what += (
+                "; the run before it had read an exponential growth of the estimate: more "
+                "quencher steps shrink the truncation error and leave the rounding, amplified "
+                "alike and unseen by Gamma, where it was: run again with the witness"
+            )
+        elif reruns_for_rounding(earlier, run, factor):
+            what += (
+                f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
+                "which Gamma does not see (it grows like the square of a run's length, and "
+                "with the state's size), could reach the tolerance: run again with the witness"
+            )
+        notes.append(f"the run {_quencher_setting(earlier)} {what}")
+    ran = (
+        f"method='auto' ran {task.options.method}"
+        if auto
+        else f"This is {task.options.method}'s second run"
+    )
+    return (
+        f" {ran} {_quencher_setting(task)}: "
+        f"{'; '.join(notes)} "
+        f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
+    )
+
+
+def _quencher_setting(task: Task) -> str:
+    """``with z_substeps=3`` (and ``, the quencher in double-double`` or
+    ``and the rounding witness``)."""
+    options = task.options
+    extended = ", the quencher in double-double" if options.double_double else ""
+    witness = " and the rounding witness" if uses_witness(task) else ""
+    shorter = f", max_step={options.max_step:.4g}" if task.shorter_steps else ""
+    return f"with z_substeps={member_of(task).z_substeps}{shorter}{extended}{witness}"
