@@ -124,6 +124,15 @@ def _events_from(data: Any, meta: Mapping[str, Any]) -> dict[str, Any]:
 def _readonly(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
     if array is None:
         return None
+    if (
+        type(array) is np.ndarray
+        and array.dtype == dtype
+        and not array.flags.writeable
+        and array.base is None
+    ):
+        # Made by this function already (a Solution's replace() passes its
+        # arrays on): nothing else refers to its data to change it.
+        return array
     out = np.array(array, dtype=dtype, copy=True)
     out.setflags(write=False)
     return out
@@ -215,8 +224,11 @@ class Solution:
         for name in _ARRAY_FIELDS:
             dtype = bool if name == "quenched" else float
             set_(self, name, _readonly(getattr(self, name), dtype))
-        set_(self, "atol", _readonly(np.broadcast_to(self.atol, (2 * self.n,))))
-        set_(self, "rtol", _readonly(np.broadcast_to(self.rtol, (2 * self.n,))))
+        for name in ("atol", "rtol"):
+            value = getattr(self, name)
+            if np.shape(value) != (2 * self.n,):
+                value = np.broadcast_to(value, (2 * self.n,))
+            set_(self, name, _readonly(value))
         set_(self, "stats", FrozenDict(self.stats))
         set_(self, "options", FrozenDict(self.options))
         set_(self, "names", tuple(self.names))

@@ -329,9 +329,24 @@ def is_compiled(ham: Hamiltonian, gamma: str = "off") -> bool:
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
     """H at the rows of ``Y`` (times ``t``), with the compiled scalar energy."""
     system = compile_system(ham)
-    # The compiled signature takes writable C-contiguous float64 arrays.
-    Y = np.require(Y, np.float64, ("C", "W"))
-    t = np.array(np.broadcast_to(np.asarray(t, dtype=np.float64), Y.shape[:1]))
+    Y = _compiled_argument(Y)
+    t = np.asarray(t, dtype=np.float64)
+    if t.shape != Y.shape[:1]:
+        t = np.array(np.broadcast_to(t, Y.shape[:1]))
     out = np.empty(Y.shape[0])
-    system.energy_rows(t, Y, np.require(params, np.float64, ("C", "W")), out)
+    system.energy_rows(_compiled_argument(t), Y, _compiled_argument(params), out)
     return out
+
+
+def _compiled_argument(array: np.ndarray) -> np.ndarray:
+    """``array`` as the compiled signatures take it: a writable C-contiguous
+    float64 array, copied only where it is not one (every run's nodes are:
+    ``np.require`` would cost a few microseconds of every call to check)."""
+    if (
+        isinstance(array, np.ndarray)
+        and array.dtype == np.float64
+        and array.flags.c_contiguous
+        and array.flags.writeable
+    ):
+        return array
+    return np.require(array, np.float64, ("C", "W"))

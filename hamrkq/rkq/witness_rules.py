@@ -97,17 +97,21 @@ def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
     size = np.abs(np.asarray(y0, dtype=np.float64))
     d = size.shape[0]
     floor = np.asarray(atol, dtype=np.float64)
-    if floor.shape != size.shape:
-        floor = np.full(d, floor)
     # One row per half (whole-array operations: every solve pays this)
     halves = 2 if d % 2 == 0 and d > 0 else 1
-    size_rows, floor_rows = size.reshape(halves, -1), floor.reshape(halves, -1)
-    top = size_rows.max(axis=1, keepdims=True, initial=0.0)
-    # a half that is all zeros is measured by the whole state (or 1)
-    top[top == 0.0] = size.max(initial=0.0) or 1.0
+    size_rows = size.reshape(halves, -1)
+    top = size_rows.max(axis=1, initial=0.0)
+    if not top.all():
+        # a half that is all zeros is measured by the whole state (or 1)
+        top[top == 0.0] = size.max(initial=0.0) or 1.0
+    if floor.ndim == 0 or not d or floor.min() == floor.max():
+        # One atol for every component: each share is 1, and no |y0_i|
+        # exceeds its half's largest (10 us less of every call).
+        return top.repeat(d // halves)
+    floor_rows = np.broadcast_to(floor, size.shape).reshape(halves, -1)
     largest = floor_rows.max(axis=1, keepdims=True, initial=0.0)
     share = np.divide(floor_rows, largest, out=np.ones_like(floor_rows), where=largest > 0.0)
-    return np.maximum(size_rows, top * share).reshape(d)
+    return np.maximum(size_rows, top[:, None] * share).reshape(d)
 
 
 def needs_witness(

@@ -329,16 +329,15 @@ def reruns_with_witness(task: Task) -> bool:
     """Whether a run of ``task`` can run again with the rounding witness
     where its rounding calls for it (:func:`rerun`): the shadow's or the
     tangent's estimate, without the witness, the quencher in double."""
-    return _witnessed(task) is not None
+    # without building the task (every finished run asks)
+    return can_witness(task.options) and not uses_witness(task)
 
 
 def _witnessed(task: Task) -> Task | None:
     """``task`` with the rounding witness; None where the witness ran
     already or cannot (the paper's estimate, or the quencher in
     double-double)."""
-    if not can_witness(task.options) or uses_witness(task):
-        return None
-    return replace(task, witness=True)
+    return replace(task, witness=True) if reruns_with_witness(task) else None
 
 
 def _with_witness(requested: SolveOptions, task: Task) -> Task | None:

@@ -104,6 +104,34 @@ def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: 
     sequence in the order of ``q`` (``p``) or a mapping by name or symbol;
     see :meth:`hamrkq.Hamiltonian.state_values`."""
     n = len(q)
+    state = _finite_doubles(q0, p0, n)
+    parts = _state_parts(q, p, q0, p0) if state is None else state.tolist()
+    for k, (symbol, value) in enumerate(zip((*q, *p), parts, strict=True)):
+        conflict = assumption_conflict(symbol, value)
+        if conflict is not None:
+            label = f"q0[{k}]" if k < n else f"p0[{k - n}]"
+            raise InputError(f"{label}: {conflict}")
+    return np.array(parts, dtype=float) if state is None else state
+
+
+def _finite_doubles(q0: Any, p0: Any, n: int) -> np.ndarray | None:
+    """``(q0..., p0...)`` where both are arrays of n finite doubles (the
+    common case, decided without a Python object per value: every solve
+    pays this), else None: each value is then checked on its own, for its
+    message (:func:`_state_parts`)."""
+    for values in (q0, p0):
+        if not (type(values) is np.ndarray and values.dtype == np.float64):
+            return None
+        if values.shape != (n,):
+            return None
+    state = np.concatenate((q0, p0))
+    return state if np.isfinite(state).all() else None
+
+
+def _state_parts(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: Any) -> list:
+    """The values of ``q0`` and ``p0`` as floats, one at a time, each
+    checked (:func:`as_number`), or the error that names what is wrong."""
+    n = len(q)
     parts: list[float] = []
     for label, values, symbols in (("q0", q0, q), ("p0", p0, p)):
         if isinstance(values, Mapping):
@@ -130,12 +158,7 @@ def bind_state(q: tuple[sp.Symbol, ...], p: tuple[sp.Symbol, ...], q0: Any, p0: 
                 f"has {n} degree{'s' if n != 1 else ''} of freedom"
             )
         parts.extend(as_number(v, f"{label}[{i}]") for i, v in enumerate(seq))
-    labels = [f"q0[{i}]" for i in range(n)] + [f"p0[{i}]" for i in range(n)]
-    for symbol, value, label in zip((*q, *p), parts, labels, strict=True):
-        conflict = assumption_conflict(symbol, value)
-        if conflict is not None:
-            raise InputError(f"{label}: {conflict}")
-    return np.array(parts, dtype=float)
+    return parts
 
 
 def _bind_by_name(
