@@ -398,7 +398,10 @@ class Integration:
     def _output(self, chunks, status: int) -> RunOutput:
         s = self.record
         use_z = self.member.use_z
-        t, y, z, gam, q, rounding = (np.concatenate([c[i] for c in chunks]) for i in range(6))
+        if len(chunks) == 1:  # a short run: its one chunk is a copy already
+            t, y, z, gam, q, rounding = chunks[0]
+        else:
+            t, y, z, gam, q, rounding = (np.concatenate([c[i] for c in chunks]) for i in range(6))
         return RunOutput(
             t=t,
             y=y,
