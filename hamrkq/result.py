@@ -172,7 +172,8 @@ class Solution:
     message : str
         Human-readable account, naming ``t`` where a failure happened.
     method : str
-        The method name passed to :func:`hamrkq.solve`.
+        The method that ran: the name passed to :func:`hamrkq.solve`, or for
+        ``method="auto"`` the member it chose (``"rk78q12"``, ...).
     options : mapping
         The settings actually used (tolerances, safety, ...), JSON-friendly.
     n : int
@@ -265,6 +266,20 @@ class Solution:
     def nfev(self) -> int:
         """Number of right-hand-side evaluations."""
         return int(self.stats.get("nfev", 0))
+
+    @property
+    def njev(self) -> int:
+        """Number of Jacobian evaluations (for the RKQ family, the
+        Jacobian-vector products of the tangent estimate of Gamma), as
+        SciPy's ``solve_ivp`` result has it."""
+        return int(self.stats.get("njev", 0))
+
+    @property
+    def nlu(self) -> int:
+        """Number of LU decompositions, as SciPy's ``solve_ivp`` result has
+        it: 0, hamrkq's methods are explicit (SciPy's implicit baselines
+        count theirs)."""
+        return int(self.stats.get("nlu", 0))
 
     def __len__(self) -> int:
         return int(self.t.size)

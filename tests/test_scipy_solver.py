@@ -211,6 +211,56 @@ def test_non_finite_initial_derivative_fails_on_the_first_step():
     assert sol.status == -1 and "non-finite" in sol.message
 
 
+def test_non_finite_message_ends_with_one_full_stop():
+    # QA: "... became non-finite (inf or nan). (t = 0.99...)"
+    sol = solve_ivp(lambda t, y: [np.nan if t > 1 else 1.0], (0.0, 2.0), [0.0],
+                    method=RK34Q8, global_error_estimate="off")  # fmt: skip
+    assert sol.status == -1 and "non-finite" in sol.message
+    assert ".." not in sol.message and ". (" not in sol.message and sol.message.endswith(").")
+
+
+def test_dense_output_extrapolates_outside_the_interval_as_scipys_methods():
+    # QA: sol(t) one ulp past the end raised, naming the last step as "the
+    # integrated interval"; SciPy's methods extrapolate their end steps.
+    sol = solve_ivp(harmonic, (0.0, 10.0), [0.0, 1.0], method=RK34Q8, jac=harmonic_jac,
+                    atol=1e-8, dense_output=True)  # fmt: skip
+    for t, bound in ((np.nextafter(10.0, 11.0), 1.01e-8), (10.5, 1e-7), (-0.5, 1e-7)):
+        # the RK8 track stepped on from the end node: as accurate as a node
+        assert np.abs(sol.sol(t) - harmonic_exact(t)).max() <= bound
+    with pytest.raises(ValueError, match=r"outside|finite"):
+        sol.sol(np.nan)
+
+
+def plain_harmonic(t, y):  # module level: picklable, as solve_ivp's fun must be for pickle
+    return np.array([y[1], -y[0]])
+
+
+def plain_harmonic_columns(t, y):
+    return np.vstack([y[1], -y[0]])
+
+
+@pytest.mark.parametrize("fun, vectorized", [(plain_harmonic, False),
+                                             (plain_harmonic_columns, True)])  # fmt: skip
+def test_a_result_with_dense_output_pickles(fun, vectorized):
+    # QA: "Can't pickle local object 'check_arguments.<locals>.fun_wrapped'"
+    import pickle
+
+    sol = solve_ivp(fun, (0.0, 10.0), [0.0, 1.0], method=RK34Q8, jac=harmonic_jac,
+                    atol=1e-8, dense_output=True, vectorized=vectorized)  # fmt: skip
+    copy = pickle.loads(pickle.dumps(sol))
+    tt = np.linspace(0.0, 10.0, 101)
+    np.testing.assert_array_equal(copy.sol(tt), sol.sol(tt))
+    assert np.abs(copy.sol(tt) - harmonic_exact(tt)).max() <= 1.0e-8
+
+
+def test_tolerances_and_max_step_are_attributes_as_scipys():
+    solver = RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, atol=1e-8, rtol=1e-6, max_step=0.1,
+                    jac=harmonic_jac)  # fmt: skip
+    np.testing.assert_array_equal(solver.atol, [1e-8, 1e-8])
+    np.testing.assert_array_equal(solver.rtol, [1e-6, 1e-6])
+    assert solver.max_step == 0.1
+
+
 def test_validation_names_the_parameter():
     with pytest.raises(InputError, match="atol"):
         RK34Q8(harmonic, 0.0, [0.0, 1.0], 1.0, atol=-1.0)

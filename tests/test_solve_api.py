@@ -58,6 +58,43 @@ def test_solution_fields_are_consistent():
     assert set(sol.stats) >= {"steps", "rejected", "quenches", "nfev", "njev"}
     assert sol.options["first_step_rule"] == "hairer-norsett-wanner"
     assert 0 < sol.options["first_step"] < 1
+    # SciPy's result fields (QA: njev and nlu were missing)
+    assert (sol.nfev, sol.njev, sol.nlu) == (sol.stats["nfev"], sol.stats["njev"], 0)
+    assert sol.njev > 0  # rk34q8's tangent Gamma: one Jacobian product a stage
+
+
+@pytest.mark.parametrize("method", ["auto", "scipy:DOP853"])
+def test_events_given_as_an_empty_list_give_empty_lists(method):
+    # As SciPy's solve_ivp: None without events=, [] with events=[] (QA: None,
+    # and a loop over sol.t_events raised TypeError)
+    pr = load_problem("harmonic")
+    assert solve(pr, t_span=(0.0, 1.0), method=method).t_events is None
+    sol = solve(pr, t_span=(0.0, 1.0), method=method, events=[])
+    assert sol.t_events == [] and sol.y_events == []
+    assert Solution.load(_saved(sol)).t_events == []
+
+
+def _saved(sol):
+    import tempfile
+    from pathlib import Path
+
+    path = Path(tempfile.mkdtemp()) / "run.npz"
+    sol.save(path)
+    return path
+
+
+def test_dense_output_takes_a_time_an_ulp_past_either_end():
+    # QA: np.arange(4) * 0.1 ends at 0.30000000000000004, which SciPy's
+    # dense output evaluates and hamrkq's refused for a run to 0.3
+    pr = load_problem("harmonic")  # q = sin t, p = cos t
+    for span in ((0.0, 0.3), (0.3, 0.0)):
+        sol = solve(pr, t_span=span, atol=1e-10, dense_output=True)
+        t0 = span[0]
+        times = np.array([np.nextafter(0.3, 1.0), np.nextafter(0.0, -1.0), 0.15])
+        exact_q = np.sin(times - t0)
+        assert np.abs(sol.sol(times)[0] - exact_q).max() <= 1.05e-10
+        with pytest.raises(ValueError, match="outside the integrated interval"):
+            sol.sol(0.3 + 1e-9)
 
 
 def test_problem_defaults_and_keyword_overrides():

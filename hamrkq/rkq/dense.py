@@ -175,16 +175,31 @@ def attainability(
     )
 
 
-def node_index(t_nodes: np.ndarray, tq: np.ndarray, nearest: bool = True) -> np.ndarray:
+#: How far (in units of the last place of the larger end's time) a query
+#: time may lie outside the nodes and still be a time of the run: times
+#: computed in floating point miss the end by an ulp (``np.arange(4) * 0.1``
+#: ends at 0.30000000000000004 for a run to 0.3, which SciPy evaluates).
+END_SLACK_ULPS = 4
+
+
+def node_index(
+    t_nodes: np.ndarray, tq: np.ndarray, nearest: bool = True, extrapolate: bool = False
+) -> np.ndarray:
     """For each query time the node it is stepped from: the nearer of the two
     nodes around it (``nearest``; a step backward from the later one, so that
     no value is more than half a step from its node), or the last node at or
     before it in the direction of integration (``t_nodes`` monotonic).
-    Raises ValueError for a time outside ``[t_nodes[0], t_nodes[-1]]``."""
+    Raises ValueError for a time outside ``[t_nodes[0], t_nodes[-1]]`` by
+    more than :data:`END_SLACK_ULPS` ulps, unless ``extrapolate`` (then such
+    a time is stepped from the nearer end, as SciPy's dense output
+    extrapolates its first and last steps), and for one that is not finite."""
     forward = t_nodes[-1] >= t_nodes[0]
     s = t_nodes if forward else -t_nodes
     x = tq if forward else -tq
-    bad = (x < s[0]) | (x > s[-1]) | ~np.isfinite(x)
+    slack = END_SLACK_ULPS * np.spacing(max(abs(float(s[0])), abs(float(s[-1]))))
+    bad = ~np.isfinite(x)
+    if not extrapolate:
+        bad |= (x < s[0] - slack) | (x > s[-1] + slack)
     if np.any(bad):
         first = float(tq[np.argmax(bad)])
         raise ValueError(
@@ -219,7 +234,7 @@ class DenseOutput:
         :func:`evaluate` compiled for these argument types (by
         :func:`hamrkq.backends.extras.compiled_helper`); interpreted without.
     recipe : tuple, optional
-        ``(build, args)`` with ``build(*args, t, y, z)`` returning this dense
+        ``(build, args)`` with ``build(*args, t, y, z, certificate)`` returning this dense
         output: how a pickled copy is rebuilt (compiled functions and the
         interpreted backend's closures do not pickle; the recipe's
         Hamiltonian and method do).  Without it the copy is rebuilt from
@@ -237,9 +252,13 @@ class DenseOutput:
         (:func:`attainability`) and warns (``HamrkqWarning``) where that
         fails: under ``rtol``, where a component passes zero between two
         nodes, its tolerance is ``atol`` alone, below the nodes'.
+    extrapolate : bool
+        Whether a time outside the nodes is stepped from the nearer end
+        (SciPy's ``OdeSolver`` steps, :mod:`hamrkq.rkq.scipy_solver`) instead
+        of refused (:func:`node_index`).
     """
 
-    def __init__(
+    def __init__(  # noqa: PLR0913 - a run's arrays, functions and rules
         self,
         t: np.ndarray,
         y: np.ndarray,
@@ -251,6 +270,7 @@ class DenseOutput:
         recipe: tuple[Callable, tuple] | None = None,
         tolerance: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         certificate: tuple | None = None,
+        extrapolate: bool = False,
     ):
         self.t = np.array(t, dtype=np.float64, order="C")
         self.y = np.array(y, dtype=np.float64, order="C")
@@ -273,6 +293,9 @@ class DenseOutput:
         self._count = threading.Lock()
         self.nfev = 0
         self._certificate = certificate
+        #: Whether a time outside the nodes is stepped from the nearer end
+        #: (:func:`node_index`) instead of refused.
+        self.extrapolate = extrapolate
 
     def through(
         self, t: np.ndarray, y: np.ndarray, z: np.ndarray | None, certificate: tuple | None = None
@@ -282,7 +305,7 @@ class DenseOutput:
         ``certificate`` for those nodes, or None: no check)."""
         return DenseOutput(
             t, y, z, self._rhs, self._tab, self._params, self._compiled, self._recipe,
-            self._tolerance, certificate,
+            self._tolerance, certificate, self.extrapolate,
         )  # fmt: skip
 
     @property
@@ -297,7 +320,7 @@ class DenseOutput:
         return (
             DenseOutput,
             (self.t, self.y, self.z, self._rhs, self._tab, self._params, None, None,
-             self._tolerance, self._certificate),
+             self._tolerance, self._certificate, self.extrapolate),
         )  # fmt: skip
 
     def values(self, t) -> np.ndarray:
@@ -337,7 +360,7 @@ class DenseOutput:
         tq = np.array(np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel(), order="C")
         out = np.empty((tq.size, self.y.shape[1]))
         if tq.size:
-            index = node_index(self.t, tq)
+            index = node_index(self.t, tq, extrapolate=self.extrapolate)
             # Work arrays of this call's own (about 9 us): the compiled
             # evaluation runs without the GIL, so threads evaluating one
             # solution at once would otherwise share, and corrupt, them.

@@ -205,6 +205,11 @@ class RK34Q8(OdeSolver):
             raise OptionError(f"z_method={z_method!r} is not valid; valid values: {valid}")
         self.on_step = on_step
         self.global_error_estimate = global_error_estimate
+        # As SciPy's explicit methods expose them (per component here).
+        self.atol, self.rtol, self.max_step = atol, rtol, max_step
+        # fun as given, for a pickled dense output (SciPy's wrapper of it
+        # is a local function, which does not pickle).
+        self._plain_rhs = _PlainRhs(fun, vectorized)
         settings = Settings(
             quench=_QUENCH[choice("quench", quench, _QUENCH)],
             rule=rule,
@@ -338,7 +343,7 @@ class RK34Q8(OdeSolver):
                 f"reach {s['max_ratio']:.3g} x the tolerance (gamma_limit); a smaller "
                 "max_step or a shorter interval is what helps."
             )
-        return f"RK34Q8: {status.description} (t = {float(t)!r})"
+        return f"RK34Q8: {status.description.rstrip('.')} (t = {float(t)!r})."
 
     def _dense_output_impl(self) -> StepDenseOutput:
         nodes = dense.DenseOutput(
@@ -348,7 +353,9 @@ class RK34Q8(OdeSolver):
             self._rhs,
             self._dense_tableaus,
             _NO_PARAMS,
+            recipe=(_step_nodes, (self._plain_rhs, self._dense_tableaus, self._dense_tolerance)),
             tolerance=self._dense_tolerance,
+            extrapolate=True,
         )
         return StepDenseOutput(self.t_old, self.t, nodes)
 
@@ -383,10 +390,38 @@ class RK34Q8(OdeSolver):
         }
 
 
+class _PlainRhs:
+    """``fun(t, y)`` as the dense output calls it, ``rhs(t, y, params,
+    out)``, picklable where ``fun`` is (SciPy's own wrapper of ``fun`` is
+    not); ``vectorized`` as SciPy's ``OdeSolver`` takes it."""
+
+    def __init__(self, fun: Callable, vectorized: bool):
+        self.fun, self.vectorized = fun, vectorized
+
+    def __call__(self, t, y, params, out):
+        if self.vectorized:
+            out[:] = np.asarray(self.fun(t, y.copy()[:, None]), dtype=float).ravel()
+        else:
+            out[:] = np.asarray(self.fun(t, y.copy()), dtype=float)
+
+
+def _step_nodes(rhs, tableaus, tolerance, t, y, z, certificate) -> dense.DenseOutput:
+    """A step's continuous extension rebuilt from a pickle
+    (:meth:`hamrkq.rkq.dense.DenseOutput.__reduce__`'s recipe)."""
+    return dense.DenseOutput(
+        t, y, z, rhs, tableaus, _NO_PARAMS, tolerance=tolerance, certificate=certificate,
+        extrapolate=True,
+    )  # fmt: skip
+
+
 class StepDenseOutput(DenseOutput):
     """One step's continuous extension for SciPy: values of
     :class:`hamrkq.rkq.dense.DenseOutput` over the step's two nodes (the RK8
-    track stepped from the nearer node, plus ``y - z`` interpolated).
+    track stepped from the nearer node, plus ``y - z`` interpolated).  A time
+    outside the step is stepped from the nearer node (and ``y - z``
+    extrapolated), as SciPy's methods extrapolate their first and last
+    steps: ``solve_ivp``'s ``sol(t)`` outside the interval, where no bound
+    holds.
 
     Parameters
     ----------

@@ -395,7 +395,11 @@ def _solution(
 def _with_events_note(sol: Solution, prepared: Prepared) -> Solution:
     """``sol`` with ``options["events_not_located"]``: why a problem file's
     events were left out of the run (the words of the warning), so that a
-    saved solution and the command line's summary say it too."""
+    saved solution and the command line's summary say it too; and with
+    empty ``t_events`` and ``y_events`` where ``events=[]`` was given (SciPy's
+    ``solve_ivp`` returns ``[]`` there, None only without ``events``)."""
+    if prepared.events_given and not prepared.events and sol.t_events is None:
+        sol = sol.replace(t_events=[], y_events=[], event_bound=[])
     if prepared.events_note is None:
         return sol
     return sol.replace(options={**sol.options, "events_not_located": prepared.events_note})
@@ -418,6 +422,9 @@ class Prepared:
     #: Why a problem file's events are left out of the run (the warning's
     #: words), or None: they are located, or there are none.
     events_note: str | None = None
+    #: Whether ``events=`` was given (an empty list returns empty
+    #: ``t_events``, as SciPy's ``solve_ivp`` does).
+    events_given: bool = False
 
 
 def prepare(
@@ -537,7 +544,9 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         auto=requested.method == "auto",
         output_times=output_times,
     )
-    return Prepared(task, spec, chosen, compile_s, event_list, requested, events_note)
+    return Prepared(
+        task, spec, chosen, compile_s, event_list, requested, events_note, events is not None
+    )
 
 
 def _event_list(events, system_or_problem, ham, params, located: bool) -> tuple[list, str | None]:
