@@ -151,12 +151,25 @@ def _callable_rows(g: Callable) -> Callable:
 def _callable_slopes(rows: Callable, ham: Hamiltonian, params: np.ndarray) -> Callable:
     """``dg/dt`` of a callable ``g`` along the flow, by a central difference
     over a short time ``e`` along ``f`` (about 1e-10 relative: enough to see
-    where ``g`` turns)."""
+    where ``g`` turns).
+
+    ``e`` is 1e-5 of the orbit's time scale at the node, ``max|y| / max|f|``
+    (the time the flow takes to move the state by its own size), and of
+    ``max(1, |t|)`` where that is shorter: 1e-5 ``|t|`` alone was 10 time
+    units at t = 1e6, longer than the harmonic oscillator's turn at a
+    maximum, every slope's sign there was wrong, and the pairs of roots
+    inside a step near the maxima were missed (80 crossings found 60 times,
+    found by QA).  At least 64 ulps of ``t``, so that ``t +- e`` differ.
+    """
     numeric = numeric_of(ham)
 
     def slopes(t: np.ndarray, Y: np.ndarray) -> np.ndarray:
         F = np.atleast_2d(numeric.rhs_many(t, Y, params))
-        e = 1e-5 * np.maximum(1.0, np.abs(t))
+        size, speed = np.abs(Y).max(axis=1), np.abs(F).max(axis=1)
+        moving = (size > 0.0) & (speed > 0.0) & np.isfinite(speed)
+        scale = np.where(moving, size / np.where(moving, speed, 1.0), np.inf)
+        e = 1e-5 * np.minimum(np.maximum(1.0, np.abs(t)), scale)
+        e = np.maximum(e, 64.0 * np.spacing(np.abs(t)))
         ahead = rows(t + e, Y + e[:, None] * F)
         behind = rows(t - e, Y - e[:, None] * F)
         return (ahead - behind) / (2.0 * e)

@@ -361,6 +361,31 @@ def test_two_crossings_inside_one_step_of_a_callable_event_backward_in_time():
     np.testing.assert_allclose(times, exact[::-1], atol=1e-6)
 
 
+def test_two_crossings_inside_one_step_of_a_callable_event_at_a_large_time():
+    # QA: the central difference stepped 1e-5 |t|, 10 time units at t = 1e6,
+    # longer than the turn at a maximum: every slope there had the wrong
+    # sign and 60 of 80 crossings were found, SUCCESS.  Now 1e-5 of the
+    # orbit's own time scale.
+    def g(t, y):  # nonlinear in q: a linear g's difference is exact for any e
+        return np.sin(3.0 * y[0]) - math.sin(3.0 * 0.99)
+
+    t0 = 1e6
+    span = 20 * math.pi
+    # q = sin t on the exact orbit; g = 0 at q = 0.99 (twice near each
+    # maximum, inside one step) and at q = (pi - 2.97) / 3 (steeply)
+    k = np.arange(math.floor(t0 / (2 * math.pi)) - 1, math.ceil((t0 + span) / (2 * math.pi)) + 1)
+    roots = []
+    for a in (math.asin(0.99), math.asin((math.pi - 2.97) / 3)):
+        roots += [a + 2 * math.pi * k, math.pi - a + 2 * math.pi * k]
+    roots = np.sort(np.concatenate(roots))
+    exact = roots[(roots > t0) & (roots <= t0 + span)]
+    sol = hamrkq.solve(OSC, [math.sin(t0)], [math.cos(t0)], (t0, t0 + span), atol=1e-6,
+                       events=g)  # fmt: skip
+    assert sol.t_events[0].size == exact.size == 40
+    # |dg/dt| >= 3 |cos 2.97| 0.14 at the crossings: a time within delta / 0.4
+    assert np.max(np.abs(sol.t_events[0] - exact)) < 1e-5
+
+
 def test_bracketed_roots_all_at_once_to_four_eps_in_a_few_calls():
     from hamrkq.rkq.roots import bracketed_roots
 
