@@ -199,6 +199,22 @@ def test_a_terminal_event_ends_each_member_where_solve_alone_ends_it():
         assert ens.t_last[i] == pytest.approx(np.arccos(-0.05 / x), abs=1e-10)
 
 
+@pytest.mark.parametrize("span", [(0.0, 10.0), (0.0, -10.0)])
+def test_with_t_eval_t_last_is_the_terminal_events_time(span):
+    # QA: t_last was the last output time before the event (0.0 where the
+    # event was at t = 1.43): the time reached is the event's.
+    event = {"expression": "q + 0.05", "terminal": True}
+    starts = [0.1, 0.3]
+    grid = np.linspace(*span, 5)  # 0, +-2.5, ...: the event comes before the second
+    ens = hamrkq.ensemble(OSCILLATOR, q0=[[x] for x in starts], p0=[0.0], t_span=span,
+                          t_eval=grid, atol=1e-12, events=[event], workers=1)  # fmt: skip
+    for i, x in enumerate(starts):
+        assert ens.member_status(i) is Status.TERMINAL_EVENT
+        # q = x cos t: q = -0.05 at |t| = arccos(-0.05 / x)
+        assert abs(ens.t_last[i]) == pytest.approx(np.arccos(-0.05 / x), abs=1e-10)
+        assert np.isnan(ens.y[i, 1:]).all() and ens.y[i, 0, 0] == x
+
+
 def test_a_hamiltonian_needs_initial_values_and_span():
     with pytest.raises(InputError, match="p0, t_span must be given"):
         hamrkq.ensemble(FALL, q0=[1.0])

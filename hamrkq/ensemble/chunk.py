@@ -286,11 +286,11 @@ def _store(result: ChunkResult, request: Request, i: int, sol: Any) -> None:
         result.messages[i] = sol.message
     result.stats[i] = [int(sol.stats.get(name, 0)) for name in STATS]
     result.y[i] = np.nan
-    result.t_last[i] = result.max_global_error[i] = np.nan
+    result.max_global_error[i] = np.nan
     result.energy0[i] = result.energy_drift[i] = np.nan
+    result.t_last[i] = _time_reached(request, sol)
     if sol.t.size == 0:
         return
-    result.t_last[i] = sol.t[-1]
     if request.t_eval is not None:
         result.y[i, : sol.t.size] = sol.y
     else:
@@ -301,6 +301,19 @@ def _store(result: ChunkResult, request: Request, i: int, sol: Any) -> None:
         result.max_global_error[i] = float(np.max(np.abs(sol.global_error)))
     result.energy0[i] = _initial_energy(request, i, sol)
     result.energy_drift[i] = float(np.max(np.abs(sol.energy - result.energy0[i])))
+
+
+def _time_reached(request: Request, sol: Any) -> float:
+    """The last time a member's run reached: where a terminal event ended
+    it (its latest root in the direction of the run: with ``t_eval`` the
+    last row is an output time before it, found by QA reading 0.0 where the
+    event was at 1.43), else its last node (NaN without one)."""
+    if sol.status is Status.TERMINAL_EVENT and sol.t_events:
+        roots = np.concatenate([np.ravel(times) for times in sol.t_events])
+        if roots.size:
+            direction = 1.0 if request.t_span[1] >= request.t_span[0] else -1.0
+            return float(direction * np.max(direction * roots))
+    return float(sol.t[-1]) if sol.t.size else np.nan
 
 
 def _initial_energy(request: Request, i: int, sol: Any) -> float:
