@@ -38,6 +38,21 @@ def test_harmonic_lyapunov_decays_like_one_over_t_and_megno_to_zero():
     )
 
 
+def test_the_tangent_map_takes_the_quencher_s_own_steps():
+    # On the linear oscillator the tangent map is the flow itself: log|v(t)|
+    # is exact.  auto at atol 1e-2 runs rk67q9 with three quencher steps a
+    # step; one quencher step over each interval read 1.3e-2 off at t =
+    # 2000, the quencher's three 3.2e-7 (found by QA).
+    from hamrkq.analysis.chaos import tangent_growth
+
+    sol = hamrkq.solve(OSC, [1.0], [0.0], (0.0, 2000.0), atol=1e-2, method="auto")
+    assert sol.options["z_substeps"] > 1
+    c, s = math.cos(W * 2000.0), math.sin(W * 2000.0)
+    exact = math.log(math.hypot(c + s / W, -W * s + c) / math.sqrt(2.0))  # v0 = (1, 1)/sqrt 2
+    for backend in ("python", "numba"):
+        assert abs(tangent_growth(sol, OSC, backend=backend).sum() - exact) < 1e-5
+
+
 def test_megno_regular_henon_heiles_orbit_tends_to_two():
     hh = load_problem("henon_heiles")
     q0, p0 = energy_orbits(hh.hamiltonian, 1 / 8, 5)

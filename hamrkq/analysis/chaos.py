@@ -4,7 +4,7 @@ exponent and MEGNO.
 Both integrate the orbit with :func:`hamrkq.solve` (every node kept), then
 carry a tangent vector ``v`` along the quencher track's nodes (``z``; ``y``
 for a method without one) with the exact linearisation of the quencher's
-step (:mod:`hamrkq.rkq.variational`; the symbolic Jacobian gives ``J v``),
+steps (:mod:`hamrkq.rkq.variational`; the symbolic Jacobian gives ``J v``),
 renormalised every step.  With ``l_i = log(|v_{i+1}|/|v_i|)``:
 
 - the maximal Lyapunov exponent ``lambda(t_k) = sum_{i<k} l_i / |t_k - t0|``
@@ -97,12 +97,14 @@ def tangent_growth(
     v = tangent_direction(v0, d)
     t = np.array(sol.t, dtype=np.float64)
     # Along the quencher's own track where the run has one: the tangent map
-    # of a quencher step from z_i is then the linearisation of the very map
+    # of its steps from z_i is then the linearisation of the very map
     # that took z_i to z_{i+1}.  The reported track y is not that map's
     # orbit (the pair's steps, and quenches that jump it onto z): at atol
     # 1e-6 on Kepler e = 0.6, MEGNO at t = 2000 read 2.35 (auto) and 1.61
     # (rk34q8) along y, 1.998 along z, as at every tolerance.
     y = np.array(sol.y if sol.z is None else sol.z, dtype=np.float64)
+    # as many steps an interval as the quencher took (the pair's one without)
+    substeps = member.z_substeps if sol.z is not None else 1
     growth = np.zeros(max(t.size - 1, 0))
     work = prepare_work(d, tab)
     backend = backend or str(options.get("backend", "python"))
@@ -111,7 +113,7 @@ def tangent_growth(
 
         system_fns = compiled.compile_system(ham)
         system_fns.prepare("tangent")  # generates and compiles rhs_jvp
-        args = (system_fns.rhs_jvp, tab, params, t, y, v, work, growth)
+        args = (system_fns.rhs_jvp, tab, params, t, y, substeps, v, work, growth)
         extras.compiled_helper(sweep, ("rhs_jvp",), *args)(*args)
     else:
         numeric = numeric_of(ham)
@@ -121,7 +123,7 @@ def tangent_growth(
             JM[:, :] = numeric.jac(t, y, params)
             dout[:] = JM @ v
 
-        sweep(tangent, tab, params, t, y, v, work, growth)
+        sweep(tangent, tab, params, t, y, substeps, v, work, growth)
     return growth
 
 
