@@ -15,7 +15,14 @@ import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError, OptionError
 
-__all__ = ["choice", "count", "positive", "real", "show", "span", "tolerance"]
+__all__ = ["MAX_COUNT", "choice", "count", "positive", "real", "show", "span", "tolerance"]
+
+#: The largest count (``max_steps``, ``keep_every``, ``z_substeps``) accepted.
+#: Counts end in int64 fields of the compiled kernel's configuration, and the
+#: loop adds to and multiplies them; 2**62 leaves a factor of two of headroom
+#: below int64's 2**63 - 1 (a larger count failed deep in the run with
+#: NumPy's OverflowError instead of a message naming the option).
+MAX_COUNT = 2**62
 
 
 def show(value: Any) -> str:
@@ -105,7 +112,9 @@ def positive(name: str, value: Any, *, inf: bool = False, upper: float | None = 
 
 
 def count(name: str, value: Any) -> int:
-    """A positive integer."""
+    """A positive integer, at most :data:`MAX_COUNT` (2**62)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
         raise InputError(f"{name} must be a positive integer, got {show(value)}")
+    if value > MAX_COUNT:
+        raise InputError(f"{name} must be at most 2**62 = {MAX_COUNT}, got {show(value)}")
     return int(value)
