@@ -10,7 +10,7 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.catalogue import exact
-from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.errors import HamrkqWarning, InputError, InputTypeError, OptionError
 from hamrkq.result import Status
 
 q, p, w = sp.symbols("q p w")
@@ -213,6 +213,59 @@ def test_with_t_eval_t_last_is_the_terminal_events_time(span):
         # q = x cos t: q = -0.05 at |t| = arccos(-0.05 / x)
         assert abs(ens.t_last[i]) == pytest.approx(np.arccos(-0.05 / x), abs=1e-10)
         assert np.isnan(ens.y[i, 1:]).all() and ens.y[i, 0, 0] == x
+
+
+EVENT_FILE = """name = "oscillator_events"
+coordinates = ["q"]
+momenta = ["p"]
+hamiltonian = "p**2/2 + q**2/2"
+[initial]
+q = 1
+p = 0
+[integration]
+t_span = [0, 7]
+[[events]]
+expression = "q"
+terminal = true
+[[events]]
+expression = "p"
+"""
+
+
+def test_a_problem_files_terminal_events_end_the_members_as_in_solve(tmp_path):
+    # QA: the file's [[events]] were ignored: every member SUCCESS at t = 7,
+    # where solve of the same member ends TERMINAL_EVENT at t = pi/2.
+    path = tmp_path / "oscillator_events.toml"
+    path.write_text(EVENT_FILE)
+    problem = hamrkq.load_problem(path)
+    starts = [[0.5], [1.0], [1.5]]
+    with pytest.warns(HamrkqWarning, match=r"'p'\) are not located"):
+        ens = hamrkq.ensemble(problem, q0=starts, workers=1)
+    for i, start in enumerate(starts):
+        alone = hamrkq.solve(problem, q0=start)  # locates p too, and stops at q = 0
+        assert ens.member_status(i) is Status.TERMINAL_EVENT is alone.status
+        assert ens.t_last[i] == alone.t[-1] == pytest.approx(np.pi / 2, abs=1e-9)
+        np.testing.assert_array_equal(ens.y[i, 0], alone.y[-1])
+    assert ens.options["events"] == [{"label": "q", "terminal": 1, "direction": 0.0}]
+    assert "'p'" in ens.options["events_not_located"]
+    saved = ens.save(tmp_path / "ensemble.npz")
+    assert hamrkq.EnsembleSolution.load(saved).options == ens.options
+    # events=[] runs without the file's events, and without the warning
+    ens = hamrkq.ensemble(problem, q0=starts, events=[], workers=1)
+    assert ens.all_success and np.all(ens.t_last == 7.0)
+
+
+def test_an_ensemble_with_a_callable_event_saves(tmp_path):
+    # QA (found while fixing the above): TypeError, a function is not JSON
+    def crossing(t, y):
+        return y[0] + 0.05
+
+    crossing.terminal = True
+    ens = hamrkq.ensemble(OSCILLATOR, q0=[[0.1], [0.2]], p0=[0.0], t_span=(0, 10),
+                          events=[crossing], workers=1)  # fmt: skip
+    loaded = hamrkq.EnsembleSolution.load(ens.save(tmp_path / "ens.npz"))
+    assert loaded.options["events"] == [{"label": "crossing", "terminal": 1, "direction": 0.0}]
+    np.testing.assert_array_equal(loaded.t_last, ens.t_last)
 
 
 def test_a_hamiltonian_needs_initial_values_and_span():

@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq._files import plain
 from hamrkq.ensemble.chunk import run_chunk
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.ensemble.result import EnsembleSolution
@@ -160,7 +159,7 @@ class Collector:
             t_span=r.t_span,
             parameters={name: r.params[:, j] for j, name in enumerate(names)},
             stats={name: self.stats[:, k] for k, name in enumerate(STATS)},
-            options=plain(r.options),
+            options=r.record(),
         )
 
 

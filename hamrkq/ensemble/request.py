@@ -22,10 +22,11 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from hamrkq._files import plain
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import span as _span
-from hamrkq.errors import InputError, InputTypeError, OptionError
+from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.events import event_specs
 from hamrkq.options import applicable_settings
 from hamrkq.solve import solve
@@ -67,6 +68,9 @@ class Request:
     start : int
         Index of the first member of this request in the whole ensemble
         (non-zero for a :meth:`subset`).
+    events_note : str or None
+        Why a problem file's events are left out of the members' runs (the
+        words of the warning), or None.
     """
 
     ham: Hamiltonian
@@ -76,6 +80,7 @@ class Request:
     t_eval: np.ndarray | None
     options: dict[str, Any] = field(default_factory=dict)
     start: int = 0
+    events_note: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "y0", _readonly(np.asarray(self.y0, dtype=float)))
@@ -94,6 +99,24 @@ class Request:
         if self.t_eval is not None:
             return self.t_eval
         return np.array([self.t_span[1]])
+
+    def record(self) -> dict[str, Any]:
+        """The options as an :class:`EnsembleSolution` records them,
+        JSON-friendly: events by their label, terminal count and direction
+        (a callable has no JSON form: saving an ensemble with one raised
+        TypeError), and why a problem file's events were left out
+        (``events_not_located``, as a Solution's options)."""
+        options = dict(self.options)
+        if options.get("events") is not None:
+            params = self.params[0] if self.size else np.zeros(self.params.shape[1])
+            options["events"] = [
+                {"label": spec.label, "terminal": int(spec.terminal),
+                 "direction": float(spec.direction)}
+                for spec in event_specs(options["events"], self.ham, params)
+            ]  # fmt: skip
+        if self.events_note is not None:
+            options["events_not_located"] = self.events_note
+        return plain(options)
 
     def subset(self, start: int, stop: int) -> Request:
         """Members ``start:stop`` (indices into this request) as a request of their own."""
@@ -192,6 +215,7 @@ def build_request(
         options = {**applicable_settings(method, settings), **options}
         base_params = np.asarray(system.parameter_array, dtype=float)
         t_span = system.t_span if t_span is None else t_span
+        events_note = _file_events(system, options)
     elif isinstance(system, Hamiltonian):
         ham = system
         missing = [k for k, v in (("q0", q0), ("p0", p0), ("t_span", t_span)) if v is None]
@@ -200,6 +224,7 @@ def build_request(
                 f"{', '.join(missing)} must be given for an ensemble of a Hamiltonian"
             )
         base_params = None
+        events_note = None
     else:
         raise InputTypeError(
             "problem_or_hamiltonian must be a hamrkq.Hamiltonian or a hamrkq.Problem, "
@@ -233,9 +258,38 @@ def build_request(
         )
     # (terminality does not depend on the values: any row, or zeros for none)
     _check_kept(ham, params[0] if size else np.zeros(params.shape[1]), options)
-    request = Request(ham, y0, params, (t0, t_end), _t_eval(t_eval, t0, t_end), dict(options))
+    request = Request(
+        ham, y0, params, (t0, t_end), _t_eval(t_eval, t0, t_end), dict(options),
+        events_note=events_note,
+    )  # fmt: skip
     _probe(request)
     return request
+
+
+def _file_events(problem: Any, options: dict[str, Any]) -> str | None:
+    """A problem file's ``[[events]]`` as the members' default ``events=``,
+    as :func:`hamrkq.solve` takes them (found by QA: an ensemble ignored
+    them, and a member whose terminal event solve alone stops at returned
+    SUCCESS at t_end): the terminal ones end their members; the others,
+    whose roots an ensemble would locate and throw away, are left out with
+    a warning, whose words are returned (None: nothing left out).  Events
+    given to :func:`hamrkq.ensemble` (``events=[]`` for none) win."""
+    if options.get("events") is not None or not problem.events:
+        return None
+    terminal = [event for event in problem.events if event.get("terminal")]
+    left = [event for event in problem.events if not event.get("terminal")]
+    if terminal:
+        options["events"] = terminal
+    if not left:
+        return None
+    labels = ", ".join(repr(str(event["expression"])) for event in left)
+    note = (
+        f"the events of problem {problem.name!r} that do not end a member ({labels}) are "
+        "not located: an ensemble keeps states, not event times (ensemble(..., events=[]) "
+        "runs without the file's events, and without this warning)"
+    )
+    warn(note)
+    return note
 
 
 def _check_kept(ham: Hamiltonian, params: np.ndarray, options: Mapping[str, Any]) -> None:
