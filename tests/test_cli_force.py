@@ -95,4 +95,8 @@ def test_the_names_of_hamrkqs_own_files():
         assert is_own(ours), ours
     for mine in ("notes.txt", "solution.txt", "section.pdf", "my_summary.json", LOCK_NAME):
         assert not is_own(mine), mine
+    # QA: the patterns solution*.npz and figure[0-9]_*.png took a user's copies
+    for mine in ("solution_previous.npz", "solution-old.npz", "figure9_x.png",
+                 "figure1_solution_v2.png"):  # fmt: skip
+        assert not is_own(mine), mine
     assert len(set(OWN_FILES)) == len(OWN_FILES)

@@ -12,7 +12,6 @@ a figure written.
 from __future__ import annotations
 
 import errno
-import fnmatch
 import json
 import os
 import tempfile
@@ -42,19 +41,28 @@ __all__ = [
 ]
 
 
-#: Files that hamrkq's commands write, as glob patterns: with ``force`` these
-#: (and only these) are removed first, so that no stale figure from an earlier
-#: run sits beside the new results.  A user's own files are never touched.
-#: Every name a command writes must match one (tests/test_cli_force.py runs
-#: each command and checks its files): ``solution.csv``, the ensemble's and
-#: the section's files were missing, and ``--force`` left them stale beside
-#: the new results.
+#: Files that hamrkq's commands write, by their exact names: with ``force``
+#: these (and only these) are removed first, so that no stale figure from an
+#: earlier run sits beside the new results.  A user's own files are never
+#: touched.  Every name a command writes must be one (tests/test_cli_force.py
+#: runs each command and checks its files): ``solution.csv``, the ensemble's
+#: and the section's files were missing, and ``--force`` left them stale
+#: beside the new results.  Exact names, not patterns: ``solution*.npz`` and
+#: ``figure[0-9]_*.png`` also deleted a user's ``solution_previous.npz`` (a
+#: copy of an earlier result) and ``figure9_x.png`` (found by QA).
 OWN_FILES = (
     "summary.json",
-    # run, reproduce (solution_<method>.npz), compare
-    "solution*.npz",
+    # run, reproduce (solution_<method>.npz for the paper's two methods), compare
+    "solution.npz",
+    "solution_rk34q8.npz",
+    "solution_rk34.npz",
     "solution.csv",
-    "figure[0-9]_*.png",
+    "figure1_solution.png",
+    "figure2_global_error.png",
+    "figure2_global_error_true.png",
+    "figure3_trajectory_error.png",
+    "figure3_trajectory_error_true.png",
+    "figure4_rk8_error.png",
     "comparison.md",
     "comparison.csv",
     "comparison.json",
@@ -86,7 +94,7 @@ MAX_FIGURE_PIXELS = 30_000_000
 def is_own(name: str) -> bool:
     """Whether a file name is one of hamrkq's outputs (:data:`OWN_FILES`),
     which ``--force`` removes."""
-    return any(fnmatch.fnmatchcase(name, pattern) for pattern in OWN_FILES)
+    return name in OWN_FILES
 
 
 def check_dpi(dpi: int) -> int:
