@@ -20,7 +20,7 @@ import numpy as np
 
 from hamrkq._files import atomic_file
 from hamrkq.errors import ResultFileError
-from hamrkq.result import Status
+from hamrkq.result import Status, open_npz
 
 __all__ = ["FILE_FORMAT", "FILE_FORMAT_VERSION", "EnsembleSolution"]
 
@@ -244,7 +244,9 @@ class EnsembleSolution:
         """
         path = Path(path)
         try:
-            with np.load(path, allow_pickle=False) as data:
+            with open_npz(
+                path, "ensemble", lambda message: ResultFileError(f"{path}: {message}")
+            ) as data:
                 if "meta" not in data.files:
                     raise ResultFileError(f"{path}: not a hamrkq ensemble file (no 'meta')")
                 meta = json.loads(str(data["meta"]))
@@ -274,9 +276,9 @@ class EnsembleSolution:
         except FileNotFoundError:
             raise ResultFileError(f"{path}: no such file") from None
         except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-            # np.load raises ValueError for a non-archive (and for an object
-            # array, refused without allow_pickle); zipfile and zlib complain
-            # about a truncated or corrupted member.
+            # open_npz refuses a non-archive; np.load's ValueError here is an
+            # object array, refused without allow_pickle; zipfile and zlib
+            # complain about a truncated or corrupted member.
             raise ResultFileError(f"{path}: damaged or foreign ensemble file ({exc})") from None
 
 
