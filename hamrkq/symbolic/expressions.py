@@ -9,7 +9,8 @@ accepted nodes.
 
 Accepted: numbers, declared names, ``t``, ``+ - * / **``, unary ``+``/``-``,
 parentheses, calls of ``sin cos tan asin acos atan atan2 sinh cosh tanh exp
-log sqrt Abs``, and the constants ``pi`` and ``E``.  Everything else (attribute
+log sqrt Abs``, and the constants ``pi`` and ``E``, all in ASCII characters
+(see :func:`_check_ascii`).  Everything else (attribute
 access, subscripts, strings, lambdas, comprehensions, keyword arguments,
 comparisons, unlisted functions, dunder names, ...) is rejected with an
 :class:`~hamrkq.errors.ExpressionError` that names the offending piece.
@@ -25,6 +26,7 @@ from __future__ import annotations
 import ast
 import keyword
 import math
+import unicodedata
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 from pathlib import Path
@@ -210,6 +212,7 @@ def parse_expression(
             piece=text[:40] + "...",
             **where,
         )
+    _check_ascii(text, where)
     if not text.strip():
         raise ExpressionError("empty expression", piece=text, **where)
     if "\n" in text.strip() or "\r" in text:
@@ -230,6 +233,37 @@ def parse_expression(
         )
     check_constants(result, where)
     return result
+
+
+def _check_ascii(text: str, where: dict) -> None:
+    """Refuse an expression with a character outside ASCII.
+
+    :func:`ast.parse` NFKC-normalises identifiers, so a look-alike would be
+    read silently as an ASCII name: a fullwidth ``ｑ`` as the coordinate
+    ``q``, the script ``ℯ`` as a parameter ``e``.  Declared names are ASCII
+    (:func:`check_name`), so no such character can mean anything else.
+
+    Raises
+    ------
+    ExpressionError
+        Naming the first such character, its Unicode name and its position
+        (1-based) in ``text``.
+    """
+    if text.isascii():
+        return
+    index, char = next((i, c) for i, c in enumerate(text) if not c.isascii())
+    name = unicodedata.name(char, "unnamed")
+    folded = unicodedata.normalize("NFKC", char)
+    # Say what it would have become only where Python folds it (in a name).
+    read_as = (
+        f"; Python would read it as {folded!r}" if folded.isascii() and folded.isalpha() else ""
+    )
+    raise ExpressionError(
+        f"expressions must be ASCII: character {char!r} ({name}, U+{ord(char):04X}) at "
+        f"position {index + 1}{read_as}",
+        piece=text.strip()[:60],
+        **where,
+    )
 
 
 def _bits(number: sp.Rational) -> int:
