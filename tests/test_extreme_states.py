@@ -92,6 +92,25 @@ def test_a_state_whose_rounding_model_overflows_is_named_as_the_cause(options):
     assert sol.message == HUGE_STATE_MESSAGE
 
 
+@pytest.mark.parametrize("method", ["auto", "rk34q8", "rk34"])
+def test_a_state_near_the_largest_double_gets_a_finite_first_step(method):
+    # QA: at |y| = 1e307..1e308 with atol 1e-8, |y| / delta overflowed, the
+    # first-step heuristic's inf / inf gave a NaN step, and every attempt
+    # was rejected without shrinking it: MAX_STEPS after a million
+    # rejections at t = 0, the cause unnamed.
+    sol = hamrkq.solve(OSCILLATOR, [1e308], [0.0], (0.0, 1.0), atol=1e-8, method=method)
+    assert math.isfinite(sol.options["first_step"]) and sol.options["first_step"] > 0
+    assert sol.status is Status.NON_FINITE and sol.stats["rejected"] < 1000
+    assert "within a factor 1.8 of the largest double" in sol.message
+    assert "rescaled" in sol.message
+    if method != "rk34":  # (without a quencher it crawls at its tolerance: MAX_STEPS)
+        # the quencher's rounding model overflows first, or a stage value
+        sol = hamrkq.solve(OSCILLATOR, [1e307], [0.0], (0.0, 1.0), atol=1e-8, method=method)
+        assert sol.status in (Status.TOLERANCE_UNATTAINABLE, Status.NON_FINITE)
+        assert sol.t.tolist() == [0.0] and sol.stats["rejected"] < 1000
+        assert "1e+307" in sol.message and "rescaled" in sol.message
+
+
 def test_the_rescaled_state_that_the_message_names_succeeds():
     # s = 1e190: Q0 = 3e9, P0 = 4e9, H(s Q, s P) / s^2 is the same oscillator;
     # s Q is within the tolerance of the exact solution at 5e199 (0.015 of it).

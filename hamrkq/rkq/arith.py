@@ -267,6 +267,19 @@ def tolerance(atol, rtol, a, b, relative, rule, out):
 
 
 @jitable
+def max_abs(x):
+    """``max_k |x_k|`` (0 for no components; NaN if any is NaN)."""
+    top = 0.0
+    for i in range(x.shape[0]):
+        value = abs(x[i])
+        if value != value:
+            return value
+        if value > top:
+            top = value
+    return top
+
+
+@jitable
 def weighted_norm(e, delta):
     """``max_k |e_k| / delta_k`` (NaN if any term is NaN)."""
     top = -math.inf

@@ -44,6 +44,14 @@ def initial_step(rhs, t0, t_end, problem, c, work):
     d0 = arith.weighted_norm(y0, delta)
     d1 = arith.weighted_norm(f0, delta)
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    if not (h0 > 0.0 and math.isfinite(h0)):
+        # |y| / delta beyond the largest double (|y| ~ 1e307 at atol 1e-8):
+        # inf / inf gave a NaN first step, which every attempt rejected
+        # without shrinking it, until max_steps (found by QA).  The ratio of
+        # the unweighted sizes instead (delta cancels where it is one value).
+        h0 = 0.01 * arith.max_abs(y0) / arith.max_abs(f0)
+        if not (h0 > 0.0 and math.isfinite(h0)):
+            h0 = 1e-6
     h0 = min(h0, interval)
     for i in range(y0.shape[0]):
         y1[i] = f0[i] * (direction * h0) + y0[i]
@@ -62,7 +70,10 @@ def initial_step(rhs, t0, t_end, problem, c, work):
     # floor at t0 = -50, and the run ended on its first step with
     # STEP_SIZE_UNDERFLOW; a longer step is only rejected and shortened.
     floor = 2.0 * FLOOR_ULPS * EPS * abs(t0)
-    return min(max(min(100.0 * h0, h1), floor), interval, c["max_step"])
+    h = min(max(min(100.0 * h0, h1), floor), interval, c["max_step"])
+    # never a NaN (no attempt would shrink it): a long trial step is only
+    # rejected and shortened
+    return h if h > 0.0 else min(interval, c["max_step"])
 
 
 @jitable

@@ -281,6 +281,11 @@ def _rounding_overflows(out: RunOutput) -> bool:
     return EPS * _state_size(out) >= ROUNDING_OVERFLOW_SHARE * ROUNDING_SQUARE_LIMIT
 
 
+#: A state this large (1e-8 of the largest double) is near overflow: a
+#: non-finite value in a step from it is the state's size, not a singularity.
+NEAR_OVERFLOW = 1e-8 * sys.float_info.max
+
+
 def _state_size(out: RunOutput) -> float:
     """The largest ``|y_k|`` over every node of a run, kept or not (its
     start too: a run that ends at t0 keeps only that)."""
@@ -425,6 +430,16 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
             f"{_component(task, out.bad_component)} could not be evaluated to a finite value "
             "there (a singularity, or H outside its domain)."
         )
+        size = _state_size(out)
+        if size >= NEAR_OVERFLOW:
+            # The oscillator from q = 1e308: f is finite there, a stage value
+            # a step away is not (found by QA).
+            text += (
+                f" The state's largest component is {size:.3g}, within a factor "
+                f"{sys.float_info.max / size:.3g} of the largest double: the step's stage "
+                "values overflow there. What works: variables rescaled (q = s Q and "
+                "p = s P, with H(s Q, s P) / s^2 as the Hamiltonian: the same t)."
+            )
     elif status is Status.MAX_STEPS:
         text = (
             f"The step limit max_steps = {task.options.max_steps} was reached at t = {float(t)!r}."
