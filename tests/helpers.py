@@ -2,11 +2,37 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import mpmath
 import numpy as np
+
+
+def run_cli(*argv: Any) -> tuple[int, str, str]:
+    """``hamrkq argv...`` in this process: (exit status, stdout, stderr)."""
+    from hamrkq.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main([str(a) for a in argv])
+    return status, out.getvalue(), err.getvalue()
+
+
+def oscillator_file(path: Path, *, hamiltonian: str = "p**2/2 + q**2/2", extra: str = "") -> Path:
+    """A problem file at ``path`` (its stem the problem's name): one degree
+    of freedom, ``q = 1, p = 0``, ``t_span = [0, 1]``, H at line 4 and
+    ``extra`` from line 10 on."""
+    path.write_text(
+        f'name = "{path.stem}"\ncoordinates = ["q"]\nmomenta = ["p"]\n'
+        f'hamiltonian = "{hamiltonian}"\n[initial]\nq = 1\np = 0\n'
+        f"[integration]\nt_span = [0, 1]\n{extra}",
+        encoding="utf-8",
+    )
+    return path
 
 
 def counters(stats: Mapping[str, Any]) -> dict[str, Any]:

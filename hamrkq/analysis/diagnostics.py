@@ -34,6 +34,7 @@ from hamrkq.analysis.summaries import (
     reference_is_close,
 )
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.catalogue.problem_file import energy_name_error
 from hamrkq.errors import HamrkqError, InputError, InputTypeError, OptionError
 from hamrkq.result import Solution
 from hamrkq.rkq.family import track_name
@@ -79,6 +80,25 @@ def _check_arguments(solution: Any, problem: Any) -> None:
             "diagnose: the solution is not of this problem: its state is "
             f"({', '.join(solution.names)}), the problem's is ({', '.join(ham.names)})"
         )
+
+
+def _drifts(t: np.ndarray, y: np.ndarray, invariants: Mapping[str, Callable]) -> tuple:
+    """Each invariant's drift summary along the run.
+
+    Raises
+    ------
+    InputError
+        An invariant named like the energy (``"H"``, ``"energy"``), refused as
+        in a problem file: its rows would replace or double the energy's.
+    """
+    for name in invariants:
+        reason = energy_name_error(name)
+        if reason:
+            raise InputError(f"diagnose: invariants: {reason}")
+    return tuple(
+        drift_summary(name, t, np.asarray(f(t, y), dtype=float).reshape(t.shape))
+        for name, f in invariants.items()
+    )
 
 
 def _system(problem: Any, params: Any, sol: Any):
@@ -274,7 +294,8 @@ def diagnose(
         is neither a Problem nor a Hamiltonian.
     InputError
         ``problem`` is not the system ``solution`` was computed for (another
-        number or other names of state components).
+        number or other names of state components), or an invariant is named
+        ``"H"`` or ``"energy"`` (the energy's own rows).
     """
     _check_arguments(solution, problem)
     sol = solution
@@ -309,10 +330,7 @@ def diagnose(
             "H depends on t explicitly: the energy is not conserved, its error is no "
             "measure of accuracy"
         )
-    drifts = tuple(
-        drift_summary(name, t, np.asarray(f(t, y), dtype=float).reshape(t.shape))
-        for name, f in (invariants or {}).items()
-    )
+    drifts = _drifts(t, y, invariants or {})
     names = tuple(sol.names)
     estimated = None
     if sol.global_error is not None:

@@ -23,13 +23,32 @@ from hamrkq.symbolic.expressions import check_name, parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = [
+    "ENERGY_NAMES",
     "INTEGRATION_KEYS",
     "INTEGRATION_KINDS",
     "MAX_FILE_BYTES",
     "REQUIRED_KEYS",
     "TOP_LEVEL_KEYS",
+    "energy_name_error",
     "parse_file",
 ]
+
+#: Names an invariant may not take: the energy's own rows.  ``hamrkq show``
+#: lists H as the invariant "H", the run's table has "max |H - H(0)|", and
+#: the diagnostics summarise it as "energy" (``Diagnostics.table``'s "energy
+#: error"); an invariant named either replaced H's row or printed a second
+#: row under the same label.
+ENERGY_NAMES = ("H", "energy")
+
+
+def energy_name_error(name: str) -> str | None:
+    """Why ``name`` cannot name an invariant, or ``None`` if it can."""
+    if name not in ENERGY_NAMES:
+        return None
+    return (
+        f"an invariant may not be named {name!r}: 'H' and 'energy' name the energy, "
+        "which is always checked and reported on its own row; give the invariant another name"
+    )
 
 
 #: Largest problem file accepted, in bytes.
@@ -156,6 +175,17 @@ class _FileReader:
             )
         return None
 
+    def invariants(self, symbols: Mapping[str, sp.Symbol]) -> dict[str, sp.Expr]:
+        """The ``[invariants]`` table, each parsed; none may be named like
+        the energy (:data:`ENERGY_NAMES`)."""
+        invariants = {}
+        for name, text in self.table("invariants").items():
+            reason = energy_name_error(name)
+            if reason:
+                raise self.error(reason, f"invariants.{name}")
+            invariants[name] = self.expr(text, symbols, f"invariants.{name}")
+        return invariants
+
     def table(self, key: str) -> dict:
         value = self.data.get(key, {})
         if not isinstance(value, dict):
@@ -252,9 +282,7 @@ class _FileReader:
             raise self.error("t_span must be a list of two values", "integration.t_span")
         span_exprs = tuple(self.expr(v, params_only, "integration.t_span") for v in span)
         state_syms = {**symbols, "t": t}
-        invariants = {}
-        for iname, text in self.table("invariants").items():
-            invariants[iname] = self.expr(text, state_syms, f"invariants.{iname}")
+        invariants = self.invariants(state_syms)
         exact = self.exact_spec({**params_only, "t": t}, len(q_names))
         events = self.events(state_syms)
         references = data.get("references", [])
