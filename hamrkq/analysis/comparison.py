@@ -308,12 +308,17 @@ def compare(
     if not anchor.success:
         notes.append(f"the anchor run {ANCHOR} did not succeed: {anchor.solution.message}")
     target = anchor.max_error if match == "error" else float(anchor.nfev)
+    pending = list(methods)
     for _ in range(EXTEND_ROUNDS if match == "error" else 0):
         extra = []
-        for method in methods:
+        for method in pending:
             factor = _extension(method, measured, target, EXTEND_COST_CAP * anchor.nfev, notes)
             if factor is not None:
                 extra.append(run(method, factor))
+        # Only a method that ran again can be extended again: the others' runs
+        # are as they were, and asking again would repeat their answer (and
+        # its note, "not run" once a round, twice in comparison.md).
+        pending = [r.method for r in extra]
         if not extra:
             break
         more, _, more_accuracy = _reference(problem, extra)
