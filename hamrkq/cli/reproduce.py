@@ -21,6 +21,7 @@ does the same and writes, into ``--out`` (default
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -31,6 +32,7 @@ import numpy as np
 from hamrkq.analysis.diagnostics import diagnose, error_summary, tolerance
 from hamrkq.analysis.reference import hamiltonian_reference
 from hamrkq.catalogue.problems import load_problem
+from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, ProgressBar, check_dpi, format_table, summary_dict
 from hamrkq.result import Status
 
@@ -77,8 +79,38 @@ def register(subparsers: Any) -> None:
 def reproduce_command(args: argparse.Namespace) -> int:
     """The ``reproduce`` subcommand; returns the exit status."""
     check_dpi(args.dpi)
+    _check_t_end(args.t_end)
     out = OutputDir(args.out or DEFAULT_ROOT / args.experiment, force=args.force)
     return EXPERIMENTS[args.experiment](args, out)
+
+
+def _check_t_end(t_end: float | None) -> None:
+    """Refuse a ``--t-end`` at or before the paper's start, t = 0, or not finite.
+
+    The paper's run goes forward from t = 0: ``--t-end -5`` integrated
+    backwards and ``--t-end 0`` integrated nothing, both labelled a
+    "shortened run".
+
+    Raises
+    ------
+    InputError
+        ``t_end`` is not a finite number above 0.
+    """
+    if t_end is not None and not (PAPER_T_SPAN[0] < t_end < math.inf):
+        raise InputError(
+            f"--t-end must be a finite number above {PAPER_T_SPAN[0]:g} (the paper's run goes "
+            f"forward from t = {PAPER_T_SPAN[0]:g}), got {t_end:g}"
+        )
+
+
+def _interval_note(t_end: float) -> str:
+    """The caveat of a run over another interval than the paper's."""
+    how = "shortened" if t_end < PAPER_T_SPAN[1] else "longer"
+    than = "" if t_end < PAPER_T_SPAN[1] else " than the paper's"
+    return (
+        f"**This is a {how} run{than} (the paper's interval is [0, {PAPER_T_SPAN[1]:g}], "
+        f"this run's [0, {t_end:g}]): its numbers do not compare with the paper's.**"
+    )
 
 
 # -- prentice2011 ----------------------------------------------------------------
@@ -292,11 +324,7 @@ def comparison_markdown(
         "",
     ]
     if tuple(t_span) != PAPER_T_SPAN:
-        lines += [
-            f"**This is a shortened run (the paper's interval is [0, {PAPER_T_SPAN[1]:g}]): "
-            "its numbers do not compare with the paper's.**",
-            "",
-        ]
+        lines += [_interval_note(t_span[1]), ""]
     lines += [
         "- *paper*: the value the paper reports (from the problem file's `[expected]` table).",
         "- *this run*: measured the paper's way, against the run's own RK8 track.",
