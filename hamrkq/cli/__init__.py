@@ -67,7 +67,11 @@ def _warnings_as_messages() -> Iterator[None]:
 
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, HamrkqWarning):
-            print(f"hamrkq: warning: {message}", file=sys.stderr)
+            # Some warnings name hamrkq themselves ("hamrkq: the cached file
+            # ... is damaged"), for a library user who sees them among
+            # others'; here the prefix below says it once.
+            text = str(message).removeprefix("hamrkq: ")
+            print(f"hamrkq: warning: {text}", file=sys.stderr)
             return
         previous(message, category, filename, lineno, file, line)
 
