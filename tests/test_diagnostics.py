@@ -100,6 +100,33 @@ def test_energy_bound_and_ratio_by_hand():
     ratio, where = bound_ratio(observed, bound, np.array([0.0, 1.0, 2.0]))
     assert ratio == pytest.approx(0.5) and where == 1.0
     assert bound_ratio(np.array([0.0, 1e-9]), np.array([0.0, 0.0]), np.arange(2.0))[0] == np.inf
+    # no bound at all (a fixed-step run has no tolerance): no ratio (QA: inf)
+    nan = np.full(2, np.nan)
+    assert np.isnan(bound_ratio(np.array([0.0, 1e-9]), nan, np.arange(2.0))[0])
+
+
+def test_energy_error_of_a_t_eval_run_is_measured_from_the_initial_state():
+    # QA: with t_eval from t = 50 on, the first returned node was the
+    # baseline: the pendulum's energy error read 18 % low and its end value
+    # had the wrong sign.  H(y0) is the baseline, as for a run with every node.
+    problem = hamrkq.load_problem("pendulum")
+    times = np.linspace(50.0, 100.0, 11)
+    full = hamrkq.solve(problem, t_span=(0.0, 100.0), atol=1e-6)
+    sampled = hamrkq.solve(problem, t_span=(0.0, 100.0), atol=1e-6, t_eval=times)
+    q0, p0 = problem.y0
+    h0 = 0.5 * p0**2 - np.cos(q0)
+    energy = 0.5 * sampled.p[:, 0] ** 2 - np.cos(sampled.q[:, 0])
+    d = diagnose(sampled, problem, reference="exact")
+    assert d.energy.final == pytest.approx(energy[-1] - h0, rel=1e-9)
+    assert d.energy.max_abs == pytest.approx(np.max(np.abs(energy - h0)), rel=1e-9)
+    np.testing.assert_allclose(d.series["energy_error"], energy - h0, rtol=1e-9, atol=1e-18)
+    # every node: unchanged, the first node is y0
+    d_full = diagnose(full, problem, reference="exact")
+    assert d_full.energy.final == pytest.approx(full.energy[-1] - full.energy[0], rel=1e-12)
+    # without the system, H(y0) is unknown: the first node, with a note
+    alone = diagnose(sampled, reference="none")
+    assert alone.energy.final == pytest.approx(energy[-1] - energy[0], rel=1e-9)
+    assert any("first returned node" in note for note in alone.notes)
 
 
 def test_trajectory_error_is_euclidean():

@@ -57,11 +57,14 @@ def bound_ratio(observed: np.ndarray, bound: np.ndarray, t: np.ndarray) -> tuple
     """Largest ``observed / bound`` over the nodes, and the time where it occurs.
 
     Nodes where both are zero are skipped (the initial node); an error where the
-    bound is zero counts as an infinite ratio.
+    bound is zero counts as an infinite ratio.  Where there is no bound (NaN:
+    a fixed-step run has no tolerance) there is no ratio (NaN; the table read
+    "max inf", found by QA).
     """
     observed, bound = np.abs(observed), np.asarray(bound, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(bound > 0, observed / bound, np.where(observed > 0, np.inf, np.nan))
+        unbounded = np.where((bound == 0) & (observed > 0), np.inf, np.nan)
+        ratio = np.where(bound > 0, observed / bound, unbounded)
     if np.all(np.isnan(ratio)):
         return float("nan"), float("nan")
     i = int(np.nanargmax(ratio))

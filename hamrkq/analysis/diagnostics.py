@@ -82,8 +82,23 @@ def _check_arguments(solution: Any, problem: Any) -> None:
         )
 
 
-def _drifts(t: np.ndarray, y: np.ndarray, invariants: Mapping[str, Callable]) -> tuple:
-    """Each invariant's drift summary along the run.
+def _from_start(t: np.ndarray, y: np.ndarray, start: tuple | None) -> tuple:
+    """The nodes ``(t, y)`` with the run's initial state ``start = (t0, y0)``
+    before them where it is not a node (a run with ``t_eval``), so that an
+    error along the run is measured from where the run started: the first
+    returned node was the baseline, and a pendulum's energy error from t = 50
+    on read 18 % low, its end value with the wrong sign (found by QA)."""
+    if start is None:
+        return t, y
+    first = np.asarray(start[1], dtype=float)[None, ...]  # a state, or one value
+    return np.concatenate([[start[0]], t]), np.concatenate([first, y])
+
+
+def _drifts(
+    t: np.ndarray, y: np.ndarray, invariants: Mapping[str, Callable], start: tuple | None = None
+) -> tuple:
+    """Each invariant's drift summary along the run, from its initial state
+    ``start`` where that is not a node (:func:`_from_start`).
 
     Raises
     ------
@@ -95,6 +110,7 @@ def _drifts(t: np.ndarray, y: np.ndarray, invariants: Mapping[str, Callable]) ->
         reason = energy_name_error(name)
         if reason:
             raise InputError(f"diagnose: invariants: {reason}")
+    t, y = _from_start(t, y, start)
     return tuple(
         drift_summary(name, t, np.asarray(f(t, y), dtype=float).reshape(t.shape))
         for name, f in invariants.items()
@@ -140,6 +156,35 @@ def _initial(sol) -> tuple[float, np.ndarray]:
     if y0 is not None and span is not None and len(y0) == sol.y.shape[1]:
         return float(span[0]), np.asarray(y0, dtype=float)
     return float(sol.t[0]), sol.y[0]
+
+
+def _energy(sol, ham, params, notes: list[str]) -> tuple:
+    """``(start, H(y_i) - H(y0) at the nodes, its DriftSummary)``, ``start``
+    as :func:`_start` gives it."""
+    start, energy0 = _start(sol, ham, params, notes)
+    if start is None:
+        return start, sol.energy - energy0, drift_summary("energy", sol.t, sol.energy)
+    summary = drift_summary("energy", *_from_start(sol.t, sol.energy, (start[0], energy0)))
+    return start, sol.energy - energy0, summary
+
+
+def _start(sol, ham, params, notes: list[str]) -> tuple[tuple | None, float]:
+    """``((t0, y0), H(t0, y0))`` where the run's initial state is not its
+    first node (a run with ``t_eval``), ``(None, H at the first node)``
+    where it is; without the system to evaluate H at y0, the first node,
+    with a note."""
+    t0, y0 = _initial(sol)
+    if sol.t.size and sol.t[0] == t0 and np.array_equal(sol.y[0], y0):
+        return None, float(sol.energy[0])
+    if ham is None:
+        notes.append(
+            f"the energy error is measured from the first returned node (t = "
+            f"{float(sol.t[0])!r}), not from the initial state at t = {t0!r}: give the "
+            "problem or Hamiltonian to measure it from there"
+        )
+        return None, float(sol.energy[0])
+    energy0 = numeric_of(ham).energy(np.array([t0]), y0[None, :], params)
+    return (t0, y0), float(np.asarray(energy0).ravel()[0])
 
 
 def _reference_states(sol, kind, ham, params, exact, periodic):
@@ -314,13 +359,13 @@ def diagnose(
     t, y = sol.t, sol.y
     rule = str(sol.options.get("tolerance_rule", "componentwise"))
     delta = tolerance(y, sol.atol, sol.rtol, rule)
+    start, energy_error, energy = _energy(sol, ham, params, notes)
     series: dict[str, np.ndarray] = {
         "t": t,
         "delta": delta,
         "trajectory_bound": trajectory_bound(delta),
-        "energy_error": sol.energy - sol.energy[0],
+        "energy_error": energy_error,
     }
-    energy = drift_summary("energy", t, sol.energy)
     ratio = t_ratio = float("nan")
     if gradient is not None:
         series["energy_bound"] = energy_bound(gradient(t, y), delta)
@@ -330,7 +375,7 @@ def diagnose(
             "H depends on t explicitly: the energy is not conserved, its error is no "
             "measure of accuracy"
         )
-    drifts = _drifts(t, y, invariants or {})
+    drifts = _drifts(t, y, invariants or {}, start)
     names = tuple(sol.names)
     estimated = None
     if sol.global_error is not None:
