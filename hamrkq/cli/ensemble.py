@@ -266,6 +266,7 @@ def _summary(args, problem, ens: EnsembleSolution, axes, wall: float, out, notes
         finite = values[np.isfinite(values)]
         return float(finite.max()) if finite.size else None
 
+    gridded = {name for name, _ in axes}
     return {
         "command": "ensemble",
         "problem": args.problem,
@@ -281,7 +282,9 @@ def _summary(args, problem, ens: EnsembleSolution, axes, wall: float, out, notes
         "samples": int(ens.t.size),
         "method": ens.method,  # the file's or the default (auto), which options may not name
         "options": dict(ens.options),
-        "parameters": dict(problem.parameters),
+        # the fixed ones: a gridded parameter takes the grid's values (listed
+        # under "grid", as gridded initial values are), not the file's default
+        "parameters": {k: v for k, v in problem.parameters.items() if k not in gridded},
         "workers": args.workers,
         "max_energy_drift": biggest(ens.energy_drift),
         "max_global_error": biggest(ens.max_global_error),
