@@ -127,6 +127,8 @@ def test_energy_error_of_a_t_eval_run_is_measured_from_the_initial_state():
     alone = diagnose(sampled, reference="none")
     assert alone.energy.final == pytest.approx(energy[-1] - energy[0], rel=1e-9)
     assert any("first returned node" in note for note in alone.notes)
+    assert "measured at the 11 nodes returned (t_eval)" in " ".join(d.notes)
+    assert not any("nodes returned" in note for note in d_full.notes)
 
 
 def test_trajectory_error_is_euclidean():

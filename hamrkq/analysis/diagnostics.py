@@ -158,6 +158,21 @@ def _initial(sol) -> tuple[float, np.ndarray]:
     return float(sol.t[0]), sol.y[0]
 
 
+def _kept_nodes_note(sol) -> list[str]:
+    """A note where the run returned some of its nodes only (``keep_every``
+    or ``t_eval``): every number is measured at those (found by QA: the
+    report did not say so)."""
+    options = getattr(sol, "options", None) or {}
+    keep = options.get("keep_every") or 1
+    if keep > 1:
+        how = f"keep_every={keep}"
+    elif options.get("t_eval") is not None:
+        how = "t_eval"
+    else:
+        return []
+    return [f"measured at the {sol.t.size} nodes returned ({how}), not at the steps between them"]
+
+
 def _energy(sol, ham, params, notes: list[str]) -> tuple:
     """``(start, H(y_i) - H(y0) at the nodes, its DriftSummary)``, ``start``
     as :func:`_start` gives it."""
@@ -352,7 +367,7 @@ def diagnose(
             invariants = problem.invariant_functions()
         if exact is None and getattr(problem, "exact", None) is not None:
             exact = problem.exact
-    notes: list[str] = []
+    notes: list[str] = _kept_nodes_note(sol)
     kind = reference
     if isinstance(kind, str) and kind == "auto":
         kind = _auto_reference(sol, exact, notes)
