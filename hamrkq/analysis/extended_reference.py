@@ -184,9 +184,10 @@ def extended_reference(
     Returns
     -------
     Reference
-        States rounded to double; ``estimated_error`` the largest difference
-        from the same integration at 100 times the tolerance (at least the
-        rounding of the states to double).
+        States rounded to double; ``component_error`` per component the
+        largest difference from the same integration at 100 times the
+        tolerance (at least the rounding of the component to double),
+        ``estimated_error`` the largest of those.
 
     Raises
     ------
@@ -199,11 +200,17 @@ def extended_reference(
     y = extended_states(ham, params, y0, t, t0=t0)
     check = extended_states(ham, params, y0, t, t0=t0, tol=CHECK_FACTOR * EXTENDED_TOLERANCE)
     states = y.astype(np.float64)
-    rounding = float(np.max(np.abs(states))) * np.finfo(np.float64).eps / 2
-    error = max(float(np.max(np.abs(check - y))), rounding)
+    # per component, so that a component small beside the others (a
+    # momentum of 1e-9 beside positions of 30 AU) is judged on its own scale
+    rounding = np.max(np.abs(states), axis=0) * np.finfo(np.float64).eps / 2
+    components = np.maximum(np.max(np.abs(check - y), axis=0).astype(float), rounding)
+    error = float(np.max(components))
     method = (
         f"heyoka Taylor in extended precision (tol {EXTENDED_TOLERANCE:g}) "
         f"over [{t0:g}, {float(t[-1]):g}]"
     )
     details = {"tol": EXTENDED_TOLERANCE, "check_tol": CHECK_FACTOR * EXTENDED_TOLERANCE}
-    return Reference(t=t, y=states, estimated_error=error, method=method, details=details)
+    return Reference(
+        t=t, y=states, estimated_error=error, method=method, details=details,
+        component_error=components,
+    )  # fmt: skip

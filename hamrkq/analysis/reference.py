@@ -39,6 +39,7 @@ from hamrkq.errors import InputError, IntegrationError
 __all__ = [
     "REFERENCE_RTOL",
     "TIGHTEST_RTOL",
+    "Accuracy",
     "Reference",
     "hamiltonian_reference",
     "integrate_reference",
@@ -64,6 +65,31 @@ CHECK_RTOL_FACTOR = 4.0
 CLOSURE_LIMIT = 1e-7
 
 
+class Accuracy(float):
+    """A reference's estimated error: the float is the largest over all
+    components (the max-norm reports quote), ``components`` the estimate per
+    component, or None where only the max-norm is known.
+
+    A float, so that everything that compares or prints an accuracy keeps
+    working; the components travel with it to
+    :func:`~hamrkq.analysis.summaries.error_summary`, which judges each
+    component against its own tolerance.  Before, a system whose components
+    differ by orders of magnitude (the outer solar system: positions of 30
+    AU, Pluto's momentum of 1e-9) had the positions' rounding compared with
+    Pluto's momentum's tolerance, and its true error was never measured.
+    """
+
+    components: tuple[float, ...] | None
+
+    def __new__(cls, value: Any, components: Any = None) -> Accuracy:
+        self = super().__new__(cls, float(value))
+        self.components = None if components is None else tuple(float(v) for v in components)
+        return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Accuracy, (float(self), self.components))
+
+
 @dataclass(frozen=True, eq=False)
 class Reference:
     """A reference trajectory and how accurate it is.
@@ -74,14 +100,20 @@ class Reference:
         The requested times.
     y : ndarray, shape (N, 2n)
         Reference states, time-major, columns ``q`` then ``p``.
-    estimated_error : float
+    estimated_error : Accuracy
         Estimated maximum absolute error of any component of ``y`` over all
-        nodes (max-norm), see the function that produced it.
+        nodes (max-norm), see the function that produced it; its
+        ``components`` are the estimate per component (as
+        ``component_error``).
     method : str
         One line saying how ``y`` was computed.
     details : mapping
         Plain numbers: tolerances, ``nfev``, and for periodic references the
         ``period`` and its estimated error ``period_error``.
+    component_error : tuple of float or None
+        Estimated maximum absolute error of each component over all nodes,
+        or None where only the max-norm is known (then every component is
+        taken to be as inaccurate as the worst).
     """
 
     t: np.ndarray
@@ -89,13 +121,24 @@ class Reference:
     estimated_error: float
     method: str
     details: Mapping[str, Any] = field(default_factory=dict)
+    component_error: Any = None
 
     def __post_init__(self) -> None:
         for name in ("t", "y"):
             array = np.array(getattr(self, name), dtype=float, copy=True)
             array.setflags(write=False)
             object.__setattr__(self, name, array)
-        object.__setattr__(self, "estimated_error", float(self.estimated_error))
+        components = self.component_error
+        if components is None:
+            components = getattr(self.estimated_error, "components", None)
+        if components is not None:
+            components = tuple(float(v) for v in np.asarray(components, dtype=float).ravel())
+            if self.y.ndim != 2 or len(components) != self.y.shape[1]:
+                raise InputError(
+                    f"component_error must have one value per component, got {len(components)}"
+                )
+        object.__setattr__(self, "component_error", components)
+        object.__setattr__(self, "estimated_error", Accuracy(self.estimated_error, components))
         object.__setattr__(self, "details", MappingProxyType(dict(self.details)))
 
     def describe(self) -> str:
@@ -354,10 +397,11 @@ def integrate_reference(
     Returns
     -------
     Reference
-        ``estimated_error`` is the largest difference (max-norm over nodes)
-        between this run and a second run at 10x looser ``rtol`` and ``atol``,
-        but at least the random-walk rounding floor
-        ``sqrt(steps) * eps * max(scale)``.
+        ``component_error`` is, per component, the largest difference over
+        the nodes between this run and a second run at 10x looser ``rtol``
+        and ``atol``, but at least the random-walk rounding floor
+        ``sqrt(steps) * eps * scale_k``; ``estimated_error`` the largest of
+        those (max-norm).
 
     Notes
     -----
@@ -402,18 +446,27 @@ def integrate_reference(
         scale = atol_arr / rtol
     y, run_nfev, steps = _run(fun, t0, t_end, y0, t, rtol, atol_arr, max_step)
     nfev += run_nfev
-    floor = np.sqrt(max(steps, 1)) * EPS * float(np.max(scale))
+    # The rounding floor per component, on that component's own scale: the
+    # outer solar system's positions (30 AU) round some 1e-14, its momenta
+    # (1e-9) some 1e-25; one floor on the largest scale for all of them
+    # hid that the momenta are known far better than the positions.
+    floor = np.sqrt(max(steps, 1)) * EPS * scale
+    components = None
     if estimate_error:
         check, check_nfev, _ = _run(
             fun, t0, t_end, y0, t, CHECK_FACTOR * rtol, CHECK_FACTOR * atol_arr, max_step
         )
         nfev += check_nfev
-        error = max(float(np.max(np.abs(check - y))), floor)
+        components = np.maximum(np.max(np.abs(check - y), axis=0), floor)
+        error = float(np.max(components))
     else:
         error = float("nan")
     details = {"rtol": rtol, "atol": atol_arr.tolist(), "steps": steps, "nfev": nfev}
     method = f"DOP853 over [{t0:g}, {t_end:g}] (rtol={rtol:.2g}, scale-aware atol)"
-    return Reference(t=t, y=y, estimated_error=error, method=method, details=details)
+    return Reference(
+        t=t, y=y, estimated_error=error, method=method, details=details,
+        component_error=components,
+    )  # fmt: skip
 
 
 # -- convenience for the symbolic layer ---------------------------------------
@@ -466,10 +519,17 @@ def hamiltonian_reference(
     t0 = float(t[0]) if t0 is None else float(t0)
     if not cache:
         return _reference_of(ham, params, y0, t, t0, periodic)
+    path = reference_cache.reference_path(ham, params, y0, t, t0, periodic)
     fields = reference_cache.cached(
-        reference_cache.reference_path(ham, params, y0, t, t0, periodic),
-        lambda: _fields(_reference_of(ham, params, y0, t, t0, periodic)),
+        path, lambda: _fields(_reference_of(ham, params, y0, t, t0, periodic))
     )
+    if "component_error" not in fields:
+        # kept before references had per-component accuracies: replaced, so
+        # that a multi-scale system is judged per component here too
+        path.unlink(missing_ok=True)
+        fields = reference_cache.cached(
+            path, lambda: _fields(_reference_of(ham, params, y0, t, t0, periodic))
+        )
     return Reference(**fields)
 
 
@@ -477,9 +537,10 @@ def _fields(ref: Reference) -> dict[str, Any]:
     return {
         "t": ref.t,
         "y": ref.y,
-        "estimated_error": ref.estimated_error,
+        "estimated_error": float(ref.estimated_error),
         "method": ref.method,
         "details": plain(dict(ref.details)),
+        "component_error": None if ref.component_error is None else list(ref.component_error),
     }
 
 

@@ -20,10 +20,14 @@ from hamrkq.rkq.family import track_name
 
 __all__ = [
     "CLOSE_REFERENCE",
+    "DOUBLE_ROUNDING",
     "NOT_CONSERVED",
     "Diagnostics",
     "DriftSummary",
     "ErrorSummary",
+    "accuracy_ratios",
+    "component_accuracy",
+    "component_scales",
     "drift_summary",
     "error_summary",
     "reference_is_close",
@@ -109,6 +113,10 @@ class ErrorSummary:
         Largest Euclidean error, where, and at the end.
     bound_ratio, t_bound_ratio : float
         Largest trajectory error over ``sqrt(sum delta_k**2)``, and where.
+    component_accuracy : tuple of float or None
+        The reference's estimated error per component, where it states one
+        (:class:`~hamrkq.analysis.reference.Accuracy`); None where only
+        ``reference_accuracy`` (the max-norm) is known.
     """
 
     source: str
@@ -121,6 +129,7 @@ class ErrorSummary:
     final_trajectory: float
     bound_ratio: float
     t_bound_ratio: float
+    component_accuracy: tuple[float, ...] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values; per-component maxima keyed by component name."""
@@ -135,6 +144,11 @@ class ErrorSummary:
         ):
             out[key] = float(getattr(self, key))
         out["max_abs"] = {n: float(v) for n, v in zip(self.names, self.max_abs, strict=True)}
+        out["component_accuracy"] = (
+            None
+            if self.component_accuracy is None
+            else {n: float(v) for n, v in zip(self.names, self.component_accuracy, strict=True)}
+        )
         return out
 
 
@@ -148,8 +162,14 @@ def error_summary(
     reference_accuracy: float,
     names: tuple[str, ...],
 ) -> ErrorSummary:
-    """Summarise a global error array (N, 2n) against its tolerance ``delta``."""
+    """Summarise a global error array (N, 2n) against its tolerance ``delta``;
+    ``reference_accuracy`` may carry per-component ``components``
+    (:class:`~hamrkq.analysis.reference.Accuracy`), kept as
+    ``component_accuracy``."""
     t, error = np.asarray(t, dtype=float), np.asarray(error, dtype=float)
+    components = getattr(reference_accuracy, "components", None)
+    if components is not None and len(components) != error.shape[-1]:
+        components = None
     distance = trajectory_error(error)
     i = int(np.argmax(distance))
     ratio, t_ratio = bound_ratio(distance, trajectory_bound(delta), t)
@@ -164,6 +184,7 @@ def error_summary(
         final_trajectory=float(distance[-1]),
         bound_ratio=ratio,
         t_bound_ratio=t_ratio,
+        component_accuracy=None if components is None else tuple(float(v) for v in components),
     )
 
 
@@ -174,6 +195,50 @@ NOT_CONSERVED = "not conserved: H depends on t (its change is no measure of accu
 #: A reference less accurate than this fraction of the tolerance leaves the
 #: true error uncertain by a visible amount: the reports add a note.
 CLOSE_REFERENCE = 0.01
+
+#: No reference rounded to double is more accurate than half an ulp of its
+#: values, ``DOUBLE_ROUNDING * max |y_k|``: a component whose tolerance is below
+#: that has no reference in hamrkq that measures its error.
+DOUBLE_ROUNDING = float(np.finfo(np.float64).eps) / 2
+
+
+def component_scales(delta: Any) -> np.ndarray:
+    """Each component's largest tolerance over the run (nan for a component,
+    or a run, without one): the scale its reference must beat
+    (:func:`tolerance_scale` is the smallest of them)."""
+    delta = np.asarray(delta, dtype=float)
+    delta = delta.reshape(-1, delta.shape[-1]) if delta.ndim else delta.reshape(1, 1)
+    finite = np.isfinite(delta)
+    widest = np.where(finite, delta, -np.inf).max(axis=0, initial=-np.inf)
+    return np.where(finite.any(axis=0), widest, np.nan)
+
+
+def component_accuracy(accuracy: Any, width: int, components: Any = None) -> np.ndarray:
+    """A reference's accuracy per component: ``components``, or the
+    ``components`` ``accuracy`` carries
+    (:class:`~hamrkq.analysis.reference.Accuracy`), else the max-norm
+    ``accuracy`` for every component."""
+    if components is None:
+        components = getattr(accuracy, "components", None)
+    if components is None or len(components) != width:
+        return np.full(width, float(accuracy))
+    return np.asarray(components, dtype=float)
+
+
+def accuracy_ratios(accuracy: Any, delta: Any, components: Any = None) -> np.ndarray:
+    """Each component's reference accuracy over that component's tolerance
+    (:func:`component_scales`): below 1 the reference measures the
+    component's true error.  nan for a component without a tolerance.
+
+    Per component, not the max-norm accuracy over the smallest tolerance:
+    the outer solar system's independent reference is accurate to 2.4e-10
+    in the positions (30 AU) and its momentum tolerance is 1.1e-19 (Pluto's,
+    atol 8e-20), so its true error was never measured, though each
+    component's reference error is below 5e-4 of that component's tolerance
+    (found by QA)."""
+    scales = component_scales(delta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return component_accuracy(accuracy, scales.size, components) / scales
 
 
 def tolerance_scale(delta: Any) -> float:
@@ -194,25 +259,55 @@ def tolerance_scale(delta: Any) -> float:
     return float(np.nanmin(np.nanmax(delta, axis=0)))
 
 
-def reference_is_close(accuracy: float, delta: Any) -> bool:
-    """Whether a reference's ``accuracy`` is above :data:`CLOSE_REFERENCE` times
-    the tolerance it must beat (:func:`tolerance_scale`; never, for a run
-    without one)."""
-    scale = tolerance_scale(delta)
-    return bool(np.isfinite(scale)) and accuracy > CLOSE_REFERENCE * scale
+def reference_is_close(accuracy: float, delta: Any, components: Any = None) -> bool:
+    """Whether a reference's ``accuracy``, in some component, is above
+    :data:`CLOSE_REFERENCE` times that component's tolerance
+    (:func:`accuracy_ratios`; never, for a run without one)."""
+    ratios = accuracy_ratios(accuracy, delta, components)
+    return bool(np.any(ratios[np.isfinite(component_scales(delta))] > CLOSE_REFERENCE))
 
 
-def unmeasured_error(summary: ErrorSummary, scale: float, what: str = "the tolerance") -> str:
+def unmeasured_error(
+    summary: ErrorSummary,
+    scale: float,
+    what: str = "the tolerance",
+    *,
+    component: int | None = None,
+    magnitude: float = float("nan"),
+) -> str:
     """Why a true error is not shown: its reference is no more accurate than
     ``scale``, ``what`` it must beat (the tolerance, or a tenth of the error
     for a run without one), so the difference would be mostly the
-    reference's own error."""
+    reference's own error.
+
+    With ``component`` (an index into ``summary.names``) the reference's
+    accuracy and the tolerance are that component's.  The extended reference
+    is suggested for an independent one unless ``scale`` is below the
+    rounding of the component's values to double (``magnitude``, the largest
+    ``|y_k|``, times :data:`DOUBLE_ROUNDING`), which no reference beats.
+    """
+    accuracy = float(summary.reference_accuracy)
+    where = ""
+    if component is not None:
+        width = len(summary.names)
+        accuracy = float(
+            component_accuracy(accuracy, width, summary.component_accuracy)[component]
+        )
+        name = summary.names[component]
+        where, what = f" in {name}", f"{name}'s tolerance"
     text = (
         f"not measured: the reference ({summary.description}) is accurate only to "
-        f"~{summary.reference_accuracy:.1e}, not below {what} {scale:.1e}"
+        f"~{accuracy:.1e}{where}, not below {what} {scale:.1e}"
     )
     if summary.source == "independent":
-        text += "; reference='extended' (--reference extended, with heyoka) reaches further"
+        rounding = DOUBLE_ROUNDING * magnitude
+        if rounding >= scale:
+            text += (
+                f"; no reference rounded to double reaches it (half an ulp of the values "
+                f"is ~{rounding:.1e})"
+            )
+        else:
+            text += "; reference='extended' (--reference extended, with heyoka) reaches further"
     return text
 
 
@@ -311,13 +406,28 @@ class Diagnostics:
     @property
     def error_measured(self) -> bool:
         """True when :attr:`error` is a true error worth showing: measured against a
-        reference (not the run's own RK8 track) whose own accuracy is finite and
-        below the tolerance (:func:`tolerance_scale`).  Otherwise the "true error" would be mostly
+        reference (not the run's own RK8 track) whose own accuracy is finite and,
+        in each component, below that component's tolerance
+        (:func:`accuracy_ratios`).  Otherwise the "true error" would be mostly
         the reference's error."""
         if self.error is None or self.error is self.estimated:
             return False
+        return self._shortfall() is None
+
+    def _shortfall(self) -> tuple[float, str, int | None] | None:
+        """None when the reference measures the true error; else the scale it
+        misses, its name, and the component (None for a run without a
+        tolerance, judged on :meth:`_error_scale`)."""
         accuracy = self.error.reference_accuracy
-        return bool(np.isfinite(accuracy) and accuracy < self._error_scale()[0])
+        if not np.isfinite(accuracy):
+            return (*self._error_scale(), None)
+        scales = component_scales(self.series["delta"])
+        if not np.all(np.isfinite(scales)):
+            scale, what = self._error_scale()
+            return None if accuracy < scale else (scale, what, None)
+        ratios = accuracy_ratios(accuracy, self.series["delta"], self.error.component_accuracy)
+        worst = int(np.argmax(ratios))
+        return None if ratios[worst] < 1 else (float(scales[worst]), "the tolerance", worst)
 
     @property
     def reference_close(self) -> bool:
@@ -326,7 +436,10 @@ class Diagnostics:
         is then uncertain by that much; the reports say so)."""
         if self.error is None or self.error is self.estimated:
             return False
-        return reference_is_close(self.error.reference_accuracy, self.series["delta"])
+        error = self.error
+        return reference_is_close(
+            error.reference_accuracy, self.series["delta"], error.component_accuracy
+        )
 
     def _error_scale(self) -> tuple[float, str]:
         """What the reference must be more accurate than, and its name: the
@@ -349,7 +462,14 @@ class Diagnostics:
         """Why the true error is not shown (its reference is too inaccurate), or None."""
         if self.error is None or self.error is self.estimated or self.error_measured:
             return None
-        return unmeasured_error(self.error, *self._error_scale())
+        scale, what, component = self._shortfall()
+        if component is None:
+            return unmeasured_error(self.error, scale, what)
+        reference = self.series.get("reference")
+        magnitude = (
+            float(np.max(np.abs(reference[:, component]))) if reference is not None else np.nan
+        )
+        return unmeasured_error(self.error, scale, component=component, magnitude=magnitude)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain numbers and strings for ``summary.json`` (nan and inf become None)."""
