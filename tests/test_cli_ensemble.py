@@ -125,3 +125,27 @@ def test_a_name_given_twice_is_refused(tmp_path, capsys):
             "--out", str(tmp_path / "x")]  # fmt: skip
     assert main(argv) == 2
     assert "given twice" in capsys.readouterr().err
+
+
+def test_a_problem_files_events_end_members_and_the_left_out_ones_are_noted(tmp_path, capsys):
+    # QA: the file's terminal event was ignored (every member SUCCESS at
+    # t_end, exit 0, no note); its other events are left out, and the
+    # summary says so as run's does.
+    path = tmp_path / "oscillator_events.toml"
+    path.write_text(
+        'name = "oscillator_events"\ncoordinates = ["q"]\nmomenta = ["p"]\n'
+        'hamiltonian = "p**2/2 + q**2/2"\n[initial]\nq = 1\np = 0\n'
+        "[integration]\nt_span = [0, 7]\n"
+        '[[events]]\nexpression = "q"\nterminal = true\n[[events]]\nexpression = "p"\n'
+    )
+    out = tmp_path / "run"
+    argv = ["ensemble", str(path), "--grid", "q=0.5:1.5:3", "--workers", "1", "--no-plots",
+            "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    ens = hamrkq.EnsembleSolution.load(out / "ensemble.npz")
+    assert np.all(ens.status == hamrkq.Status.TERMINAL_EVENT.code)
+    np.testing.assert_allclose(ens.t_last, np.pi / 2, atol=1e-9)
+    summary = json.loads((out / "summary.json").read_text())
+    assert any("'p'" in note and "not located" in note for note in summary["notes"])
+    printed = capsys.readouterr()
+    assert "note: the events of problem" in printed.out and "not located" in printed.err

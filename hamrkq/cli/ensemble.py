@@ -206,6 +206,8 @@ def ensemble_command(args: argparse.Namespace) -> int:
         out.solution("ensemble.npz", ens)  # any result with .save(path): atomic, recorded
     missing = int(np.count_nonzero(ens.status == Status.INTERRUPTED.code))
     notes = []
+    if ens.options.get("events_not_located"):  # the warning's words, kept
+        notes.append(str(ens.options["events_not_located"]))
     if missing:
         notes.append(f"interrupted: {missing} of {len(ens)} members not integrated")
     if quick_report():
