@@ -89,8 +89,13 @@ _GLOBAL_CONTROL = ("scipy:RK34Q8",)
 EXTEND_ROUNDS = 2
 #: ... unless the run is predicted to cost more than this many times the anchor.
 EXTEND_COST_CAP = 10.0
-#: An extrapolation to a coarser setting goes at most this far at once.
+#: An extrapolation to a coarser setting goes at most this far at once; so
+#: far exactly when the runs give no slope to extrapolate (all far below the
+#: target, their errors flat: at the reference's floor or at rounding).
 MAX_COARSENING = 4.0
+#: A headline run whose error is below this fraction of the target gets a
+#: note: it meets the target at a cost that is only an upper bound.
+FAR_BELOW = 0.1
 #: Keep about this many nodes per run (errors are maxima over the kept nodes).
 MAX_NODES = 20000
 #: Pilot run of a fixed-step method: this many steps, to measure f per step.
@@ -327,13 +332,7 @@ def compare(
     order = {m: i for i, m in enumerate(methods)}
     measured.sort(key=lambda r: (order[r.method], -r.factor))
     measured = _select(measured, methods, match, target, notes)
-    if accuracy > 0.01 * min((r.max_error for r in measured if r.max_error > 0), default=1):
-        notes.append(
-            f"the reference is accurate to ~{accuracy:.1e}, not far below the smallest "
-            "error measured: the smallest errors are uncertain by that much"
-        )
-    if problem.hamiltonian.time_dependent:
-        notes.append("H depends on t: the energy error measures nothing here")
+    notes += _closing_notes(measured, match, target, accuracy, problem)
     anchor = next(r for r in measured if r.method == ANCHOR and r.factor == 1.0)
     return Comparison(
         problem=problem.name,
@@ -396,10 +395,17 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
     is more than 3.3 times too accurate (error below :data:`REFINE_BELOW` of
     the target), that run and the dearest one that
     missed (aiming at 0.8 target, between the two; or beyond the cheapest run,
-    at most :data:`MAX_COARSENING` times its setting, when no run missed).  None
-    when there is
-    nothing to do, the error does not fall with the factor, or the run would
-    cost more than ``cost_cap`` (then a note says so).
+    at most :data:`MAX_COARSENING` times its setting, when no run missed).
+    Where the runs are all far below the target and their errors flat
+    (slope below 0.2: both at the reference's floor, or at rounding), there
+    is no slope to extrapolate with and the next setting is
+    :data:`MAX_COARSENING` times the cheapest run's, coarser and cheaper:
+    before, nothing was run and ``compare --quick`` put gauss6 on
+    henon_heiles at h = 0.0315 (5727 f evaluations, error 1.7e-13 against
+    a target of 1e-8) where h = 0.126 meets the target with 1911.  None when
+    there is nothing to do, the error does not fall with the factor where
+    it should, or the run would cost more than ``cost_cap`` (then a note
+    says so).
     """
     if _global_control(method) or not target > 0:
         return None
@@ -429,6 +435,10 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
     if span == 0:
         return None
     slope = math.log(second.max_error / best.max_error) / span
+    if slope < 0.2 and reached and not bracket:
+        # far below the target and flat: the errors say nothing of the
+        # setting that meets it; a coarser run is cheap and will
+        return best.factor * MAX_COARSENING
     if slope < 0.2:  # the error no longer falls with the setting (rounding, instability)
         return None
     factor = best.factor * (aim / best.max_error) ** (1.0 / slope)
@@ -446,6 +456,52 @@ def _extension(method: str, runs: list[Run], target: float, cost_cap: float,
         )
         return None
     return factor
+
+
+def _closing_notes(
+    runs: list[Run], match: str, target: float, accuracy: float, problem: Any
+) -> list[str]:
+    """The notes on the chosen runs: headline runs far below the target,
+    errors at the reference's floor, a time-dependent H."""
+    notes = _far_below(runs, target) if match == "error" else []
+    if accuracy > 0.01 * min((r.max_error for r in runs if r.max_error > 0), default=1):
+        notes.append(
+            f"the reference is accurate to ~{accuracy:.1e}, not far below the smallest "
+            "error measured: the smallest errors are uncertain by that much"
+            + _floor(runs, accuracy)
+        )
+    if problem.hamiltonian.time_dependent:
+        notes.append("H depends on t: the energy error measures nothing here")
+    return notes
+
+
+def _far_below(runs: list[Run], target: float) -> list[str]:
+    """A note for each headline run (but the anchor's) whose error is below
+    :data:`FAR_BELOW` of the target: it is more accurate than asked, so its
+    f evaluations only bound the cost of matching the target from above."""
+    notes = []
+    for run in runs:
+        if run.selected and run.method != ANCHOR and 0 <= run.max_error < FAR_BELOW * target:
+            notes.append(
+                f"{run.method}: the headline run ({run.describe()}) has error "
+                f"{run.max_error:.2g}, {target / max(run.max_error, 1e-300):.2g} times below the "
+                f"target {target:.3g}: no coarser run that meets the target was found, so its "
+                f"{run.nfev} f evaluations are an upper bound of the cost at matched error"
+            )
+    return notes
+
+
+def _floor(runs: list[Run], accuracy: float) -> str:
+    """The runs whose error is at or below the reference's accuracy, for the
+    note on uncertain errors: their errors are mostly the reference's own."""
+    low = [r for r in runs if r.max_error <= accuracy]
+    if not low:
+        return ""
+    shown = ", ".join(f"{r.method} {r.describe()} ({r.max_error:.2g})" for r in low)
+    return (
+        f"; at or below it, at the reference's floor (the reference's own error, the run's "
+        f"is at most about ~{accuracy:.1e}): {shown}"
+    )
 
 
 def _select(runs: list[Run], methods: list[str], match: str, target: float,
