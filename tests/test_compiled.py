@@ -293,6 +293,35 @@ def _fresh_process(cache: Path, script: str = SCRIPT) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+WARM_UP_SINGULAR = textwrap.dedent(
+    """
+    import json
+    import sympy as sp
+    import hamrkq
+    from hamrkq.backends import first_use, kernel
+
+    q, p, a = sp.symbols("q p a", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 - (1 - p / a) * sp.cos(q), q=[q], p=[p],
+                             parameters={a: 6.0})
+    first_use.warm_up(ham, announce=False)
+    print(json.dumps({"kernels": len(kernel.kernel().dispatchers)}))
+    """
+)
+
+
+def test_the_warm_up_makes_the_kernel_where_f_is_singular_at_the_probe():
+    # QA: the probe runs one step with every parameter 0; (1 - p/a) cos q is
+    # not finite there, the probe ended before its step, the kernel was not
+    # made by the warm-up, and the first run compiled it inside its
+    # integration (12.7 s of integrate_s, compile_s 1.2 s); hamrkq compile
+    # left no kernel.  A fresh process, with this session's caches.
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop(compiled.DISABLE_ENV, None)
+    done = subprocess.run([sys.executable, "-c", WARM_UP_SINGULAR], env=env,
+                          capture_output=True, text=True, timeout=600, check=True)  # fmt: skip
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == {"kernels": 1}
+
+
 @pytest.mark.slow
 def test_a_second_process_loads_everything_from_the_cache(tmp_path):
     first = _fresh_process(tmp_path)

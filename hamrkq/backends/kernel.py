@@ -58,6 +58,7 @@ __all__ = [
     "kernel_cache_dir",
     "kernel_cached",
     "probe",
+    "probe_rhs",
     "remember_function_addresses",
     "spawn_helper",
     "start_helper",
@@ -136,6 +137,23 @@ def unused_function(name: str):
 
 
 _UNUSED: dict[str, Any] = {}
+
+
+def _zero_rhs(t, y, params, out):
+    out[:] = 0.0
+
+
+def probe_rhs():
+    """A compiled ``rhs`` of the systems' signature that is zero everywhere:
+    the probe's right-hand side where the system's own is not finite at the
+    probe's state (:func:`probe`: every parameter 0 and every component 0.5
+    is singular for the double pendulum, the N-body problems and ``(1 -
+    p/a) cos q``), so that the probe's step still calls, and compiles, the
+    kernel (compiled once per kernel version, in the kernel's cache folder)."""
+    with LOCK:
+        if "rhs" not in _UNUSED:
+            _UNUSED["rhs"] = jit(_zero_rhs, signatures()["rhs"], cache_dir=_cache_folder())
+        return _UNUSED["rhs"]
 
 
 # -- calling it -------------------------------------------------------------------
