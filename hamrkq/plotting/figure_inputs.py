@@ -31,6 +31,7 @@ __all__ = [
     "pair_style",
     "per_delta",
     "tolerance_of",
+    "up_to",
 ]
 
 
@@ -105,9 +106,32 @@ def pair_style(style: dict, k: int, n: int) -> dict:
 
 
 def first_periods(t: np.ndarray, q: np.ndarray, periods: int) -> float:
-    """End of the first ``periods`` oscillations of ``q`` (upward mean crossings)."""
+    """End of the first ``periods`` oscillations of ``q`` (upward mean crossings).
+
+    The oscillations are counted from the run's first node in the order the
+    nodes were integrated, so for a backward run (``t`` decreasing) the end
+    is a time below ``t[0]``; select the nodes up to it with
+    :func:`up_to`, not ``t <= end``.
+    """
     centred = q - q.mean()
     ups = np.flatnonzero((centred[:-1] < 0) & (centred[1:] >= 0))
     if ups.size > periods:
         return float(t[ups[periods] + 1])
     return float(t[-1])
+
+
+def up_to(t: np.ndarray, end: float, forward: bool) -> np.ndarray:
+    """The nodes of ``t`` integrated before reaching ``end``, as a mask.
+
+    Parameters
+    ----------
+    t : ndarray
+        A run's times.
+    end : float
+        The last time to keep (the end of the first periods, say).
+    forward : bool
+        True when the run goes forward in time (``t[-1] >= t[0]``); a
+        backward run keeps ``t >= end``, the nodes from its start down to
+        ``end``, where ``t <= end`` would keep its last periods instead.
+    """
+    return t <= end if forward else t >= end

@@ -50,6 +50,7 @@ from hamrkq.plotting.figure_inputs import new_axes as _new_axes
 from hamrkq.plotting.figure_inputs import pair_style as _pair_style
 from hamrkq.plotting.figure_inputs import per_delta as _per_delta
 from hamrkq.plotting.figure_inputs import tolerance_of as _delta
+from hamrkq.plotting.figure_inputs import up_to as _up_to
 from hamrkq.plotting.series import ENVELOPE_BINS as ENVELOPE_BINS
 from hamrkq.plotting.series import MAX_POINTS as MAX_POINTS
 from hamrkq.plotting.series import downsample_indices, upper_envelope
@@ -188,10 +189,13 @@ def _phase_layout(pairs: int):
 def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
     _, first = items[0]
     end = _first_periods(first.t, first.q[:, 0], periods)
+    # every run's window runs from its start in the first run's direction: a
+    # backward run's first periods are its nodes from t0 down to end
+    forward = bool(first.t[-1] >= first.t[0])
     many = len(pairs) > 1
     for number, (label, sol) in enumerate(items):
         style = _STYLES[number % 2]
-        window = sol.t <= end
+        window = _up_to(sol.t, end, forward)
         t = sol.t[window]
         for ax, part, offset in ((ax_q, sol.q[window], 0), (ax_p, sol.p[window], sol.n)):
             for k in pairs:

@@ -1,0 +1,43 @@
+"""The paper's figures for unusual runs: backward, fixed-step, stopped, one node.
+
+Each test reads back what a figure draws (line data, legend entries, titles)
+rather than only checking that a figure is made: the defects these guard
+against (found by QA) all drew a figure, just the wrong one.
+"""
+
+import numpy as np
+import pytest
+
+from hamrkq.plotting.figures import figure1
+from hamrkq.result import Solution, Status
+
+pytest.importorskip("matplotlib")
+
+
+def oscillation(t, **changes):
+    """A harmonic oscillator's exact run at the nodes ``t`` (q = cos t, p = -sin t)."""
+    t = np.asarray(t, dtype=float)
+    y = np.column_stack([np.cos(t), -np.sin(t)])
+    fields = dict(
+        t=t, y=y, energy=np.full(t.size, 0.5), z=y.copy(), global_error=np.zeros_like(y),
+        gamma=np.full_like(y, 1e-12), status=Status.SUCCESS, message="ok", method="rk34q8",
+        n=1, names=("q", "p"), atol=1e-6, rtol=0.0, stats={"steps": max(t.size - 1, 0)},
+    )  # fmt: skip
+    fields.update(changes)
+    return Solution(**fields)
+
+
+def drawn_times(ax):
+    """The smallest and largest t of the first curve of a time panel."""
+    t = ax.lines[0].get_xydata()[:, 0]
+    return t.min(), t.max()
+
+
+def test_a_backward_run_shows_its_first_periods_not_its_last():
+    # QA: over (0, -40) the "q(t), first periods" panel drew t in [-40, -23.9]
+    forward = figure1(oscillation(np.linspace(0.0, 40.0, 4001)))
+    backward = figure1(oscillation(np.linspace(0.0, -40.0, 4001)))
+    low, high = drawn_times(forward.axes[0])
+    assert low == 0.0 and 20.0 < high < 25.0  # three periods of 2 pi from t = 0
+    for ax in backward.axes[:2]:  # q(t) and p(t)
+        assert drawn_times(ax) == pytest.approx((-high, 0.0))  # from t = 0 down to -high
