@@ -447,9 +447,10 @@ def test_solve_gives_the_same_solution_on_both_backends(name):
     assert a.status == b.status
     assert counters(a.stats) == counters(b.stats)
     np.testing.assert_array_equal(b.t, a.t)
-    for name in ("y", "z", "gamma", "global_error"):
+    # the energy too (QA: the interpreted run's came from lambdify, up to
+    # 120 ulp off the compiled one's on arenstorf)
+    for name in ("y", "z", "gamma", "global_error", "energy"):
         np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
-    np.testing.assert_allclose(b.energy, a.energy, rtol=1e-12, atol=1e-14)
 
 
 def test_a_slow_first_use_says_that_it_compiles(monkeypatch):

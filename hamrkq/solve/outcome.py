@@ -42,8 +42,8 @@ def solution(
         from hamrkq.backends import compiled
 
         energy = compiled.energy(task.ham, out.t, out.y, task.params)
-    else:
-        energy = numeric_of(task.ham).energy(out.t, out.y, task.params)
+    else:  # the same generated code as the compiled backend's, interpreted
+        energy = numeric_of(task.ham).energy_as_compiled(out.t, out.y, task.params)
     options: dict[str, Any] = {
         "method": o.method,
         "backend": backend,
