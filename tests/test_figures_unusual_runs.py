@@ -8,7 +8,8 @@ against (found by QA) all drew a figure, just the wrong one.
 import numpy as np
 import pytest
 
-from hamrkq.plotting.figures import figure1
+from hamrkq.analysis.diagnostics import diagnose
+from hamrkq.plotting.figures import figure1, figure2, figure3
 from hamrkq.result import Solution, Status
 
 pytest.importorskip("matplotlib")
@@ -41,3 +42,26 @@ def test_a_backward_run_shows_its_first_periods_not_its_last():
     assert low == 0.0 and 20.0 < high < 25.0  # three periods of 2 pi from t = 0
     for ax in backward.axes[:2]:  # q(t) and p(t)
         assert drawn_times(ax) == pytest.approx((-high, 0.0))  # from t = 0 down to -high
+
+
+def legend_of(ax):
+    """Each legend entry with the number of points its line draws."""
+    handles, labels = ax.get_legend_handles_labels()
+    return {label: len(handle.get_xydata()) for handle, label in zip(handles, labels, strict=True)}
+
+
+def test_a_fixed_step_run_has_no_tolerance_line_in_its_legend():
+    # QA: verlet (atol = rtol = nan) had "tolerance δ" and "upper bound √2·δ"
+    # in the legends, each a line of 0 points
+    run = oscillation(np.linspace(0.0, 40.0, 801), method="verlet", atol=np.full(2, np.nan),
+                      rtol=np.full(2, np.nan), z=None, global_error=None, gamma=None)  # fmt: skip
+    diag = diagnose(run, reference="exact", exact=lambda t: run.y - 1e-9 * t[:, None])
+    for fig in (figure2(run, diagnostics=diag, error="true"), figure3(run, diagnostics=diag)):
+        for ax in fig.axes:
+            entries = legend_of(ax)
+            assert entries and all(points > 0 for points in entries.values()), entries
+            assert not any("tolerance" in label or "bound" in label for label in entries)
+    # a run with a tolerance keeps both lines
+    tolerant = oscillation(np.linspace(0.0, 40.0, 801), global_error=np.full((801, 2), 1e-9))
+    assert "tolerance δ = 1e-06" in legend_of(figure2(tolerant).axes[0])
+    assert "upper bound √2·δ = 1.41e-06" in legend_of(figure3(tolerant).axes[0])

@@ -294,6 +294,8 @@ def _tolerance_line(ax, sol: Solution, part: slice, label: str) -> None:
 
     rule = str(sol.options.get("tolerance_rule", "componentwise"))
     delta = tolerance(sol.y, sol.atol, sol.rtol, rule)[:, part].max(axis=1)
+    if not np.isfinite(delta).any():
+        return  # a fixed-step run has no tolerance (atol = rtol = nan): no line, no legend entry
     if np.ptp(delta) == 0:
         ax.axhline(delta[0], color="k", lw=1.2, label=f"{label} = {delta[0]:.3g}")
     else:
@@ -372,9 +374,10 @@ def figure3(
     rule = str(sol0.options.get("tolerance_rule", "componentwise"))
     bound = trajectory_bound(tolerance(sol0.y, sol0.atol, sol0.rtol, rule))
     name = "√2·δ" if sol0.n == 1 else "√(Σ δ_k²)"
-    if np.ptp(bound) == 0:
+    # a fixed-step run has no tolerance (atol = rtol = nan): no bound, no legend entry
+    if np.isfinite(bound).any() and np.ptp(bound) == 0:
         axis.axhline(bound[0], color="k", lw=1.2, label=f"upper bound {name} = {bound[0]:.3g}")
-    else:
+    elif np.isfinite(bound).any():
         axis.plot(*_thin(sol0.t, bound), color="k", lw=1.2, label=f"upper bound {name}")
     axis.set(
         xlabel="time t", ylabel="‖y − y_ref‖₂ (phase space)", yscale="log",
