@@ -65,3 +65,27 @@ def test_a_fixed_step_run_has_no_tolerance_line_in_its_legend():
     tolerant = oscillation(np.linspace(0.0, 40.0, 801), global_error=np.full((801, 2), 1e-9))
     assert "tolerance δ = 1e-06" in legend_of(figure2(tolerant).axes[0])
     assert "upper bound √2·δ = 1.41e-06" in legend_of(figure3(tolerant).axes[0])
+
+
+def stop_marks(ax):
+    """The times of the 'stopped' marks of a panel."""
+    return [line.get_xdata()[0] for line in ax.lines if "stopped:" in line.get_label()]
+
+
+def test_a_run_stopped_within_its_first_periods_is_marked_in_every_time_panel():
+    # QA: a TOLERANCE_UNATTAINABLE run was marked in H(t) only, not in q(t), p(t)
+    short = oscillation(np.linspace(0.0, 10.0, 501), status=Status.TOLERANCE_UNATTAINABLE,
+                        message="stopped")  # fmt: skip
+    fig = figure1(short)
+    ax_q, ax_p, phase, ax_h = fig.axes
+    for ax in (ax_q, ax_p, ax_h):
+        assert stop_marks(ax) == [10.0], ax.get_title()
+        assert any("stopped: TOLERANCE_UNATTAINABLE" in label for label in legend_of(ax))
+    assert stop_marks(phase) == []  # no time axis
+    # stopped after its first periods: q(t) and p(t) are complete and keep their
+    # range; the stop is marked where the run's end is drawn, in H(t)
+    late = oscillation(np.linspace(0.0, 60.0, 3001), status=Status.MAX_STEPS, message="steps")
+    ax_q, ax_p, _, ax_h = figure1(late).axes
+    assert stop_marks(ax_h) == [60.0]
+    for ax in (ax_q, ax_p):
+        assert stop_marks(ax) == [] and ax.get_xlim()[1] < 30.0

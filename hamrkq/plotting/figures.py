@@ -202,6 +202,11 @@ def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
                 name = sol.names[offset + k]
                 tag = f"{label}: {name}" if many else label
                 ax.plot(t, part[:, k], label=tag, **_pair_style(style, k, len(pairs)))
+            if window.size and window[-1]:
+                # stopped within the first periods: the curve ends short, say why.
+                # A later stop is outside this panel (marking it would stretch
+                # the axis over the whole run) and is marked in H(t).
+                _mark_partial(ax, sol)
         # a uniform stride keeps the orbit's order: extremes-per-bin thinning
         # would join distant points of the orbit by chords
         index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
