@@ -89,3 +89,28 @@ def test_a_run_stopped_within_its_first_periods_is_marked_in_every_time_panel():
     assert stop_marks(ax_h) == [60.0]
     for ax in (ax_q, ax_p):
         assert stop_marks(ax) == [] and ax.get_xlim()[1] < 30.0
+
+
+def test_the_section_title_counts_the_orbits_integrated_and_the_crossings():
+    from hamrkq.analysis.poincare import PoincareSection
+    from hamrkq.plotting.sections import section_figure
+
+    names = ("q1", "q2", "p1", "p2")
+    runs = [oscillation(np.linspace(0.0, 5.0, 11)) for _ in range(3)]
+
+    def section(orbit, solutions):
+        orbit = np.asarray(orbit, dtype=int)
+        y = np.arange(4.0 * orbit.size).reshape(-1, 4)
+        return PoincareSection(t=np.arange(orbit.size, dtype=float), y=y, orbit=orbit,
+                               section="q1 = 5", names=names, solutions=solutions)  # fmt: skip
+
+    # QA: one orbit integrated, no crossing, was titled "(0 orbits)"
+    ax = section_figure(section([], runs[:1]), "q2", "p2").axes[0]
+    assert ax.get_title() == "Poincare section q1 = 5 (1 orbit, 0 crossings)"
+    # three orbits, the last one never crossing: not "(2 orbits)"
+    sec = section([0, 1, 0, 1, 1], runs)
+    ax = section_figure(sec, "q2", "p2").axes[0]
+    assert ax.get_title() == "Poincare section q1 = 5 (3 orbits, 5 crossings)"
+    for k, line in enumerate(ax.lines):  # line k draws orbit k's crossings
+        mine = sec.orbit == k
+        np.testing.assert_array_equal(line.get_xydata(), sec.y[mine][:, [1, 3]])

@@ -57,7 +57,9 @@ def section_figure(
         ax = fig.add_subplot()
     else:
         fig = ax.figure
-    orbits = int(section.orbit.max()) + 1 if section.orbit.size else 0
+    # the orbits integrated, not the highest orbit with a crossing: an orbit
+    # that never crossed (or every one, for a section out of reach) counts too
+    orbits = len(section.solutions)
     if megno is not None:
         values = np.asarray(megno, dtype=float)
         if values.shape != (len(section.solutions),):
@@ -87,5 +89,10 @@ def section_figure(
         bar.set_label("orbit's MEGNO <Y> at the end (2: regular; larger: chaotic)")
     ax.set_xlabel(x)
     ax.set_ylabel(y)
-    ax.set_title(title or f"Poincare section {section.section} ({orbits} orbits)")
+    ax.set_title(title or f"Poincare section {section.section} ({_count(orbits, 'orbit')}, "
+                 f"{_count(len(section.t), 'crossing')})")  # fmt: skip
     return fig
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}" + ("" if number == 1 else "s")
