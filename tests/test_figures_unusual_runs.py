@@ -114,3 +114,26 @@ def test_the_section_title_counts_the_orbits_integrated_and_the_crossings():
     for k, line in enumerate(ax.lines):  # line k draws orbit k's crossings
         mine = sec.orbit == k
         np.testing.assert_array_equal(line.get_xydata(), sec.y[mine][:, [1, 3]])
+
+
+@pytest.mark.parametrize("layout", ["one dof", "n-body"])
+def test_a_one_node_run_is_drawn_as_a_marked_point(layout):
+    # QA: t_span (0, 0) drew in every panel a 1-point line without a marker
+    # (nothing visible), each with a legend entry
+    if layout == "one dof":
+        one = oscillation([0.0])
+    else:  # x1, y1, x2, y2: two bodies, Figure 1's orbit layout
+        names = ("x1", "y1", "x2", "y2", "px1", "py1", "px2", "py2")
+        y = np.array([[1.0, 0.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.5]])
+        one = oscillation([0.0], y=y, z=y, global_error=0 * y, gamma=0 * y, n=4, names=names)
+    fig = figure1(one)
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            assert len(handle.get_xydata()) == 1, (ax.get_title(), label)
+            assert handle.get_marker() not in ("None", "", " ", None), (ax.get_title(), label)
+    # the first panel's point: (t, q) = (0, 1), or body 1 at (x1, y1) = (1, 0)
+    np.testing.assert_array_equal(fig.axes[0].lines[0].get_xydata(), [[0.0, 1.0]]
+                                  if layout == "one dof" else [[1.0, 0.0]])  # fmt: skip
+    # a run of many nodes keeps plain lines
+    many = figure1(oscillation(np.linspace(0.0, 10.0, 101)))
+    assert all(line.get_marker() == "None" for ax in many.axes for line in ax.lines)

@@ -161,7 +161,8 @@ def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None 
     ax_h = panels[-1]
     for number, (label, sol) in enumerate(items):
         tt, dh = _thin(sol.t, sol.energy - sol.energy[0])
-        ax_h.plot(tt, dh, label=f"{label} (H(0) = {sol.energy[0]:.10g})", **_STYLES[number % 2])
+        style = {**_STYLES[number % 2], **_lone(tt.size)}
+        ax_h.plot(tt, dh, label=f"{label} (H(0) = {sol.energy[0]:.10g})", **style)
         _mark_partial(ax_h, sol)
     ax_h.set(xlabel="time t", ylabel="H(t) - H(0)", title="energy error along the run")
     ax_h.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
@@ -171,6 +172,12 @@ def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None 
     if title:
         fig.suptitle(f"{title}: solution and Hamiltonian")
     return fig
+
+
+def _lone(points: int) -> dict:
+    """A marker for a curve of one point (a run with one node, t0 == t_end),
+    which a line alone would not draw."""
+    return {"marker": "o", "ms": 5} if points == 1 else {}
 
 
 def _phase_layout(pairs: int):
@@ -194,14 +201,15 @@ def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
     forward = bool(first.t[-1] >= first.t[0])
     many = len(pairs) > 1
     for number, (label, sol) in enumerate(items):
-        style = _STYLES[number % 2]
         window = _up_to(sol.t, end, forward)
         t = sol.t[window]
+        style = _STYLES[number % 2]
+        in_time = {**style, **_lone(t.size)}
         for ax, part, offset in ((ax_q, sol.q[window], 0), (ax_p, sol.p[window], sol.n)):
             for k in pairs:
                 name = sol.names[offset + k]
                 tag = f"{label}: {name}" if many else label
-                ax.plot(t, part[:, k], label=tag, **_pair_style(style, k, len(pairs)))
+                ax.plot(t, part[:, k], label=tag, **_pair_style(in_time, k, len(pairs)))
             if window.size and window[-1]:
                 # stopped within the first periods: the curve ends short, say why.
                 # A later stop is outside this panel (marking it would stretch
@@ -211,6 +219,7 @@ def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
         # would join distant points of the orbit by chords
         index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
         on_top = {"zorder": 3} if number == 0 else {"zorder": 2, "alpha": 0.6}
+        on_top |= _lone(index.size)  # not in style: it was chosen for the time window
         for ax, k in zip(phase, pairs, strict=True):
             ax.plot(sol.q[index, k], sol.p[index, k], label=label, **style, **on_top)
     names = first.names
@@ -233,7 +242,7 @@ def _orbits(items, found, panels) -> None:
     _, first = items[0]
     three_d = any(len(axes) == 3 for _, axes in found)
     for number, (label, sol) in enumerate(items):
-        style = _STYLES[number % 2]
+        style = {**_STYLES[number % 2], **_lone(len(sol.t))}
         index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
         for k, (suffix, axes) in enumerate(found):
             body = {**style, "color": f"C{k % 10}"}
