@@ -115,6 +115,51 @@ def test_a_damaged_file_is_compiled_again_with_one_warning_naming_it(tmp_path, s
     assert _count(third, "cache_hits") == 1 and third(0.7) == _expected(0.7)
 
 
+def _read_only(monkeypatch, cache: Path) -> None:
+    """Make numba and hamrkq see ``cache`` as another user sees a shipped
+    cache: readable, not writable (root writes anywhere, so chmod alone
+    would not do it; QA ran the real thing as nobody)."""
+    from numba.core import caching
+
+    def inside(path) -> bool:
+        return Path(path).resolve().is_relative_to(cache.resolve())
+
+    writable = caching.UserProvidedCacheLocator.ensure_cache_path
+
+    def ensure(self):
+        if inside(self.get_cache_path()):
+            raise PermissionError(f"{self.get_cache_path()}: read-only")
+        writable(self)
+
+    access = os.access
+    monkeypatch.setattr(caching.UserProvidedCacheLocator, "ensure_cache_path", ensure)
+    monkeypatch.setattr(
+        os, "access", lambda path, mode, **kw: False if mode & os.W_OK and inside(path)
+        else access(path, mode, **kw)
+    )  # fmt: skip
+
+
+def test_a_read_only_cache_folder_is_loaded_from_and_never_written(tmp_path, monkeypatch):
+    # QA: numba passed over a cache folder it could not write (a cache made
+    # by `hamrkq compile` and shipped read-only), compiled everything again
+    # into ~/.cache/numba, or without a writable home found no cache and
+    # hamrkq ran interpreted, blaming numba.
+    first = _compile(tmp_path)
+    assert _count(first, "cache_misses") == 1
+    files = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()}
+    _read_only(monkeypatch, tmp_path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        again = _compile(tmp_path)
+        # a signature the folder does not hold: compiled here, not kept
+        other = _compile(tmp_path, numba.float64(numba.float32))
+    assert _count(again, "cache_hits") == 1 and again(0.3) == _expected(0.3)
+    assert _count(other, "cache_misses") == 1 and other(0.5) == pytest.approx(_expected(0.5))
+    assert {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()} == files
+    (text,) = _hamrkq_warnings(caught)
+    assert "is read-only" in text and "every process will compile it again" in text
+
+
 def test_every_file_ends_with_its_checksum_and_plain_numba_still_reads_it(tmp_path):
     _compile(tmp_path)
     files = _files(tmp_path, ".nbi") + _files(tmp_path, ".nbc")

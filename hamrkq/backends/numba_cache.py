@@ -182,7 +182,9 @@ def applicable() -> bool:
             "_load_index", "_save_index", "_load_data", "_save_data",
             "_dump", "_open_for_write", "_data_path", "load", "save",
         ),
-        caching.FunctionCache: ("load_overload", "save_overload"),
+        caching.FunctionCache: ("load_overload", "save_overload", "_impl_class"),
+        caching.CompileResultCacheImpl: ("_locator_classes",),
+        caching.UserProvidedCacheLocator: ("ensure_cache_path", "get_cache_path"),
         Dispatcher: ("compile", "disable_compile", "enable_caching"),
         typeinfer: ("register_dispatcher",),
     }  # fmt: skip
@@ -307,9 +309,42 @@ def _checked_cache_type() -> type:
         def _load_data(self, name):
             return _load_data(self, name)
 
+    class ReadOnlyCacheLocator(caching.UserProvidedCacheLocator):
+        """numba's cache directory (``NUMBA_CACHE_DIR``, or the folder hamrkq
+        gives) where it can be read but not written: a cache filled by
+        ``hamrkq compile`` and shipped read-only (a container image, a shared
+        installation).  numba's own locator wants to write a file there
+        first, so it passed over such a folder, compiled everything again
+        into ``~/.cache/numba`` or, without a writable home, found no cache
+        at all and hamrkq fell back to the interpreted loop (found by QA).
+        Loaded from, never written (:meth:`CheckedFunctionCache.save_overload`)."""
+
+        def ensure_cache_path(self):
+            path = self.get_cache_path()
+            readable = os.path.isdir(path) and os.access(path, os.R_OK | os.X_OK)
+            if not readable or os.access(path, os.W_OK):
+                raise OSError(f"{path} is not a read-only cache folder")
+
+    class CheckedCacheImpl(caching.CompileResultCacheImpl):
+        # numba's locators, with a read-only folder of its own cache
+        # directory accepted right after a writable one.
+        _locator_classes = (
+            caching.UserProvidedCacheLocator,
+            ReadOnlyCacheLocator,
+            *(
+                cls
+                for cls in caching.CompileResultCacheImpl._locator_classes
+                if cls is not caching.UserProvidedCacheLocator
+            ),
+        )
+
     class CheckedFunctionCache(caching.FunctionCache):
         """numba's per-function cache whose damaged entries are removed and
-        compiled again (:attr:`damaged` lists them)."""
+        compiled again (:attr:`damaged` lists them); in a read-only folder,
+        loaded from only (:attr:`not_saved` lists what was compiled and could
+        not be kept)."""
+
+        _impl_class = CheckedCacheImpl
 
         def __init__(self, py_func):
             super().__init__(py_func)
@@ -319,6 +354,13 @@ def _checked_cache_type() -> type:
                 source_stamp=self._impl.locator.get_source_stamp(),
             )
             self.damaged: list[DamagedEntry] = []
+            self.not_saved: list[str] = []
+
+        def save_overload(self, sig, data):
+            if isinstance(self._impl.locator, ReadOnlyCacheLocator):
+                self.not_saved.append(self._cache_path)
+                return
+            super().save_overload(sig, data)
 
         def load_overload(self, sig, target_context):
             parent = super().load_overload

@@ -176,7 +176,30 @@ def jit(
             f"hamrkq: {_damage_text(function, damage)}; compiled it again "
             f"({time.perf_counter() - started:.1f} s) and cached the new code"
         )
+    _warn_not_saved(function, dispatcher, time.perf_counter() - started)
     return dispatcher
+
+
+#: Read-only cache folders already warned about in this process.
+_READ_ONLY_WARNED: set[str] = set()
+
+
+def _warn_not_saved(function: Callable, dispatcher: Any, seconds: float) -> None:
+    """One warning per read-only cache folder where a function had to be
+    compiled (it was not there) and could not be kept: every process
+    compiles it again (:class:`~hamrkq.backends.numba_cache` reads such a
+    folder and never writes it)."""
+    folders = getattr(getattr(dispatcher, "_cache", None), "not_saved", None) or ()
+    for folder in folders:
+        if folder in _READ_ONLY_WARNED:
+            continue
+        _READ_ONLY_WARNED.add(folder)
+        warn(
+            f"hamrkq: the cache folder {folder} is read-only and does not hold "
+            f"{function.__module__}.{function.__qualname__}: compiled it here ({seconds:.1f} s), "
+            "and every process will compile it again; run `hamrkq compile` with a writable "
+            "cache to add it"
+        )
 
 
 def _damage_text(function: Callable, damage: DamagedEntry) -> str:
