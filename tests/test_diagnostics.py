@@ -105,6 +105,16 @@ def test_energy_bound_and_ratio_by_hand():
     assert np.isnan(bound_ratio(np.array([0.0, 1e-9]), nan, np.arange(2.0))[0])
 
 
+def test_a_fixed_step_run_s_table_states_no_tolerance_and_no_bound():
+    # QA: "tolerance delta nan .. nan" and "trajectory / bound max inf"
+    problem = hamrkq.load_problem("harmonic")
+    d = diagnose(hamrkq.solve(problem, method="gauss6", step=0.05), problem)
+    table = d.table()
+    assert "none (a fixed-step run has no tolerance)" in table
+    assert "nan" not in table and "inf" not in table and "/ bound" not in table
+    assert d.to_dict()["global_error"]["bound_ratio"] is None
+
+
 def test_energy_error_of_a_t_eval_run_is_measured_from_the_initial_state():
     # QA: with t_eval from t = 50 on, the first returned node was the
     # baseline: the pendulum's energy error read 18 % low and its end value

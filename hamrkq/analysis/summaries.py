@@ -512,9 +512,11 @@ class Diagnostics:
             ),
         ]
         delta = self.series["delta"]
-        rows.append(
-            ("tolerance delta", f"{delta.min():.3e} .. {delta.max():.3e} ({self.tolerance_rule})")
-        )
+        if np.isfinite(delta).any():
+            span = f"{np.nanmin(delta):.3e} .. {np.nanmax(delta):.3e} ({self.tolerance_rule})"
+        else:  # read "nan .. nan" (found by QA)
+            span = "none (a fixed-step run has no tolerance)"
+        rows.append(("tolerance delta", span))
         if self.energy is not None and not self.energy_conserved:
             rows.append(("energy", self.energy_note))
         for summary in (self.energy if self.energy_conserved else None, *self.invariants):
@@ -552,12 +554,14 @@ class Diagnostics:
                     f"{summary.description} (accurate to ~{summary.reference_accuracy:.1e})",
                 )
             )
-            rows.append(
-                (
-                    "  trajectory / bound",
-                    f"max {summary.bound_ratio:.4f} (t={summary.t_bound_ratio:g})",
+            if np.isfinite(summary.bound_ratio) or summary.bound_ratio == np.inf:
+                # (no bound, no ratio: a fixed-step run's row read "max inf")
+                rows.append(
+                    (
+                        "  trajectory / bound",
+                        f"max {summary.bound_ratio:.4f} (t={summary.t_bound_ratio:g})",
+                    )
                 )
-            )
         if np.isfinite(self.gamma_max):
             rows.append((f"{track_name(self.method)} |Gamma|", f"max {self.gamma_max:.3e}"))
         rows += [("note", note) for note in self.notes]
