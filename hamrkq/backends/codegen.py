@@ -91,7 +91,7 @@ __all__ = [
 
 #: Version of the generated text's layout; part of every cache key, so a change
 #: to this module's output never meets a stale file.
-CODEGEN_VERSION = 15
+CODEGEN_VERSION = 16
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
 _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 

@@ -75,6 +75,24 @@ class _ScalarPrinter(PythonCodePrinter):
             return f"{base}**{float(n)!r}" if n > 0 else f"{base}**({float(n)!r})"
         return super()._print_Pow(expr, rational=rational)
 
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        # An integer beyond int64 as the double it becomes at run time:
+        # numba cannot type such a literal ("Int value is too large"), and a
+        # file's 1e20 is read as the integer 10**20, which sent the system
+        # to the interpreted loop, about 100 times slower (found by QA).
+        # Python converts an int to the nearest double where it meets one,
+        # so the interpreter computes the same bits as before.
+        if abs(int(expr)) >= INT64_LIMIT:
+            return repr(float(expr))
+        return super()._print_Integer(expr)
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        # As above: p/q of integers beyond int64 is Python's correctly
+        # rounded true division, which the nearest double to p/q is.
+        if max(abs(int(expr.p)), abs(int(expr.q))) >= INT64_LIMIT:
+            return repr(float(expr))
+        return super()._print_Rational(expr)
+
     def _print_Float(self, expr: sp.Float) -> str:
         # repr(float) round-trips; SymPy's default prints 15 digits and loses bits.
         return repr(float(expr))
@@ -82,6 +100,10 @@ class _ScalarPrinter(PythonCodePrinter):
     def _print_OffsetSum(self, expr: sp.Expr) -> str:
         varying, high, low = (self._print(arg) for arg in expr.args)
         return f"(({varying} + {high}) + {low})"
+
+
+#: Integers from here on do not fit numba's int64 literals.
+INT64_LIMIT = 2**63
 
 
 class OffsetSum(sp.Function):
