@@ -23,7 +23,15 @@ import numpy as np
 from hamrkq._files import atomic_file, plain
 from hamrkq.errors import SolutionFileError
 
-__all__ = ["FrozenDict", "Solution", "Status", "kept_nodes_note", "open_npz"]
+__all__ = [
+    "FrozenDict",
+    "Solution",
+    "Status",
+    "freeze_in_place",
+    "frozen_copy",
+    "kept_nodes_note",
+    "open_npz",
+]
 
 
 def kept_nodes_note(count: int) -> str:
@@ -173,7 +181,27 @@ def open_npz(path: Path, what: str, fail: Callable[[str], Exception]) -> Any:
         raise fail(f"not a saved hamrkq {what}: damaged .npz archive ({exc})") from None
 
 
-def _readonly(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
+def frozen_copy(value: Any, dtype: Any = float) -> np.ndarray:
+    """A read-only copy of ``value`` as an array of ``dtype``: always a copy,
+    so that nothing the caller holds can change it (:class:`Solution` and
+    :class:`hamrkq.ensemble.EnsembleSolution` keep their arrays so)."""
+    array = np.array(value, dtype=dtype, copy=True)
+    array.setflags(write=False)
+    return array
+
+
+def freeze_in_place(array: np.ndarray) -> np.ndarray:
+    """``array`` made read-only where it is, not copied (unless it is not
+    C-contiguous: then a contiguous copy is made read-only): whoever else
+    holds it can no longer write to it either."""
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+def _solution_array(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
+    """An array of a :class:`Solution`: None stays None, and an array already
+    kept so is passed on as it is; any other is a :func:`frozen_copy`."""
     if array is None:
         return None
     if (
@@ -182,12 +210,10 @@ def _readonly(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
         and not array.flags.writeable
         and array.base is None
     ):
-        # Made by this function already (a Solution's replace() passes its
+        # Made by frozen_copy already (a Solution's replace() passes its
         # arrays on): nothing else refers to its data to change it.
         return array
-    out = np.array(array, dtype=dtype, copy=True)
-    out.setflags(write=False)
-    return out
+    return frozen_copy(array, dtype)
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,19 +302,19 @@ class Solution:
         set_ = object.__setattr__
         for name in _ARRAY_FIELDS:
             dtype = bool if name == "quenched" else float
-            set_(self, name, _readonly(getattr(self, name), dtype))
+            set_(self, name, _solution_array(getattr(self, name), dtype))
         for name in ("atol", "rtol"):
             value = getattr(self, name)
             if np.shape(value) != (2 * self.n,):
                 value = np.broadcast_to(value, (2 * self.n,))
-            set_(self, name, _readonly(value))
+            set_(self, name, _solution_array(value))
         set_(self, "stats", FrozenDict(self.stats))
         set_(self, "options", FrozenDict(self.options))
         set_(self, "names", tuple(self.names))
         set_(self, "event_labels", tuple(self.event_labels))
         for name in ("t_events", "y_events", "event_bound"):
             if getattr(self, name) is not None:
-                set_(self, name, [_readonly(a) for a in getattr(self, name)])
+                set_(self, name, [_solution_array(a) for a in getattr(self, name)])
         if self.y.ndim != 2 or self.y.shape != (self.t.size, 2 * self.n):
             raise ValueError(f"y has shape {self.y.shape}, expected ({self.t.size}, {2 * self.n})")
 

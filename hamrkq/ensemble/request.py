@@ -29,6 +29,7 @@ from hamrkq._validate import span as _span
 from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.events import event_specs
 from hamrkq.options import applicable_settings
+from hamrkq.result import freeze_in_place
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
@@ -40,12 +41,6 @@ STATS = ("steps", "rejected", "quenches", "nfev", "njev")
 #: Keywords of :func:`hamrkq.solve` an ensemble decides itself: it keeps only
 #: ``t_eval`` (or the last node), and draws its own progress bar over members.
 _OWN_KEYWORDS = ("keep_every", "progress", "q0", "p0", "t_span", "parameters", "t_eval")
-
-
-def _readonly(array: np.ndarray) -> np.ndarray:
-    array = np.ascontiguousarray(array)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,10 +78,12 @@ class Request:
     events_note: str | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "y0", _readonly(np.asarray(self.y0, dtype=float)))
-        object.__setattr__(self, "params", _readonly(np.asarray(self.params, dtype=float)))
+        object.__setattr__(self, "y0", freeze_in_place(np.asarray(self.y0, dtype=float)))
+        object.__setattr__(self, "params", freeze_in_place(np.asarray(self.params, dtype=float)))
         if self.t_eval is not None:
-            object.__setattr__(self, "t_eval", _readonly(np.asarray(self.t_eval, dtype=float)))
+            object.__setattr__(
+                self, "t_eval", freeze_in_place(np.asarray(self.t_eval, dtype=float))
+            )
 
     @property
     def size(self) -> int:

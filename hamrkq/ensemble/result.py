@@ -20,7 +20,7 @@ import numpy as np
 
 from hamrkq._files import atomic_file
 from hamrkq.errors import ResultFileError
-from hamrkq.result import Status, open_npz
+from hamrkq.result import Status, frozen_copy, open_npz
 
 __all__ = ["FILE_FORMAT", "FILE_FORMAT_VERSION", "EnsembleSolution"]
 
@@ -44,12 +44,6 @@ _ARRAYS = {
 }
 #: Arrays with one value per member.
 _PER_MEMBER = ("t_last", "status", "max_global_error", "energy0", "energy_drift")
-
-
-def _readonly(value: Any, dtype: Any) -> np.ndarray:
-    array = np.array(value, dtype=dtype, copy=True)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,16 +108,16 @@ class EnsembleSolution:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         for name, dtype in _ARRAYS.items():
-            set_(self, name, _readonly(getattr(self, name), dtype))
+            set_(self, name, frozen_copy(getattr(self, name), dtype))
         set_(self, "messages", tuple(str(m) for m in self.messages))
         set_(self, "names", tuple(str(m) for m in self.names))
         set_(self, "t_span", tuple(float(v) for v in self.t_span))
         set_(self, "method", str(self.method))
-        set_(self, "stats", _frozen({k: _readonly(v, np.int64) for k, v in self.stats.items()}))
+        set_(self, "stats", _frozen({k: frozen_copy(v, np.int64) for k, v in self.stats.items()}))
         set_(
             self,
             "parameters",
-            _frozen({k: _readonly(v, float) for k, v in self.parameters.items()}),
+            _frozen({k: frozen_copy(v, float) for k, v in self.parameters.items()}),
         )
         set_(self, "options", _frozen(dict(self.options)))
         m, dim = self.y0.shape if self.y0.ndim == 2 else (-1, -1)
