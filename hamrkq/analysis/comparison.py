@@ -45,10 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq._floats import EPS
 from hamrkq.analysis.comparison_runs import Comparison, Run
 from hamrkq.analysis.diagnostics import drift_summary
 from hamrkq.analysis.reference import hamiltonian_reference
+from hamrkq.catalogue.exact import builtin_exact_of, exact_accuracy
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
 from hamrkq.result import Solution
@@ -354,8 +354,8 @@ def _reference(problem: Any, runs: list[Run]) -> tuple[dict[str, np.ndarray], st
     times = np.unique(np.concatenate([run.solution.t for run in runs]))
     if problem.exact is not None:
         states = np.asarray(problem.exact(times), dtype=float).reshape(times.size, -1)
-        scale = float(np.max(np.abs(states)))
-        description, accuracy = "exact solution", 4 * EPS * scale
+        description = "exact solution"
+        accuracy = exact_accuracy(states, *builtin_exact_of(problem))
     else:
         ref = hamiltonian_reference(problem, problem.y0, times, t0=problem.t_span[0])
         states, description, accuracy = ref.y, ref.method, ref.estimated_error

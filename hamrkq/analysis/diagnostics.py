@@ -34,6 +34,7 @@ from hamrkq.analysis.summaries import (
     reference_is_close,
 )
 from hamrkq.backends.numeric import numeric_of
+from hamrkq.catalogue.exact import builtin_exact_of, exact_accuracy
 from hamrkq.catalogue.problem_file import energy_name_error
 from hamrkq.errors import HamrkqError, InputError, InputTypeError, OptionError
 from hamrkq.result import Solution
@@ -202,10 +203,12 @@ def _start(sol, ham, params, notes: list[str]) -> tuple[tuple | None, float]:
     return (t0, y0), float(np.asarray(energy0).ravel()[0])
 
 
-def _reference_states(sol, kind, ham, params, exact, periodic):
+def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None, None)):
     """(states, source, description, accuracy) for a reference kind or object;
     the independent references start from where the run started
-    (:func:`_initial`)."""
+    (:func:`_initial`).  ``exact_from`` is ``(builtin name, y0)`` where
+    ``exact`` is a problem's built-in solution, whose accuracy it states
+    (:func:`~hamrkq.catalogue.exact.exact_accuracy`)."""
     t0, y0 = _initial(sol)
     if isinstance(kind, Reference):
         if kind.y.shape != sol.y.shape or not np.array_equal(kind.t, sol.t):
@@ -226,7 +229,7 @@ def _reference_states(sol, kind, ham, params, exact, periodic):
             _check_exact_start(states[0], sol.y[0])
         else:  # a run with t_eval: its initial state is not a node
             _check_exact_start(_exact_at(exact, t0), y0)
-        return states, "exact", "exact solution", 4 * EPS * float(np.max(np.abs(states)))
+        return states, "exact", "exact solution", exact_accuracy(states, *exact_from)
     if kind == "independent":
         if ham is None:
             raise InputError("reference='independent' needs a problem or a Hamiltonian")
@@ -360,6 +363,7 @@ def diagnose(
     _check_arguments(solution, problem)
     sol = solution
     problem, ham, params = _system(problem, params, sol)
+    exact_from: tuple[str | None, Any] = (None, None)  # (builtin name, its y0)
     if ham is not None:
         if gradient is None:
             gradient = lambda t, Y: numeric_of(ham).gradient(t, Y, params)  # noqa: E731
@@ -367,6 +371,7 @@ def diagnose(
             invariants = problem.invariant_functions()
         if exact is None and getattr(problem, "exact", None) is not None:
             exact = problem.exact
+            exact_from = builtin_exact_of(problem)
     notes: list[str] = _kept_nodes_note(sol)
     kind = reference
     if isinstance(kind, str) and kind == "auto":
@@ -408,7 +413,7 @@ def diagnose(
     error = None
     if not (isinstance(kind, str) and kind == "none"):
         states, source, description, accuracy = _reference_states(
-            sol, kind, ham, params, exact, periodic
+            sol, kind, ham, params, exact, periodic, exact_from
         )
         series["reference"] = states
         series["error"] = y - states
