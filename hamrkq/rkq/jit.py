@@ -32,6 +32,16 @@ def jitable(function: F) -> F:
     return _register(function)
 
 
+def jitable_inline(function: F) -> F:
+    """:func:`jitable`, inlined into its callers by numba (its IR, not a
+    call): for small functions called in the innermost loops, where a call
+    costs more than the work (the Taylor interpreter's per-operation cases,
+    :mod:`hamrkq.rkq.taylor`)."""
+    if _register is None:
+        return function
+    return _register(inline="always")(function)
+
+
 def borrow(value: T) -> T:
     """``value`` (an array, or a tuple of arrays and numbers) as a borrowed
     reference, for the duration of one call of a kernel entry point.
