@@ -61,6 +61,7 @@ __all__ = [
     "MATCH_MODES",
     "Comparison",
     "Run",
+    "at_reference_floor",
     "compare",
     "default_methods",
 ]
@@ -491,10 +492,18 @@ def _far_below(runs: list[Run], target: float) -> list[str]:
     return notes
 
 
+def at_reference_floor(run: Run, accuracy: float) -> bool:
+    """Whether ``run``'s max true error is at or below the reference's
+    ``accuracy``: then it is mostly the reference's own error, and the run's
+    is at most about ``accuracy``.  The note on uncertain errors names these
+    runs, and ``hamrkq compare``'s tables mark their errors."""
+    return run.max_error <= accuracy
+
+
 def _floor(runs: list[Run], accuracy: float) -> str:
-    """The runs whose error is at or below the reference's accuracy, for the
-    note on uncertain errors: their errors are mostly the reference's own."""
-    low = [r for r in runs if r.max_error <= accuracy]
+    """The runs at the reference's floor (:func:`at_reference_floor`), for
+    the note on uncertain errors."""
+    low = [r for r in runs if at_reference_floor(r, accuracy)]
     if not low:
         return ""
     shown = ", ".join(f"{r.method} {r.describe()} ({r.max_error:.2g})" for r in low)

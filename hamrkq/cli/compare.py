@@ -32,7 +32,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hamrkq.analysis.comparison import MATCH_MODES, Comparison, compare, default_methods
+from hamrkq.analysis.comparison import (
+    MATCH_MODES,
+    Comparison,
+    Run,
+    at_reference_floor,
+    compare,
+    default_methods,
+)
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.cli.interrupts import raise_if_interrupted
 from hamrkq.io.report import OutputDir, check_dpi, package_versions
@@ -63,6 +70,10 @@ COLUMNS = (
     ("drift_stderr", "slope std. error", ".1e"),
     ("status", "status", "s"),
 )
+#: Marks a max true error at the reference's floor (at or below its accuracy:
+#: :func:`~hamrkq.analysis.comparison.at_reference_floor`); the line under the
+#: table says so.
+FLOOR_MARK = "*"
 
 
 def register(subparsers: Any) -> None:
@@ -122,16 +133,32 @@ def _cell(value: Any, spec: str) -> str:
     return format(value, spec)
 
 
-def _table(rows: list[dict[str, Any]]) -> list[str]:
+def _table(runs: list[Run], accuracy: float) -> list[str]:
+    """The table of ``runs``, errors at the reference's floor marked
+    :data:`FLOOR_MARK`, and then, if any is, a blank line and the line that
+    says what the mark means."""
     lines = ["| " + " | ".join(header for _, header, _ in COLUMNS) + " |",
              "|" + "---|" * len(COLUMNS)]  # fmt: skip
-    for row in rows:
+    error = [key for key, _, _ in COLUMNS].index("max_true_error")
+    marked = False
+    for run in runs:
+        row = run.row()
         cells = [_cell(row[k], f) for k, _, f in COLUMNS]
         if row["ran"] != row["method"]:  # auto says which member it ran
             cells[0] += f" ({row['ran']})"
         if row["status"] != "SUCCESS":  # where it stopped
             cells[-1] += f" at t = {_cell(row['t_final'], '.6g')}"
+        if at_reference_floor(run, accuracy):
+            cells[error] += FLOOR_MARK
+            marked = True
         lines.append("| " + " | ".join(cells) + " |")
+    if marked:
+        lines += [
+            "",
+            f"Max true errors marked {FLOOR_MARK} are at or below the reference's accuracy "
+            f"(~{accuracy:.1e}): at the reference's floor, mostly its own error; the run's "
+            "is at most about that.",
+        ]
     return lines
 
 
@@ -172,11 +199,11 @@ def markdown(result: Comparison, *, command: str = "") -> str:
         "",
         "## Headline",
         "",
-        *_table([run.row() for run in result.selected()]),
+        *_table(result.selected(), result.reference_accuracy),
         "",
         "## Every run of the sweep",
         "",
-        *_table(result.rows()),
+        *_table(list(result.runs), result.reference_accuracy),
         "",
     ]
     if result.notes:
@@ -323,7 +350,7 @@ def compare_command(args: argparse.Namespace) -> int:
         out.figure(FILES["work_precision"], work_precision_figure(result), dpi=args.dpi)
         out.figure(FILES["energy"], energy_figure(result), dpi=args.dpi)
     print(f"{problem.name}: headline at {result.matched_by()}")
-    print("\n".join(_table([run.row() for run in result.selected()])))
+    print("\n".join(_table(result.selected(), result.reference_accuracy)))
     for note in result.notes:
         print(f"note: {note}")
     print(f"wrote {out.path}/: {', '.join(out.written)}")
