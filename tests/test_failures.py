@@ -161,8 +161,9 @@ def test_kepler_near_parabolic_underflows_at_pericentre():
 
 
 def test_kepler_e_0_999999_stops_when_the_tolerance_cannot_be_vouched_for():
-    # With the catalogue's atol = 1e-8 the RK8 track's own error, picked up at
-    # the first pericentre passage, reaches 5 % of the tolerance near apocentre.
+    # With the catalogue's atol = 1e-8 the quencher's estimated error plus its
+    # rounding reaches 5 % of the tolerance as the orbit falls into its second
+    # pericentre: the run stops just before t = 2 pi, not near apocentre.
     problem = hamrkq.load_problem("kepler", e=0.999999)
     sol = solve_quietly(problem, t_span=(0, 2 * math.pi + 0.5))
     assert sol.status is Status.TOLERANCE_UNATTAINABLE
