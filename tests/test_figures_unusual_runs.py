@@ -5,11 +5,13 @@ rather than only checking that a figure is made: the defects these guard
 against (found by QA) all drew a figure, just the wrong one.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
 from hamrkq.analysis.diagnostics import diagnose
-from hamrkq.plotting.figures import figure1, figure2, figure3
+from hamrkq.plotting.figures import figure1, figure2, figure3, figure4
 from hamrkq.result import Solution, Status
 
 pytest.importorskip("matplotlib")
@@ -89,6 +91,48 @@ def test_a_run_stopped_within_its_first_periods_is_marked_in_every_time_panel():
     assert stop_marks(ax_h) == [60.0]
     for ax in (ax_q, ax_p):
         assert stop_marks(ax) == [] and ax.get_xlim()[1] < 30.0
+        # QA: nothing in these panels said the run had stopped; now they say
+        # where, and that H(t) marks it (a text, not a legend entry: nothing
+        # is drawn for it here)
+        assert [text.get_text() for text in ax.texts] == [
+            "RK34Q8 stopped later: MAX_STEPS at t = 60 (marked in H(t))"
+        ]
+    assert not ax_h.texts and not figure1(oscillation(np.linspace(0, 60, 3001))).axes[0].texts
+
+
+def test_a_one_node_run_has_no_legend_entry_for_an_error_curve_it_cannot_draw():
+    # QA: t_span (0, 0) gave Figures 2 and 4 (and 3) a legend entry for each
+    # error curve, a line of 0 points: the error at the only node is 0, which
+    # a log axis cannot show
+    one = oscillation([0.0], gamma=np.zeros((1, 2)))
+    diag = diagnose(one, reference="exact", exact=lambda t: one.y)
+    figures = {
+        "figure2": figure2(one),
+        "figure2 true": figure2(one, diagnostics=diag, error="true"),
+        "figure3": figure3(one, diagnostics=diag),
+        "figure4": figure4(one),
+    }
+    for name, fig in figures.items():
+        for ax in fig.axes:
+            entries = legend_of(ax)
+            assert all(points > 0 for points in entries.values()), (name, entries)
+            assert not any("RK34Q8" in label or "Γ" in label for label in entries), name
+            (text,) = [text.get_text() for text in ax.texts]
+            assert text.startswith("not drawn, 0 at every node: "), name
+    assert figures["figure4"].axes[0].texts[0].get_text().endswith("|Γ| in q, |Γ| in p")
+    assert list(legend_of(figures["figure2"].axes[0])) == ["tolerance δ = 1e-06"]
+    # no curve and no other line: no legend at all (not an empty box, nor
+    # matplotlib's warning about one)
+    bare = oscillation([0.0], gamma=np.zeros((1, 2)), options={"gamma_limit": np.inf})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert figure4(bare).axes[0].get_legend() is None
+    # an error that is not 0 at the one node is drawn, as a marked point
+    off = oscillation([0.0], global_error=np.full((1, 2), 1e-9))
+    ax = figure2(off).axes[0]
+    (curve,) = [line for line in ax.lines if line.get_label() == "RK34Q8"]
+    assert curve.get_xydata().tolist() == [[0.0, 1e-9]] and curve.get_marker() == "o"
+    assert not ax.texts
 
 
 def test_the_section_title_counts_the_orbits_integrated_and_the_crossings():

@@ -168,10 +168,40 @@ def figure1(runs: Any, *, periods: int = 3, axes: Any = None, title: str | None 
     ax_h.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
     for ax in panels:
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="x-small")
+        _legend(ax, fontsize="x-small")
     if title:
         fig.suptitle(f"{title}: solution and Hamiltonian")
     return fig
+
+
+def _legend(ax: Axes, **kwargs: Any) -> None:
+    """The legend of what ``ax`` draws, if it draws anything labelled (an
+    empty legend would be a box, and matplotlib warns)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kwargs)
+
+
+def _not_drawn(ax: Axes, labels: list[str]) -> None:
+    """Say in the panel which series it does not draw: errors that are 0 at
+    every node (a run of one node) have no place on a log axis, and no
+    legend entry."""
+    if labels:
+        ax.text(
+            0.5, 0.5, "not drawn, 0 at every node: " + ", ".join(labels),
+            transform=ax.transAxes, ha="center", va="center", fontsize="small", color="0.3",
+        )  # fmt: skip
+
+
+def _stopped_later(ax: Axes, sol: Solution) -> None:
+    """Say in a first-periods panel that the run stopped after them: the
+    panel ends before the stop, which H(t) marks."""
+    count = sum(text.get_text().endswith("(marked in H(t))") for text in ax.texts)
+    ax.text(
+        0.98, 0.03 + 0.07 * count,
+        f"{sol.method.upper()} stopped later: {sol.status.name} at t = {sol.t[-1]:.6g} "
+        "(marked in H(t))",
+        transform=ax.transAxes, ha="right", va="bottom", fontsize="x-small", color="C3",
+    )  # fmt: skip
 
 
 def _lone(points: int) -> dict:
@@ -212,9 +242,11 @@ def _time_and_phase(items, pairs, periods, ax_q, ax_p, phase) -> None:
                 ax.plot(t, part[:, k], label=tag, **_pair_style(in_time, k, len(pairs)))
             if window.size and window[-1]:
                 # stopped within the first periods: the curve ends short, say why.
-                # A later stop is outside this panel (marking it would stretch
-                # the axis over the whole run) and is marked in H(t).
                 _mark_partial(ax, sol)
+            elif not sol.success and len(sol.t):
+                # A later stop is outside this panel (marking it would stretch
+                # the axis over the whole run): the panel says so, H(t) marks it.
+                _stopped_later(ax, sol)
         # a uniform stride keeps the orbit's order: extremes-per-bin thinning
         # would join distant points of the orbit by chords
         index = np.arange(0, len(sol.t), max(1, -(-len(sol.t) // PHASE_POINTS)))
@@ -342,16 +374,18 @@ def figure2(
     what = _against(arrays, "numerical minus")
     _, sol0, _, _ = arrays[0]
     relative = _per_delta(sol0)
+    missing: list[list[str]] = [[] for _ in panels]
     for number, (label, sol, err, _) in enumerate(arrays):
         scaled = np.abs(err) / _delta(sol) if relative else np.abs(err)
-        for ax, (name, part) in zip(panels, _groups(sol), strict=True):
+        for k, (ax, (name, part)) in enumerate(zip(panels, _groups(sol), strict=True)):
             worst = np.max(scaled[:, part], axis=1)
-            _log_series(ax, sol.t, worst, label, _STYLES[number % 2])
+            if not _log_series(ax, sol.t, worst, label, _STYLES[number % 2]):
+                missing[k].append(label)
             group = _group_label(sol, name)
             ylabel = f"|error| / δ, {group}" if relative else f"|error in {group}|"
             ax.set(ylabel=ylabel, yscale="log")
             _mark_partial(ax, sol)
-    for ax, (name, part) in zip(panels, _groups(sol0), strict=True):
+    for ax, (name, part), labels in zip(panels, _groups(sol0), missing, strict=True):
         if relative:
             ax.axhline(1.0, color="k", lw=1.2, label="tolerance: |error_k| = δ_k")
         else:
@@ -359,7 +393,8 @@ def figure2(
         per = ", per tolerance δ_k" if relative else ""
         ax.set(xlabel="time t", title=f"global error in {name} ({what}{per})")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
+        _not_drawn(ax, labels)
+        _legend(ax, fontsize="small")
     if title:
         fig.suptitle(f"{title}: global error")
     return fig
@@ -381,8 +416,10 @@ def figure3(
         raise InputError(f"error must be 'estimated' or 'true', got {error!r}")
     arrays = _error_arrays(_runs(runs), diagnostics, error)
     fig, (axis,) = _new_axes(None if ax is None else [ax], 1, (9, 4.5))
+    missing = []
     for number, (label, sol, err, _) in enumerate(arrays):
-        _log_series(axis, sol.t, trajectory_error(err), label, _STYLES[number % 2])
+        if not _log_series(axis, sol.t, trajectory_error(err), label, _STYLES[number % 2]):
+            missing.append(label)
         _mark_partial(axis, sol)
     _, sol0, _, _ = arrays[0]
     rule = str(sol0.options.get("tolerance_rule", "componentwise"))
@@ -398,7 +435,8 @@ def figure3(
         title=f"trajectory error (Euclidean, {_against(arrays, 'against the')})",
     )  # fmt: skip
     axis.grid(True, which="both", alpha=0.3)
-    axis.legend(fontsize="small")
+    _not_drawn(axis, missing)
+    _legend(axis, fontsize="small")
     if title:
         fig.suptitle(f"{title}: trajectory error")
     return fig
@@ -415,12 +453,14 @@ def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> F
         raise InputError("no run has an estimated quencher global error (Gamma) to plot")
     fig, (axis,) = _new_axes(None if ax is None else [ax], 1, (9, 4.5))
     relative = _per_delta(items[0][1])
+    missing = []
     for label, sol in items:
         scaled = np.abs(sol.gamma) / _delta(sol) if relative else np.abs(sol.gamma)
         for number, (name, part) in enumerate(_groups(sol)):
             worst = np.max(scaled[:, part], axis=1)
             tag = f"|Γ| in {_group_label(sol, name)}" + (f" ({label})" if len(items) > 1 else "")
-            _log_series(axis, sol.t, worst, tag, _STYLES[number % 2])
+            if not _log_series(axis, sol.t, worst, tag, _STYLES[number % 2]):
+                missing.append(tag)
         _mark_partial(axis, sol)
     _gamma_limit_line(axis, items[0][1], relative)
     track = _track_names(sol for _, sol in items)
@@ -430,7 +470,8 @@ def figure4(runs: Any, *, ax: Axes | None = None, title: str | None = None) -> F
         title=f"estimated global error of the {track}" + (" per tolerance" if relative else ""),
     )  # fmt: skip
     axis.grid(True, which="both", alpha=0.3)
-    axis.legend(fontsize="small")
+    _not_drawn(axis, missing)
+    _legend(axis, fontsize="small")
     if title:
         fig.suptitle(f"{title}: error estimate of the {track}")
     return fig

@@ -80,12 +80,23 @@ def upper_envelope(
     return t[index], values[index]
 
 
-def log_series(ax: Axes, t: np.ndarray, values: np.ndarray, label: str, style: dict) -> None:
+def log_series(ax: Axes, t: np.ndarray, values: np.ndarray, label: str, style: dict) -> bool:
     """A long error series on a log axis: the per-bin maximum as a line over a
-    faint band of the thinned series, so the maximum error stands out."""
+    faint band of the thinned series, so the maximum error stands out.
+
+    Returns whether anything was drawn.  A series with no positive finite
+    value (a run of one node, whose error there is 0) has no place on a log
+    axis: nothing is drawn and nothing enters the legend.  A single value is
+    drawn as a marked point, which a line alone would not show.
+    """
     positive = _positive(values)
+    envelope_t, envelope = upper_envelope(t, positive)
+    if envelope.size == 0:
+        return False
     ax.plot(*thin(t, positive), **{**style, "lw": 0.5, "alpha": 0.25})
-    ax.plot(*upper_envelope(t, positive), label=label, **style)
+    lone = {"marker": "o", "ms": 5} if envelope.size == 1 else {}
+    ax.plot(envelope_t, envelope, label=label, **{**style, **lone})
+    return True
 
 
 def _positive(values: np.ndarray) -> np.ndarray:
