@@ -1,10 +1,12 @@
-"""Files written whole or not at all, and values made plain for JSON.
+"""Files written whole or not at all, saved archives read safely, and values
+made plain for JSON.
 
-One home for two things every writer of hamrkq needs: :func:`atomic_file`
-(a temporary file in the target's directory, renamed into place, removed on
-any failure, so a crash or a signal never leaves half a file under the final
-name) and :func:`plain` / :func:`jsonable` (NumPy scalars and arrays as plain
-Python values).
+One home for what every writer and reader of hamrkq's files needs:
+:func:`atomic_file` (a temporary file in the target's directory, renamed
+into place, removed on any failure, so a crash or a signal never leaves half
+a file under the final name), :func:`open_npz` (a saved ``.npz`` opened
+without unpickling anything) and :func:`plain` / :func:`jsonable` (NumPy
+scalars and arrays as plain Python values).
 """
 
 from __future__ import annotations
@@ -12,14 +14,16 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import pickle
 import tempfile
-from collections.abc import Iterator, Mapping
+import zipfile
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["atomic_file", "jsonable", "plain", "write_atomic"]
+__all__ = ["atomic_file", "jsonable", "open_npz", "plain", "write_atomic"]
 
 
 def _umask() -> int:
@@ -91,3 +95,55 @@ def jsonable(value: Any) -> Any:
     if value is None or isinstance(value, str):
         return value
     return str(value)
+
+
+#: The first bytes of a zip archive, which an .npz is: a local file header,
+#: or the end record of an empty archive.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+#: The first bytes of a single .npy array.
+_NPY_MAGIC = b"\x93NUMPY"
+
+
+def open_npz(path: Path, what: str, fail: Callable[[str], Exception]) -> Any:
+    """Open a saved ``.npz`` archive for reading, without unpickling anything.
+
+    Shared by :meth:`hamrkq.result.Solution.load` and
+    :meth:`hamrkq.ensemble.EnsembleSolution.load`.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    what : str
+        What the file should hold ("solution", "ensemble"), for the message.
+    fail : callable
+        Makes the exception to raise from a message that does not name the
+        path (the caller's exception class names it).
+
+    Returns
+    -------
+    numpy.lib.npyio.NpzFile
+        The open archive (a context manager); its members are read lazily.
+
+    Raises
+    ------
+    FileNotFoundError, IsADirectoryError, PermissionError
+        As :func:`open`.
+    Exception
+        ``fail(message)``: the file is not a zip archive, or its directory
+        is damaged.
+    """
+    with open(path, "rb") as file:
+        head = file.read(len(_NPY_MAGIC))
+    if not head.startswith(_ZIP_MAGIC):
+        # Checked here, not left to np.load: for a file that is neither an
+        # archive nor an .npy, NumPy tries pickle and, refused, says "This
+        # file contains pickled (object) data. If you trust the file you can
+        # load it unsafely ...": wrong for a text file, and advice to unpickle
+        # what nobody should.
+        kind = {_NPY_MAGIC: ": it is a single .npy array", b"": ": it is empty"}.get(head, "")
+        raise fail(f"not a saved hamrkq {what} (.npz archive){kind}")
+    try:
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as exc:
+        raise fail(f"not a saved hamrkq {what}: damaged .npz archive ({exc})") from None

@@ -11,16 +11,15 @@ from __future__ import annotations
 import enum
 import json
 import os
-import pickle
 import zipfile
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hamrkq._files import atomic_file, plain
+from hamrkq._files import atomic_file, open_npz, plain
 from hamrkq.errors import SolutionFileError
 
 __all__ = [
@@ -30,7 +29,6 @@ __all__ = [
     "freeze_in_place",
     "frozen_copy",
     "kept_nodes_note",
-    "open_npz",
 ]
 
 
@@ -127,58 +125,6 @@ def _events_from(data: Any, meta: Mapping[str, Any]) -> dict[str, Any]:
         keys = [f"{name}_{k}" for k in range(int(count))]
         events[name] = [data[key] for key in keys] if all(k in data.files for k in keys) else None
     return events
-
-
-#: The first bytes of a zip archive, which an .npz is: a local file header,
-#: or the end record of an empty archive.
-_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
-#: The first bytes of a single .npy array.
-_NPY_MAGIC = b"\x93NUMPY"
-
-
-def open_npz(path: Path, what: str, fail: Callable[[str], Exception]) -> Any:
-    """Open a saved ``.npz`` archive for reading, without unpickling anything.
-
-    Shared by :meth:`Solution.load` and
-    :meth:`hamrkq.ensemble.EnsembleSolution.load`.
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    what : str
-        What the file should hold ("solution", "ensemble"), for the message.
-    fail : callable
-        Makes the exception to raise from a message that does not name the
-        path (the caller's exception class names it).
-
-    Returns
-    -------
-    numpy.lib.npyio.NpzFile
-        The open archive (a context manager); its members are read lazily.
-
-    Raises
-    ------
-    FileNotFoundError, IsADirectoryError, PermissionError
-        As :func:`open`.
-    Exception
-        ``fail(message)``: the file is not a zip archive, or its directory
-        is damaged.
-    """
-    with open(path, "rb") as file:
-        head = file.read(len(_NPY_MAGIC))
-    if not head.startswith(_ZIP_MAGIC):
-        # Checked here, not left to np.load: for a file that is neither an
-        # archive nor an .npy, NumPy tries pickle and, refused, says "This
-        # file contains pickled (object) data. If you trust the file you can
-        # load it unsafely ...": wrong for a text file, and advice to unpickle
-        # what nobody should.
-        kind = {_NPY_MAGIC: ": it is a single .npy array", b"": ": it is empty"}.get(head, "")
-        raise fail(f"not a saved hamrkq {what} (.npz archive){kind}")
-    try:
-        return np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as exc:
-        raise fail(f"not a saved hamrkq {what}: damaged .npz archive ({exc})") from None
 
 
 def frozen_copy(value: Any, dtype: Any = float) -> np.ndarray:

@@ -61,10 +61,11 @@ def test_a_damaged_archive_is_named(tmp_path, load, error, what):
 
 
 def test_one_helper_serves_both_loads():
-    """No copy of the check: both loads call hamrkq.result.open_npz."""
+    """No copy of the check: both loads call hamrkq._files.open_npz."""
     import inspect
 
+    from hamrkq import _files
     from hamrkq.ensemble import result as ensemble_result
 
     assert "open_npz(" in inspect.getsource(hamrkq.Solution.load)
-    assert ensemble_result.open_npz is hamrkq.result.open_npz
+    assert ensemble_result.open_npz is _files.open_npz

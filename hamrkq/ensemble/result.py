@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq._files import atomic_file
+from hamrkq._files import atomic_file, open_npz
 from hamrkq.errors import ResultFileError
-from hamrkq.result import Status, frozen_copy, open_npz
+from hamrkq.result import Status, frozen_copy
 
 __all__ = ["FILE_FORMAT", "FILE_FORMAT_VERSION", "EnsembleSolution"]
 
