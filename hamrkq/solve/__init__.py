@@ -140,9 +140,10 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         t0`` returns the single initial node.
     method : str
         ``"auto"`` (default): the RKQ family's member for the tolerance and
-        the dimension (4 to 12 times fewer evaluations than ``"rk34q8"`` at
-        1e-6 to 1e-9, and it certifies 1e-10 to 1e-12, where ``"rk34q8"``
-        cannot; ``docs/algorithm.md``, "Why auto is the default"):
+        the dimension (4.5 to 12.4 times fewer evaluations plus Jacobian
+        products than ``"rk34q8"`` at 1e-6 to 1e-9, ``benchmarks/family.md``,
+        and it certifies 1e-10 to 1e-12, where ``"rk34q8"`` cannot;
+        ``docs/algorithm.md``, "Why auto is the default"):
         Verner's 7(6) pair with Verner's 9th-order quencher (``"rk67q9"``) at tolerances of 1e-7
         or looser and from 12 state variables on, Verner's 8(7) with
         Feagin's 12th-order quencher (``"rk78q12"``) for smaller systems at
