@@ -44,7 +44,9 @@ CASES = [
 ]
 MODES = ("wait", "background")
 #: Makes every system "small" for hamrkq.backends.background: one helper.
-ONE_HELPER = "from hamrkq.backends import kernel as _kernel; _kernel.HELPER_MIN_DIM = 10**9\n"
+ONE_HELPER = (
+    "from hamrkq.backends import kernel_helper as _helper; _helper.HELPER_MIN_DIM = 10**9\n"
+)
 
 
 def run(rounds: int) -> dict:

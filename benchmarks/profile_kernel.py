@@ -95,11 +95,11 @@ def main() -> None:
     sys.path.insert(0, str(ROOT))
     warnings.simplefilter("ignore")
     import hamrkq
-    from hamrkq.backends import kernel
+    from hamrkq.backends import kernel_helper
 
     # A large system's kernel is compiled by a helper process and loaded from
     # the cache, which leaves no module to map: compile it here.
-    kernel.HELPER_MIN_DIM = sys.maxsize
+    kernel_helper.HELPER_MIN_DIM = sys.maxsize
     problem = hamrkq.load_problem(args.problem)
     options = {"method": args.method}
     if args.atol is not None:

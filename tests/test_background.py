@@ -24,8 +24,7 @@ import sympy
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import background, codegen, compiled, first_use, numba_compile
-from hamrkq.backends import kernel as kernel_module
+from hamrkq.backends import background, codegen, compiled, first_use, kernel_helper, numba_compile
 from hamrkq.errors import HamrkqWarning, OptionError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -159,10 +158,10 @@ def test_the_tangent_part_is_generated_for_the_helper_only_where_the_run_calls_i
     cannot generate code, finds it in the cache and compiles it too."""
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path))
     monkeypatch.setenv(background.COMPILE_ENV, "background")
-    monkeypatch.setattr(kernel_module, "cores", lambda: 2)
+    monkeypatch.setattr(kernel_helper, "cores", lambda: 2)
     spawned = []
     monkeypatch.setattr(
-        kernel_module, "spawn_helper", lambda code: spawned.append(code) or _finished("pass")
+        kernel_helper, "spawn_helper", lambda code: spawned.append(code) or _finished("pass")
     )
     shadow, tangent = _unique_system(3), _unique_system(5)
     assert background.start(shadow, "shadow") is not None

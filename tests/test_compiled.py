@@ -21,7 +21,7 @@ import sympy as sp
 from helpers import counters
 
 import hamrkq
-from hamrkq.backends import codegen, compiled, first_use, kernel, numba_compile
+from hamrkq.backends import codegen, compiled, first_use, kernel, kernel_helper, numba_compile
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, OptionError
 from hamrkq.rkq import layout, loop
@@ -362,7 +362,7 @@ def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
     # 12 state variables (HELPER_MIN_DIM): on an empty cache a helper process
     # compiles the kernel while this one prepares the system, which then
     # loads the kernel from the cache instead of compiling it.
-    assert kernel.HELPER_MIN_DIM <= 12
+    assert kernel_helper.HELPER_MIN_DIM <= 12
     result = _fresh_process(tmp_path, CHAIN_SCRIPT)
     assert result["status"] == "SUCCESS"
     # rhs, rhs_jvp, energy and energy_rows compiled here (not jac: rk34q8's
@@ -374,11 +374,11 @@ def test_a_large_system_has_the_kernel_compiled_by_a_helper_process(tmp_path):
 
 
 def test_the_helper_is_not_started_for_a_small_system_or_a_cached_kernel():
-    assert kernel.start_helper(kernel.HELPER_MIN_DIM - 1) is None
+    assert kernel_helper.start_helper(kernel_helper.HELPER_MIN_DIM - 1) is None
     options = {"atol": np.full(2, 1e-8), "rtol": np.zeros(2)}
     _compiled(hamrkq.load_problem("harmonic"), 0.0, 0.1, "rk34q8", **options)
     assert kernel.kernel_cached()
-    assert kernel.start_helper(kernel.HELPER_MIN_DIM) is None
+    assert kernel_helper.start_helper(kernel_helper.HELPER_MIN_DIM) is None
 
 
 # -- availability and fallback -----------------------------------------------------

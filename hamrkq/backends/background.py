@@ -25,7 +25,7 @@ It is used when all of these hold:
   the tangent estimate of Gamma calls the tangent part too);
 - the system's scalar code can be generated.
 
-For a large system (:data:`hamrkq.backends.kernel.HELPER_MIN_DIM` state
+For a large system (:data:`hamrkq.backends.kernel_helper.HELPER_MIN_DIM` state
 variables or more) missing both, two helpers compile the system and the
 kernel side by side: its interpreted steps are slow (about 9 ms each for the
 outer solar system), so the compiled code matters more than the run's own
@@ -45,7 +45,7 @@ import time
 from typing import TYPE_CHECKING
 
 from hamrkq._progress import say
-from hamrkq.backends import codegen, compiled, first_use
+from hamrkq.backends import codegen, compiled, first_use, kernel_helper
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.numba_compile import BackendUnavailable, available
 from hamrkq.errors import CodegenError, OptionError
@@ -147,7 +147,7 @@ def start(ham: Hamiltonian, gamma: str = "tangent") -> BackgroundCompile | None:
     the run's estimate of Gamma; the tangent part of the code (the
     Jacobian) is generated here first where it calls it, so that the helper
     compiles it too."""
-    if compile_mode() != "background" or kernel_module.cores() < 2:
+    if compile_mode() != "background" or kernel_helper.cores() < 2:
         return None
     key = codegen.cache_key(ham)
     current = _HELPERS.get(key)
@@ -168,12 +168,12 @@ def start(ham: Hamiltonian, gamma: str = "tangent") -> BackgroundCompile | None:
             codegen.load_module(ham, part="tangent")
     except (CodegenError, OSError):
         return None  # the caller's own compile reports it
-    if ham.dim < kernel_module.HELPER_MIN_DIM:
+    if ham.dim < kernel_helper.HELPER_MIN_DIM:
         parts = [" ".join(parts)]  # one helper: its start-up costs more than a small system
     processes = []
     for part in parts:
         code = f"from hamrkq.backends import background; background.build({key!r}, {part!r})"
-        process = kernel_module.spawn_helper(code)
+        process = kernel_helper.spawn_helper(code)
         if process is None:
             for started in processes:
                 started.kill()

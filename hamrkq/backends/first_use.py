@@ -21,7 +21,7 @@ this module puts them together with the kernel
   compiled once and cached, and another how long it took
   (:class:`hamrkq._progress.WaitNotice`).  For a large system with no
   kernel in the cache, a helper process compiles the kernel meanwhile
-  (:func:`hamrkq.backends.kernel.start_helper`).
+  (:func:`hamrkq.backends.kernel_helper.start_helper`).
 
 :mod:`hamrkq.backends.background` runs the same warm-up in helper
 processes, while a run starts on the interpreted kernel.
@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from hamrkq._progress import WaitNotice
-from hamrkq.backends import codegen, compiled
+from hamrkq.backends import codegen, compiled, kernel_helper
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.compiled import BackendUnavailable, CompiledSystem
 from hamrkq.backends.numba_compile import available
@@ -199,11 +199,11 @@ def warm_up(
 
 
 def _warm_up(ham: Hamiltonian) -> None:
-    helper = kernel_module.start_helper(ham.dim)
+    helper = kernel_helper.start_helper(ham.dim)
     try:
         compiled.compile_system(ham)  # meanwhile
     finally:
-        kernel_module.join_helper(helper)
+        kernel_helper.join_helper(helper)
     try:
         # With the stand-ins of rhs_jvp and jac (the helper compiled them
         # beside the kernel): the probe's kernel signature is every run's.

@@ -50,7 +50,7 @@ def compile_command(args: argparse.Namespace) -> int:
     OptionError
         The compiled backend cannot be used here (the reason is named).
     """
-    from hamrkq.backends import codegen, compiled, first_use
+    from hamrkq.backends import codegen, compiled, first_use, kernel_helper
     from hamrkq.backends import kernel as kernel_module
     from hamrkq.backends.numba_compile import available
 
@@ -63,7 +63,7 @@ def compile_command(args: argparse.Namespace) -> int:
     # The kernel (10-15 s) compiles in a helper process on another core while
     # this one compiles the systems.
     started = time.perf_counter()
-    helper = kernel_module.start_kernel_helper() if problems else None
+    helper = kernel_helper.start_kernel_helper() if problems else None
     if helper is None:
         _timed("the step kernel", kernel_module.build_kernel)
     for problem in problems:
@@ -72,7 +72,7 @@ def compile_command(args: argparse.Namespace) -> int:
             problem.name, lambda p=problem: compiled.compile_system(p.hamiltonian).compile_all()
         )
     if helper is not None:
-        kernel_module.join_helper(helper)
+        kernel_helper.join_helper(helper)
         elapsed = time.perf_counter() - started
         if helper.returncode == 0:
             print(f"the step kernel: compiled in a helper process ({elapsed:.1f} s)", flush=True)
