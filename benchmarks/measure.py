@@ -63,6 +63,12 @@ def _version(name: str) -> str:
         return "not installed"
 
 
+def head_commit() -> str:
+    """The checkout's short commit hash (empty outside a git checkout)."""
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, cwd=ROOT, check=False).stdout.strip()  # fmt: skip
+
+
 def machine() -> dict[str, Any]:
     """What the numbers were measured on."""
     load = os.getloadavg() if hasattr(os, "getloadavg") else (math.nan,) * 3
