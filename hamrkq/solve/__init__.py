@@ -179,7 +179,9 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         RK8 value.  ``"redo"``: restart that step from the RK8 value at its
         start (once; if it fails again, quench the node).
     quench_threshold : float, default 1
-        theta, positive.
+        theta, positive: a node is quenched where its estimated error
+        exceeds theta times the tolerance, so above 1 the returned nodes
+        may be about theta delta off (docs/algorithm.md).
     safety : float, default 0.9
         Safety factor of the step-size controller, in (0, 1].
     tolerance_rule : {"componentwise", "prentice"}, default "componentwise"
