@@ -208,7 +208,9 @@ def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None,
     the independent references start from where the run started
     (:func:`_initial`).  ``exact_from`` is ``(builtin name, y0)`` where
     ``exact`` is a problem's built-in solution, whose accuracy it states
-    (:func:`~hamrkq.catalogue.exact.exact_accuracy`)."""
+    (:func:`~hamrkq.catalogue.exact.exact_accuracy`); any other exact
+    solution's accuracy grows with ``|t| |f|``, its phase's rounding, where
+    ``ham`` gives ``f``."""
     t0, y0 = _initial(sol)
     if isinstance(kind, Reference):
         if kind.y.shape != sol.y.shape or not np.array_equal(kind.t, sol.t):
@@ -229,7 +231,13 @@ def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None,
             _check_exact_start(states[0], sol.y[0])
         else:  # a run with t_eval: its initial state is not a node
             _check_exact_start(_exact_at(exact, t0), y0)
-        return states, "exact", "exact solution", exact_accuracy(states, *exact_from)
+        builtin, start = exact_from
+        rates = None
+        if builtin is None and ham is not None:  # written in t: its phase rounds
+            with np.errstate(all="ignore"):
+                rates = numeric_of(ham).rhs_many(sol.t, states, params)
+        accuracy = exact_accuracy(states, builtin, start, sol.t, rates)
+        return states, "exact", "exact solution", accuracy
     if kind == "independent":
         if ham is None:
             raise InputError("reference='independent' needs a problem or a Hamiltonian")
