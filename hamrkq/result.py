@@ -11,6 +11,7 @@ from __future__ import annotations
 import enum
 import json
 import os
+import weakref
 import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
@@ -145,21 +146,24 @@ def freeze_in_place(array: np.ndarray) -> np.ndarray:
     return array
 
 
+#: The arrays :func:`_solution_array` made, by id: a :class:`Solution`'s own,
+#: which a ``replace()`` passes on without a copy.  (Read-only alone does not
+#: tell: a caller's read-only array that owns its data can be made writable
+#: again by its owner.)
+_KEPT: weakref.WeakValueDictionary[int, np.ndarray] = weakref.WeakValueDictionary()
+
+
 def _solution_array(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
-    """An array of a :class:`Solution`: None stays None, and an array already
-    kept so is passed on as it is; any other is a :func:`frozen_copy`."""
+    """An array of a :class:`Solution`: None stays None, an array a Solution
+    already keeps is passed on as it is, any other becomes a
+    :func:`frozen_copy` (so nothing the caller holds can change it)."""
     if array is None:
         return None
-    if (
-        type(array) is np.ndarray
-        and array.dtype == dtype
-        and not array.flags.writeable
-        and array.base is None
-    ):
-        # Made by frozen_copy already (a Solution's replace() passes its
-        # arrays on): nothing else refers to its data to change it.
+    if _KEPT.get(id(array)) is array and array.dtype == dtype:
         return array
-    return frozen_copy(array, dtype)
+    kept = frozen_copy(array, dtype)
+    _KEPT[id(kept)] = kept
+    return kept
 
 
 @dataclass(frozen=True, eq=False)
