@@ -46,10 +46,9 @@ from typing import Any
 import numpy as np
 
 from hamrkq.analysis.comparison_runs import Comparison, Run
-from hamrkq.analysis.diagnostics import drift_summary
+from hamrkq.analysis.diagnostics import drift_summary, exact_solution_accuracy
 from hamrkq.analysis.reference import hamiltonian_reference
-from hamrkq.backends.numeric import numeric_of
-from hamrkq.catalogue.exact import builtin_exact_of, exact_accuracy
+from hamrkq.catalogue.exact import builtin_exact_of
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
 from hamrkq.result import Solution
@@ -357,14 +356,10 @@ def _reference(problem: Any, runs: list[Run]) -> tuple[dict[str, np.ndarray], st
     if problem.exact is not None:
         states = np.asarray(problem.exact(times), dtype=float).reshape(times.size, -1)
         description = "exact solution"
-        builtin, start = builtin_exact_of(problem)
-        rates = None
-        if builtin is None:  # written in t: its phase rounds (exact_accuracy)
-            with np.errstate(all="ignore"):
-                rates = numeric_of(problem.hamiltonian).rhs_many(
-                    times, states, problem.parameter_array
-                )
-        accuracy = exact_accuracy(states, builtin, start, times, rates)
+        accuracy = exact_solution_accuracy(
+            states, times, problem.hamiltonian, problem.parameter_array,
+            builtin_exact_of(problem),
+        )  # fmt: skip
     else:
         ref = hamiltonian_reference(problem, problem.y0, times, t0=problem.t_span[0])
         states, description, accuracy = ref.y, ref.method, ref.estimated_error

@@ -52,6 +52,7 @@ __all__ = [
     "drift_summary",
     "energy_bound",
     "error_summary",
+    "exact_solution_accuracy",
     "tolerance",
     "trajectory_bound",
     "trajectory_error",
@@ -203,6 +204,21 @@ def _start(sol, ham, params, notes: list[str]) -> tuple[tuple | None, float]:
     return (t0, y0), float(np.asarray(energy0).ravel()[0])
 
 
+def exact_solution_accuracy(states, times, ham, params, exact_from=(None, None)) -> float:
+    """What an exact solution's ``states`` at ``times`` are accurate to
+    (:func:`~hamrkq.catalogue.exact.exact_accuracy`): a built-in solution's
+    own (``exact_from`` = ``(name, y0)``, :func:`~hamrkq.catalogue.exact.builtin_exact_of`),
+    and for one written in t, whose phase rounds, a term in ``|t| |f|`` with
+    ``f`` the right-hand side of ``ham`` (None: left out).  What diagnose and
+    compare state."""
+    builtin, start = exact_from
+    rates = None
+    if builtin is None and ham is not None:
+        with np.errstate(all="ignore"):
+            rates = numeric_of(ham).rhs_many(times, states, params)
+    return exact_accuracy(states, builtin, start, times, rates)
+
+
 def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None, None)):
     """(states, source, description, accuracy) for a reference kind or object;
     the independent references start from where the run started
@@ -231,12 +247,7 @@ def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None,
             _check_exact_start(states[0], sol.y[0])
         else:  # a run with t_eval: its initial state is not a node
             _check_exact_start(_exact_at(exact, t0), y0)
-        builtin, start = exact_from
-        rates = None
-        if builtin is None and ham is not None:  # written in t: its phase rounds
-            with np.errstate(all="ignore"):
-                rates = numeric_of(ham).rhs_many(sol.t, states, params)
-        accuracy = exact_accuracy(states, builtin, start, sol.t, rates)
+        accuracy = exact_solution_accuracy(states, sol.t, ham, params, exact_from)
         return states, "exact", "exact solution", accuracy
     if kind == "independent":
         if ham is None:
