@@ -250,6 +250,48 @@ def test_a_long_regular_run_runs_again_with_the_witness():
     assert np.abs(sol.y - ref.y).max() <= 1.05e-9 + ref.estimated_error
 
 
+def test_close_approaches_make_a_run_again_with_the_witness():
+    """A pericentre passage rounds the energy far more than the length's law
+    (measured on prentice2011, whose steps range less than twofold) allows
+    for: Kepler e = 0.95 at 1e-8 over 100 periods returned SUCCESS with nodes
+    1.51 times the tolerance off, its steps ranging 408-fold
+    (benchmarks/close_approach.txt)."""
+    from hamrkq.catalogue.exact import kepler
+    from hamrkq.rkq.witness_rules import close_approach_factor, needs_witness_after_run
+
+    problem = hamrkq.load_problem("kepler", e=0.95)
+    y0, rtol, atol = problem.y0, np.zeros(4), np.full(4, 1e-8)
+    size = np.array([1.95, 0.0, 0.0, 6.25])  # apocentre, the speed at pericentre
+    assert close_approach_factor(8.8) == 1.0  # the catalogue's Kepler, e = 0.6
+    assert close_approach_factor(408.0) == pytest.approx(25.5)
+    assert not needs_witness_after_run(atol, rtol, y0, 6102, size)
+    assert needs_witness_after_run(atol, rtol, y0, 6102, size, step_range=408.0)
+
+    sol = hamrkq.solve(problem, t_span=(0, 200 * np.pi), atol=1e-8)
+    assert sol.success and sol.t[-1] == 200 * np.pi
+    assert "with close approaches: its steps ranged" in sol.message
+    assert "could reach the tolerance: run again with the witness" in sol.message
+    assert np.abs(sol.y - kepler(sol.t, y0)).max() <= 1.05e-8
+
+
+def test_the_kernel_measures_the_range_of_its_free_steps():
+    """The ratio of the largest free step to the smallest, without the first
+    steps' growth (until the controller first asks for none) and the steps
+    clipped to land: about (r_max / r_min)^(3/2) on a Kepler orbit, near 1 on
+    the harmonic oscillator (whose first step was 1e-3 of the others)."""
+    from hamrkq.solve.dispatch import run_rk
+
+    ranges = {}
+    for name, problem, span in (
+        ("harmonic", HARMONIC, (0.0, 20 * np.pi)),
+        ("kepler", hamrkq.load_problem("kepler", e=0.9), (0.0, 20 * np.pi)),
+    ):
+        prepared = prepare(problem, t_span=span, method="rk78q12", atol=1e-8)
+        ranges[name] = run_rk(prepared.task, prepared.backend).step_range
+    assert 1.0 <= ranges["harmonic"] < 1.2  # 1.06
+    assert 0.5 * 19**1.5 < ranges["kepler"] < 2 * 19**1.5  # (1.9 / 0.1)^(3/2) = 83
+
+
 def test_a_run_whose_state_grew_runs_again_with_the_witness():
     """A pendulum going over the top from q = 0, p = 3 at 1e-8 reached
     q = 13 000 by t = 5000: its quencher's rounding grows with |q| (2.9e-12

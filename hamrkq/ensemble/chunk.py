@@ -257,7 +257,12 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
                     task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
                 )
             again[i] = witness_rerun_needed(
-                task, request.y0[i], batch.y_size[i], factor, int(steps[i])
+                task,
+                request.y0[i],
+                batch.y_size[i],
+                factor,
+                int(steps[i]),
+                float(batch.step_range[i]),
             )
     return again
 

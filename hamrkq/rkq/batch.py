@@ -28,15 +28,15 @@ from hamrkq.rkq.layout import (
     RET_DONE,
     SHI,
     ST_RUNNING,
-    STATE,
     WHI,
     YMAX,
     ZHI,
     Output,
     U,
     checkpoint_fraction,
+    new_state,
 )
-from hamrkq.rkq.loop import advance
+from hamrkq.rkq.loop import advance, step_range
 from hamrkq.rkq.start import begin
 
 __all__ = ["COUNTERS", "Batch", "allocate_batch", "run_members"]
@@ -64,7 +64,8 @@ class Batch(NamedTuple):
     of Gamma (:func:`hamrkq.rkq.auto_rules.growth_of_maxima`) each
     component's largest ``|Gamma_k|`` over the kept nodes up to ``middle``
     (``gamma_to_middle``, M x d) and over all of them (``gamma_to_end``) and
-    its largest ``|y_k|`` (``y_size``).
+    its largest ``|y_k|`` (``y_size``); and the ratio of its largest free
+    step to its smallest (``step_range``, :func:`hamrkq.rkq.loop.step_range`).
     """
 
     y0: np.ndarray
@@ -82,6 +83,7 @@ class Batch(NamedTuple):
     gamma_to_middle: np.ndarray
     gamma_to_end: np.ndarray
     y_size: np.ndarray
+    step_range: np.ndarray
 
 
 def allocate_batch(
@@ -91,10 +93,7 @@ def allocate_batch(
     ``times`` states each, with the node buffer ``out``; ``kept_span`` the
     times of the first and last node a member that succeeds keeps."""
     m, d = y0.shape
-    fresh = np.zeros(1, dtype=STATE)
-    fresh[0]["t"] = t0
-    fresh[0]["status"] = ST_RUNNING
-    fresh[0]["bad_component"] = -1
+    fresh = new_state(t0)
     return Batch(
         # Writable copies: the compiled functions take writable arrays.
         y0=np.array(y0, dtype=np.float64, order="C"),
@@ -112,6 +111,7 @@ def allocate_batch(
         gamma_to_middle=np.zeros((m, d)),
         gamma_to_end=np.zeros((m, d)),
         y_size=np.zeros((m, d)),
+        step_range=np.ones(m),
     )
 
 
@@ -235,4 +235,5 @@ def run_members(rhs, tangent, jac, energy, problem, tab, cfg, state, work, batch
         batch.stats[m, 2] = s["quenches"]
         batch.stats[m, 3] = s["nfev"]
         batch.stats[m, 4] = s["njev"]
+        batch.step_range[m] = step_range(s)
     return batch.y0.shape[0]

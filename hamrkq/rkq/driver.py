@@ -157,6 +157,9 @@ class RunOutput:
     #: The quencher's rounding at each returned node, modelled and measured
     #: (:attr:`hamrkq.rkq.layout.Output.rounding`), or None.
     rounding: np.ndarray | None = None
+    #: The ratio of the largest free step to the smallest
+    #: (:func:`hamrkq.rkq.loop.step_range`).
+    step_range: float = 1.0
 
     def rows(self, kept: Any) -> RunOutput:
         """The same run with only the returned nodes ``kept`` (a slice, an
@@ -422,6 +425,7 @@ class Integration:
             gamma_checkpoints=self._checkpoints() if use_z else None,
             thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
             rounding=rounding if use_z else None,
+            step_range=float(loop.step_range(s)),
         )
 
     def _checkpoints(self) -> np.ndarray:

@@ -132,6 +132,13 @@ STATE = np.dtype(
         ("t_old_lo", _F),
         ("dense_pending", _I),  # t_eval times inside the last step are still to be written
         ("checkpoint", _I),  # the next row CHK0 + k whose time is still ahead
+        # The smallest and largest free step accepted once the controller
+        # first asked for no growth (``ramped``: the first steps' growth is over):
+        # their ratio, a close approach's mark, is read by the witness's
+        # rules after a run (hamrkq.rkq.witness_rules.close_approach_factor).
+        ("h_least", _F),
+        ("h_most", _F),
+        ("ramped", _I),
     ]
 )
 
@@ -322,4 +329,5 @@ def new_state(t0: float) -> np.ndarray:
     state[0]["t"] = t0
     state[0]["status"] = ST_RUNNING
     state[0]["bad_component"] = -1
+    state[0]["h_least"] = np.inf
     return state

@@ -376,6 +376,10 @@ def attempt(rhs, tangent, jac, problem, tab, c, s, work, out):
     if err < 0.0:
         return -1
     factor = growth_factor(c, s, err)
+    if factor <= 1.0:
+        # The first steps' growth from the first step is over: the free
+        # steps' range (step_range) is measured from here.
+        s["ramped"] = 1
     if s["prev_rejected"]:
         factor = min(1.0, factor)  # no growth right after a rejection
     h_next = h * factor
@@ -406,6 +410,9 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense)
     s["redo"] = 0
     advance_time(s, h, clipped, target)
     track_maxima(c, s, work)
+    if s["ramped"] and not clipped:
+        s["h_least"] = min(s["h_least"], abs(h))
+        s["h_most"] = max(s["h_most"], abs(h))
     s["h"] = h_next
     s["steps"] += 1
     fsal = c["fsal"] and not quenched
@@ -427,6 +434,17 @@ def accept(c, s, work, out, t_eval, h, h_next, clipped, target, quenched, dense)
         s["status"] = ST_SUCCESS
         return RET_DONE
     return ST_RUNNING
+
+
+@jitable
+def step_range(s):
+    """The ratio of the largest free step a run accepted to its smallest,
+    from the first step after which the controller asked for no growth (the
+    first steps grow from a first step of 1e-6 to 1e-3 of the orbit's); 1
+    before any (a run of steps clipped to land, or still growing)."""
+    if not s["h_least"] > 0.0 or s["h_most"] < s["h_least"]:
+        return 1.0
+    return s["h_most"] / s["h_least"]
 
 
 @jitable

@@ -17,6 +17,7 @@ from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 
 __all__ = [
+    "CLOSE_APPROACH_RANGE",
     "FLOOR_STEPS",
     "STAGE_ROUNDING_WEIGHTS",
     "STATE_GROWTH",
@@ -25,6 +26,7 @@ __all__ = [
     "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
     "WITNESS_SUBSTEPS",
+    "close_approach_factor",
     "component_scales",
     "length_factor",
     "needs_witness",
@@ -237,12 +239,44 @@ def length_factor(steps: int) -> float:
     return max(math.sqrt(share / WITNESS_REFERENCE_STEPS), (share / FLOOR_STEPS) ** 2)
 
 
+#: The ratio of a run's largest free step to its smallest above which its
+#: quencher's rounding is taken to be amplified beyond the length's law
+#: (:func:`close_approach_factor`).
+CLOSE_APPROACH_RANGE = 16.0
+
+
+def close_approach_factor(step_range: float) -> float:
+    """How much more a run's quencher rounding is amplified than
+    :func:`length_factor` allows for, when its free steps range over
+    ``step_range`` (the largest over the smallest,
+    :func:`hamrkq.rkq.loop.step_range`): ``max(1, step_range /``
+    :data:`CLOSE_APPROACH_RANGE` ``)``.
+
+    A close approach (a pericentre passage, an encounter) makes the steps
+    short and the rounding of each step's energy large, and the orbit turns
+    that into a drift of its phase.  Measured
+    (``benchmarks/close_approach.py``, ``close_approach.txt``) on Kepler
+    orbits at 1e-8 and 1e-9 over 100 and 300 periods with the witness off:
+    the quencher's rounding over the length's law grows about like the step
+    range, from at most 0.45 of it at e = 0.3 (a range of 2.6) and 4.3 at
+    e = 0.6 (9.1) to 3 100 at e = 0.99 (5 250), and from e = 0.9 at 1e-9
+    (a range of 134, 29 times the law) on such runs returned SUCCESS with
+    nodes 1.06 to 1 740 times the tolerance off.  With this factor all 32
+    runs keep every node within 1.01 of it (from e = 0.8 at 1e-9 on, in
+    double-double).  The catalogue's runs at their tolerances range 1.06
+    (the harmonic oscillator) to 8.8 (Kepler, e = 0.6), and Arenstorf's and
+    the Pleiades' above 500, which ran the witness already.
+    """
+    return max(1.0, step_range / CLOSE_APPROACH_RANGE)
+
+
 def needs_witness_after_run(
     atol: np.ndarray,
     rtol: np.ndarray,
     y0: np.ndarray,
     steps: int,
     size: np.ndarray | None = None,
+    step_range: float = 1.0,
 ) -> bool:
     """Whether a run of ``steps`` steps without the witness, on a regular
     orbit, from ``y0``, whose components reached ``size`` (the largest
@@ -250,9 +284,10 @@ def needs_witness_after_run(
     quencher's rounding, amplified by the orbit over the run's length and
     grown with the state, could reach the tolerance, which the shadow
     estimate does not see.  The rounding reaches :func:`length_factor` times
-    what it reaches in :data:`WITNESS_REFERENCE_STEPS`; the witness runs
-    where :func:`needs_witness`'s threshold, scaled by it, is above some
-    component's tolerance.
+    what it reaches in :data:`WITNESS_REFERENCE_STEPS`, and
+    :func:`close_approach_factor` times that where the free steps ranged
+    over ``step_range``; the witness runs where :func:`needs_witness`'s
+    threshold, scaled by both, is above some component's tolerance.
 
     The length alone: prentice2011 to t = 1e6 at atol 1e-8 with
     ``method="auto"`` (``rk78q12``, six quencher steps a step, no witness:
@@ -267,7 +302,7 @@ def needs_witness_after_run(
     chaotic Henon-Heiles orbit (53-fold) put the rounding at 0.03 of the
     tolerance where it was 0.92.
     """
-    ratio = length_factor(steps)
+    ratio = length_factor(steps) * close_approach_factor(step_range)
     # The tolerance at y0, as the rule at the start (with rtol, a component
     # that is 0 there has atol, as it has wherever it crosses zero); the
     # rounding at the run's largest state (it grows with |y|).

@@ -288,18 +288,27 @@ def reruns_for_rounding(task: Task, out: Any, factor: float) -> bool:
     (:func:`hamrkq.solve.messages.rerun_note`)."""
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
     steps = out.stats.get("steps", 0)
-    return finished and witness_rerun_needed(task, task.y0, largest_state(out), factor, steps)
+    return finished and witness_rerun_needed(
+        task, task.y0, largest_state(out), factor, steps, out.step_range
+    )
 
 
 def witness_rerun_needed(
-    task: Task, y0: np.ndarray, y_size: np.ndarray, factor: float, steps: int
+    task: Task,
+    y0: np.ndarray,
+    y_size: np.ndarray,
+    factor: float,
+    steps: int,
+    step_range: float = 1.0,
 ) -> bool:
     """Whether a finished run of ``task`` from ``y0`` (an ensemble member's),
-    whose largest ``|y_k|`` over its nodes are ``y_size`` and whose estimate
-    grew ``factor``-fold over the second half of its ``steps`` steps, runs
-    again with the rounding witness: the witness did not run and can
-    (:func:`reruns_with_witness`), and the rounding, amplified by an
-    exponential growth or by a long run, could reach the tolerance
+    whose largest ``|y_k|`` over its nodes are ``y_size``, whose estimate
+    grew ``factor``-fold over the second half of its ``steps`` steps and
+    whose free steps ranged over ``step_range`` (the largest over the
+    smallest), runs again with the rounding witness: the witness did not run
+    and can (:func:`reruns_with_witness`), and the rounding, amplified by an
+    exponential growth, by a long run or by close approaches, could reach
+    the tolerance
     (:func:`hamrkq.rkq.witness_rules.needs_witness_after_run`) at the run's
     largest state, not only at ``y0``: a pendulum going over the top from
     q = 0 at 1e-8 reached q = 13 000 by t = 5000 (an ulp of q there is
@@ -322,7 +331,7 @@ def witness_rerun_needed(
     # (28-fold on prentice2011's periodic orbit): its amplification is the
     # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
     # and would have run again for nothing).
-    return needs_witness_after_run(task.atol, task.rtol, y0, steps, y_size)
+    return needs_witness_after_run(task.atol, task.rtol, y0, steps, y_size, step_range)
 
 
 def reruns_with_witness(task: Task) -> bool:

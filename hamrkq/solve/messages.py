@@ -19,6 +19,7 @@ from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
+from hamrkq.rkq.witness_rules import close_approach_factor
 from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
 from hamrkq.solve.dispatch import (
     Task,
@@ -525,10 +526,16 @@ def rerun_note(
                 "alike and unseen by Gamma, where it was: run again with the witness"
             )
         elif reruns_for_rounding(earlier, run, factor):
+            approaches = ""
+            if close_approach_factor(run.step_range) > 1.0:
+                approaches = (
+                    f", and with close approaches: its steps ranged {run.step_range:.3g}-fold"
+                )
             what += (
                 f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
                 "which Gamma does not see (it grows like the square of a run's length, and "
-                "with the state's size), could reach the tolerance: run again with the witness"
+                f"with the state's size{approaches}), could reach the tolerance: run again "
+                "with the witness"
             )
         notes.append(f"the run {_quencher_setting(earlier)} {what}")
     ran = (
