@@ -2,7 +2,9 @@
 
 Each case is a run that reports SUCCESS (or stops) with returned nodes more
 than 1.05 delta from an independent reference, the reproducer for a known
-failure that docs/algorithm.md ("Known failures") describes.  References:
+failure that docs/algorithm.md ("Known silent failures") describes; the
+eccentric Kepler orbit's is fixed since (the witness's close-approach rule,
+``benchmarks/close_approach.py``) and shows the run as it is now.  References:
 Kepler's exact solution (``hamrkq.catalogue.exact.kepler``), mpmath's Taylor
 integrator at 40 digits, and SciPy's DOP853 at rtol 1e-13 with a step bound
 far below the feature it must resolve.
