@@ -15,9 +15,10 @@ For every case: ``method="auto"`` (what it ran: member, quencher steps a
 step, witness, double-double), its status, the largest true error over the
 tolerance at the returned nodes (every node, or 400 of them on long runs),
 and the quencher's true error against its estimate Gamma.  ``--without``
-sets :data:`hamrkq.rkq.witness_rules.WITNESS_SUBSTEPS` out of reach: the
-rule before it was made.  Writes ``benchmarks/separatrix_rounding.txt``
-(``--without``: ``separatrix_rounding_without.txt``).
+sets :data:`hamrkq.rkq.witness_rules.WITNESS_SUBSTEPS` and
+``WITNESS_SUBSTEPS_NEAR_FLOOR`` out of reach: the rules before they were
+made.  Writes ``benchmarks/separatrix_rounding.txt`` (``--without``:
+``separatrix_rounding_without.txt``).
 """
 
 from __future__ import annotations
@@ -44,6 +45,13 @@ CASES = [  # (d, t_end, atol)
     (1e-4, 300.0, 1e-6),
     (0.04, 300.0, 1e-8),
     (1.0, 300.0, 1e-8),
+    # Found by QA (2026-11-27) on H = p^2/2 - cos q: q0 = pi - 0.03 over
+    # [0, 3000] at 5e-9, four quencher steps a step, returned nodes 1.34
+    # times the tolerance off (WITNESS_SUBSTEPS_BELOW).
+    (0.03, 3000.0, 5e-9),
+    (0.03, 3000.0, 2e-9),
+    (0.1, 3000.0, 5e-9),
+    (0.03, 3000.0, 1e-6),
 ]
 
 
@@ -74,6 +82,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.without:
         witness_rules.WITNESS_SUBSTEPS = 10**9
+        witness_rules.WITNESS_SUBSTEPS_NEAR_FLOOR = 10**9
     q, p, w = sp.symbols("q p w")
     ham = hamrkq.Hamiltonian(p**2 / 2 - w**2 * sp.cos(q), q=[q], p=[p], parameters={w: W})
     lines = [
@@ -81,7 +90,10 @@ def main() -> None:
         + (" --without)" if args.without else ")"),
         "",
         f"Run {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; WITNESS_SUBSTEPS = "
-        f"{witness_rules.WITNESS_SUBSTEPS}.  H = p^2/2 - {W}^2 cos q, q0 = pi - d, p0 = 0.",
+        f"{witness_rules.WITNESS_SUBSTEPS}, WITNESS_SUBSTEPS_NEAR_FLOOR = "
+        f"{witness_rules.WITNESS_SUBSTEPS_NEAR_FLOOR} (below "
+        f"{witness_rules.WITNESS_SUBSTEPS_BELOW:g} of the size).  H = p^2/2 - {W}^2 cos q, "
+        "q0 = pi - d, p0 = 0.",
         "",
         "| d | t_end | atol | status | ran | max true error / atol | quencher error | "
         "max abs(Gamma) | evaluations (discarded) | time (s) |",

@@ -253,25 +253,48 @@ def test_a_long_regular_run_runs_again_with_the_witness():
 def test_close_approaches_make_a_run_again_with_the_witness():
     """A pericentre passage rounds the energy far more than the length's law
     (measured on prentice2011, whose steps range less than twofold) allows
-    for: Kepler e = 0.95 at 1e-8 over 100 periods returned SUCCESS with nodes
-    1.51 times the tolerance off, its steps ranging 408-fold
+    for: Kepler e = 0.93 at 1e-8 over 100 periods (three quencher steps a
+    step) returned SUCCESS with nodes 1.06 times the tolerance off, its
+    steps ranging 236-fold; e = 0.95 (four steps) 1.51, 408-fold
     (benchmarks/close_approach.txt)."""
     from hamrkq.catalogue.exact import kepler
     from hamrkq.rkq.witness_rules import close_approach_factor, needs_witness_after_run
 
-    problem = hamrkq.load_problem("kepler", e=0.95)
+    problem = hamrkq.load_problem("kepler", e=0.93)
     y0, rtol, atol = problem.y0, np.zeros(4), np.full(4, 1e-8)
-    size = np.array([1.95, 0.0, 0.0, 6.25])  # apocentre, the speed at pericentre
+    size = np.array([1.93, 0.0, 0.0, 5.25])  # apocentre, the speed at pericentre
     assert close_approach_factor(8.8) == 1.0  # the catalogue's Kepler, e = 0.6
-    assert close_approach_factor(408.0) == pytest.approx(25.5)
-    assert not needs_witness_after_run(atol, rtol, y0, 6102, size)
-    assert needs_witness_after_run(atol, rtol, y0, 6102, size, step_range=408.0)
+    assert close_approach_factor(236.0) == pytest.approx(14.75)
+    assert not needs_witness_after_run(atol, rtol, y0, 5602, size)
+    assert needs_witness_after_run(atol, rtol, y0, 5602, size, step_range=236.0)
 
     sol = hamrkq.solve(problem, t_span=(0, 200 * np.pi), atol=1e-8)
     assert sol.success and sol.t[-1] == 200 * np.pi
     assert "with close approaches: its steps ranged" in sol.message
     assert "could reach the tolerance: run again with the witness" in sol.message
     assert np.abs(sol.y - kepler(sol.t, y0)).max() <= 1.05e-8
+
+
+def test_four_quencher_steps_near_the_floor_run_the_witness():
+    """QA (2026-11-27): the pendulum from pi - 0.03 over [0, 3000] at 5e-9,
+    auto's quencher in four steps a step and in double, returned nodes 1.34
+    times the tolerance off (its rounding, amplified near the separatrix,
+    5.4e-9).  Four steps now run the witness where the tolerance is below
+    3e-8 of the state's size (benchmarks/separatrix_rounding.txt)."""
+    from hamrkq.catalogue.exact import pendulum
+    from hamrkq.rkq.witness_rules import WITNESS_SUBSTEPS_BELOW
+
+    y0, rtol = np.array([np.pi - 0.03, 0.0]), np.zeros(2)
+    # below 3e-8 of pi; prentice2011 at 1e-7 (sizes up to 2.5, four steps) is not
+    assert needs_witness(np.full(2, 5e-9), rtol, y0, substeps=4)
+    assert not needs_witness(np.full(2, 5e-9), rtol, y0, substeps=3)
+    assert not needs_witness(np.full(2, 1e-7), rtol, np.array([2.5, 0.0]), substeps=4)
+    assert WITNESS_SUBSTEPS_BELOW * np.pi > 5e-9
+
+    pendulum_problem = hamrkq.load_problem("pendulum")
+    sol = hamrkq.solve(pendulum_problem, q0=[y0[0]], p0=[0.0], t_span=(0, 3000), atol=5e-9)
+    assert sol.success and sol.options["z_substeps"] >= 4
+    assert np.abs(sol.y - pendulum(sol.t, y0)).max() <= 1.05 * 5e-9
 
 
 def test_the_kernel_measures_the_range_of_its_free_steps():

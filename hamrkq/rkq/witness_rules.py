@@ -26,6 +26,8 @@ __all__ = [
     "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
     "WITNESS_SUBSTEPS",
+    "WITNESS_SUBSTEPS_BELOW",
+    "WITNESS_SUBSTEPS_NEAR_FLOOR",
     "close_approach_factor",
     "component_scales",
     "length_factor",
@@ -81,6 +83,25 @@ WITNESS_BELOW = 3e-10
 #: their tolerances take 2 to 4, the outer solar system 5 at rtol 1e-6,
 #: where the witness runs already (``tests/test_family.py``).
 WITNESS_SUBSTEPS = 5
+
+#: With the shadow estimate, the witness also runs where the quencher takes
+#: at least this many steps per step of the pair and some component's
+#: tolerance is below :data:`WITNESS_SUBSTEPS_BELOW` times its size
+#: (:func:`needs_witness`).  QA found (2026-11-27) the pendulum
+#: ``H = p^2/2 - cos q`` from ``q0 = pi - 0.03`` over [0, 3000] at 5e-9
+#: with four steps returning nodes 1.34 times the tolerance off;
+#: ``benchmarks/separatrix_rounding.py`` (``H = p^2/2 - 1.69 cos q``) at
+#: 2e-9: 2.11.  The catalogue's runs at four steps (prentice2011 and the FPU
+#: chain at 1e-4 to 1e-7, ``benchmarks/auto_member_loose.md``) are above the
+#: threshold (prentice2011 at 1e-7 by 1.3 times), where the quencher's
+#: rounding, near 1e-11 of the state's size, cannot matter and the witness
+#: would cost a second quencher.
+WITNESS_SUBSTEPS_NEAR_FLOOR = 4
+
+#: The tolerance, relative to the state's size, below which a quencher of
+#: :data:`WITNESS_SUBSTEPS_NEAR_FLOOR` steps a step runs the witness: 19 times
+#: above the QA case's (5e-9 of pi).
+WITNESS_SUBSTEPS_BELOW = 3e-8
 
 
 def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
@@ -149,7 +170,9 @@ def needs_witness(
     (``benchmarks/promise_members.md``).  Such members run the witness at
     every tolerance, and so does a quencher of ``substeps`` steps a step,
     :data:`WITNESS_SUBSTEPS` or more: its truncation error, which Gamma
-    sees, has fallen below its rounding, which Gamma does not.  Where ``H``
+    sees, has fallen below its rounding, which Gamma does not; with
+    :data:`WITNESS_SUBSTEPS_NEAR_FLOOR` steps, where the tolerance is below
+    :data:`WITNESS_SUBSTEPS_BELOW` of the size.  Where ``H``
     depends on the time, ``time_scale`` is the largest ``|t|`` of the run
     (zero otherwise): :func:`time_rounding_matters`.
     """
@@ -159,20 +182,24 @@ def needs_witness(
         return True
     # By content: a solve asks this of the same arrays several times.
     atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
-    return _tolerance_near_floor(
-        atol.shape, atol.tobytes(), rtol.shape, rtol.tobytes(), y0.shape, y0.tobytes()
+    below = WITNESS_BELOW
+    if substeps >= WITNESS_SUBSTEPS_NEAR_FLOOR:
+        below = max(below, WITNESS_SUBSTEPS_BELOW)
+    return _tolerance_below(
+        below, atol.shape, atol.tobytes(), rtol.shape, rtol.tobytes(), y0.shape, y0.tobytes()
     )
 
 
 @functools.lru_cache(maxsize=32)
-def _tolerance_near_floor(atol_shape, atol, rtol_shape, rtol, y0_shape, y0) -> bool:
-    """:func:`needs_witness`'s rule on the arrays' bytes (hashable: memoised)."""
+def _tolerance_below(below, atol_shape, atol, rtol_shape, rtol, y0_shape, y0) -> bool:
+    """Whether some component's tolerance is below ``below`` times its size
+    (:func:`component_scales`), on the arrays' bytes (hashable: memoised)."""
     atol, rtol, y0 = (
         np.frombuffer(data).reshape(shape)
         for shape, data in ((atol_shape, atol), (rtol_shape, rtol), (y0_shape, y0))
     )
     tolerance = component_tolerance(atol, rtol, y0)
-    return bool(np.any(tolerance < WITNESS_BELOW * component_scales(atol, y0)))
+    return bool(np.any(tolerance < below * component_scales(atol, y0)))
 
 
 #: Where ``H`` depends on the time, the witness runs when some component's
