@@ -114,6 +114,26 @@ def unstable_equilibrium():
     yield "the same to 25, quencher_precision double-double: " + describe(sol, ratios)
 
 
+def long_steps_of_a_named_member():
+    """rk78q10 named at a loose tolerance: the shadow's premise fails at its
+    long steps and Gamma reads a tenth of the quencher's error."""
+    problem = hamrkq.load_problem("kepler", e=0.5)
+    sol = hamrkq.solve(problem, t_span=(0, 400 * np.pi), method="rk78q10", atol=1e-4)
+    truth = kepler(sol.t, problem.y0)
+    yield "Kepler e = 0.5, 200 orbits, atol 1e-4, rk78q10: " + describe(
+        sol, over(sol, truth, 1e-4)
+    )
+    error = np.abs(sol.z - truth).max(axis=1)
+    gamma = np.abs(sol.gamma).max(axis=1)
+    read = gamma[error > 0] / error[error > 0]
+    yield (
+        f"  Gamma over the quencher's true error at the nodes: median {np.median(read):.3g}, "
+        f"smallest {read.min():.3g}; the quencher's largest true error {error.max():.3g}"
+    )
+    sol = hamrkq.solve(problem, t_span=(0, 400 * np.pi), atol=1e-4)
+    yield "The same with auto: " + describe(sol, over(sol, kepler(sol.t, problem.y0), 1e-4))
+
+
 def quench_threshold():
     """quench_threshold above 1: nodes up to theta delta."""
     problem = hamrkq.load_problem("kepler", e=0.6)
@@ -129,6 +149,7 @@ CASES = [
     ("A narrow barrier the steps jump over", barrier),
     ("Rounding near pericentre on a very eccentric orbit", eccentric_kepler),
     ("A start less than an ulp from an unstable equilibrium", unstable_equilibrium),
+    ("A named member's long steps at a loose tolerance", long_steps_of_a_named_member),
     ("quench_threshold above 1", quench_threshold),
 ]
 
