@@ -7,6 +7,8 @@ other measured error)."""
 
 from __future__ import annotations
 
+import csv
+import io
 import re
 from types import SimpleNamespace
 
@@ -94,3 +96,19 @@ def test_the_printed_headline_marks_a_run_at_the_floor_and_says_what_the_mark_me
     assert "Max true errors marked * are at or below the reference's accuracy" in stdout
     markdown = (tmp_path / "cmp" / "comparison.md").read_text()
     assert markdown.count("Max true errors marked *") == 2  # under both tables
+
+
+def test_the_csv_and_json_rows_say_which_errors_are_at_the_floor():
+    # Found in review: only the tables carried the mark; a reader of
+    # comparison.csv or comparison.json could not tell those errors apart.
+    result = _comparison()
+    rows = result.rows()
+    floor = {row["settings"] for row in rows if row["at_reference_floor"]}
+    assert floor == {"h=0.0315", "h=0.00786", "h=0.00197"}
+    csv_rows = list(csv.DictReader(io.StringIO(compare_cli._csv(result))))
+    assert [row["at_reference_floor"] for row in csv_rows] == [
+        "False", "False", "True", "True", "True"
+    ]  # fmt: skip
+    assert [row["at_reference_floor"] for row in result.to_dict()["runs"]] == [
+        False, False, True, True, True
+    ]  # fmt: skip

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.analysis.comparison_runs import Comparison, Run
+from hamrkq.analysis.comparison_runs import Comparison, Run, at_reference_floor
 from hamrkq.analysis.diagnostics import drift_summary, exact_solution_accuracy
 from hamrkq.analysis.reference import hamiltonian_reference
 from hamrkq.catalogue.exact import builtin_exact_of
@@ -493,14 +493,6 @@ def _far_below(runs: list[Run], target: float) -> list[str]:
                 f"{run.nfev} f evaluations are an upper bound of the cost at matched error"
             )
     return notes
-
-
-def at_reference_floor(run: Run, accuracy: float) -> bool:
-    """Whether ``run``'s max true error is at or below the reference's
-    ``accuracy``: then it is mostly the reference's own error, and the run's
-    is at most about ``accuracy``.  The note on uncertain errors names these
-    runs, and ``hamrkq compare``'s tables mark their errors."""
-    return run.max_error <= accuracy
 
 
 def _floor(runs: list[Run], accuracy: float) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 
 from hamrkq.result import Solution
 
-__all__ = ["Comparison", "Run"]
+__all__ = ["Comparison", "Run", "at_reference_floor"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +80,15 @@ class Run:
         }
 
 
+def at_reference_floor(run: Run, accuracy: float) -> bool:
+    """Whether ``run``'s max true error is at or below the reference's
+    ``accuracy``: then it is mostly the reference's own error, and the run's
+    is at most about ``accuracy``.  The note on uncertain errors names these
+    runs, ``hamrkq compare``'s tables mark their errors, and its CSV and JSON
+    rows say so (``at_reference_floor``)."""
+    return run.max_error <= accuracy
+
+
 @dataclass(frozen=True, eq=False)
 class Comparison:
     """Every run of :func:`~hamrkq.analysis.comparison.compare` and how they were chosen
@@ -101,7 +110,12 @@ class Comparison:
         return [run for run in self.runs if run.selected]
 
     def rows(self) -> list[dict[str, Any]]:
-        return [run.row() for run in self.runs]
+        """Every run's :meth:`Run.row`, with whether its max true error is at
+        the reference's floor (:func:`at_reference_floor`)."""
+        return [
+            {**run.row(), "at_reference_floor": at_reference_floor(run, self.reference_accuracy)}
+            for run in self.runs
+        ]
 
     def matched_by(self) -> str:
         """One sentence: what the headline rows have in common."""

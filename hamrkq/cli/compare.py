@@ -9,7 +9,8 @@ result into files.  What it writes into ``--out`` (default
   and the notes;
 - ``comparison.csv`` and ``comparison.json``: every run of the sweep (method,
   settings, steps, nfev, wall time, max true global error, max |energy error|,
-  drift slope, status, whether it is a headline run);
+  drift slope, status, whether it is a headline run, whether its error is at
+  the reference's floor);
 - ``work_precision.png``: max true error against f evaluations and against
   wall time, one curve per method over its sweep;
 - ``energy_error.png``: |H - H(0)| against t for the headline run of each
