@@ -8,8 +8,8 @@ the rules are :func:`hamrkq.rkq.auto_rules.auto_abandon_substeps` and
 :func:`hamrkq.rkq.auto_rules.auto_retry_substeps` (docs/algorithm.md).  A
 finished run runs again once with the rounding witness where its rounding,
 amplified by an exponential growth of the estimate (an unstable orbit,
-:func:`hamrkq.rkq.auto_rules.error_growth`), by the run's length or by a
-state grown beyond its start, could reach the tolerance
+:func:`hamrkq.rkq.auto_rules.error_growth`), by the run's length, by a
+state grown beyond its start or by close approaches, could reach the tolerance
 (:func:`witness_rerun_needed`, for every member with the shadow estimate,
 and for ``rk34q8``'s tangent estimate where its state outgrew its start);
 two exponential runs in a row allow no more quencher steps.  A run cut where
@@ -103,10 +103,11 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     exponential = factor > EXPONENTIAL_GROWTH
     if reruns_for_rounding(task, out, reading_with_the_run_before(task, factor)):
         # Gamma without the witness sees the quencher's truncation error, not
-        # its rounding, which an unstable orbit, a long run or a grown state
-        # amplify: explicit members returned SUCCESS on the Arenstorf orbit
-        # over three periods at 1e-8 with true errors of 17 to 62 times the
-        # tolerance, auto on prentice2011 to t = 170 000 at 1e-8 2.7 times.
+        # its rounding, which an unstable orbit, a long run, a grown state or
+        # close approaches amplify: explicit members returned SUCCESS on the
+        # Arenstorf orbit over three periods at 1e-8 with true errors of 17
+        # to 62 times the tolerance, auto on prentice2011 to t = 170 000 at
+        # 1e-8 2.7 times.
         witnessed = _with_witness(requested, task)
         if witnessed is not None:
             # The same run again: its growth will read the same, which is
