@@ -297,6 +297,34 @@ def test_four_quencher_steps_near_the_floor_run_the_witness():
     assert np.abs(sol.y - pendulum(sol.t, y0)).max() <= 1.05 * 5e-9
 
 
+def test_a_chaotic_forced_run_keeps_the_witnesss_stop_at_the_floor():
+    """QA (2026-11-27): a chaotic forced pendulum at 1e-10, whose witness run
+    stopped at the floor at t = 48.6, ran on with the quencher in
+    double-double (which keeps the stage times' rounding, amplified by the
+    chaos, and runs no witness) to t = 73.7, returning nodes 4.58 times the
+    tolerance off.  The witness's stop stands now."""
+    hy = pytest.importorskip("heyoka")
+    t, q, p = sp.symbols("t q p")
+    forced = q * sp.cos(sp.Rational(2, 3) * t) * sp.Rational(6, 5)
+    ham = hamrkq.Hamiltonian(p**2 / 2 - sp.cos(q) - forced, q=[q], p=[p])
+    sol = hamrkq.solve(ham, [0.5], [0.0], (0, 300), atol=1e-10)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.options["quencher_precision"] == "double"
+    assert "floor" in sol.message
+    # heyoka in quad precision, the constants exact (differs from its run at
+    # tol 1e-26 by 1e-24 over this span)
+    x, v = hy.make_vars("x", "v")
+    quad = hy.real128
+    c65, c23 = hy.expression(quad(6) / quad(5)), hy.expression(quad(2) / quad(3))
+    ta = hy.taylor_adaptive(
+        [(x, v), (v, -hy.sin(x) + c65 * hy.cos(c23 * hy.time))],
+        np.array([quad(0.5), quad(0)]), fp_type=quad, tol=quad("1e-32"), compact_mode=True,
+    )  # fmt: skip
+    states = ta.propagate_grid(np.array([quad(float(s)) for s in sol.t]))[5]
+    truth = np.array([[float(a) for a in row] for row in states])
+    assert np.abs(sol.y - truth).max() <= 1.05e-10  # 1.035e-10
+
+
 def test_the_kernel_measures_the_range_of_its_free_steps():
     """The ratio of the largest free step to the smallest, without the first
     steps' growth (until the controller first asks for none) and the steps
