@@ -10,7 +10,8 @@ how much more, against the ratio of the run's largest free step to its
 smallest (``hamrkq.rkq.loop.step_range``), and checks the rule built on it
 (``close_approach_factor``).
 
-1. Kepler orbits, e = 0.3 .. 0.99, atol 1e-8 and 1e-9, 100 and 300 periods,
+1. Kepler orbits, e = 0.3 .. 0.99, atol 1e-8 and 1e-9, 100 and 300 periods
+   (and QA's four runs of 1000 and 2000 periods near e = 0.6),
    ``method="auto"`` with the witness off and the quencher in double: the
    quencher's largest true error (against the exact solution), over what
    the length's law allows (1.5e-11 x length_factor x each component's
@@ -54,6 +55,10 @@ auto = importlib.import_module("hamrkq.solve.auto")
 ECCENTRICITIES = (0.3, 0.6, 0.8, 0.9, 0.93, 0.95, 0.97, 0.99)
 TOLERANCES = (1e-8, 1e-9)
 PERIODS = (100, 300)
+#: Found by QA (2026-11-27) with the factor's range at 16: moderate
+#: eccentricities over long runs, (e, atol, periods).
+LONG_RUNS = ((0.59, 4.2e-9, 1000), (0.61, 4.2e-9, 1000), (0.62, 4e-9, 1000),
+             (0.64, 1.2e-8, 2000))  # fmt: skip
 #: What the length's law allows the quencher's rounding: WITNESS_BELOW times
 #: gamma_limit's default (0.05) of the state's size, times length_factor.
 ALLOWED = WITNESS_BELOW * 0.05
@@ -97,6 +102,8 @@ def kepler_cases():
         for atol in TOLERANCES:
             for periods in PERIODS:
                 yield e, atol, periods, problem
+    for e, atol, periods in LONG_RUNS:
+        yield e, atol, periods, hamrkq.load_problem("kepler", e=e)
 
 
 def kepler_without_witness(rules: Rules):

@@ -246,7 +246,7 @@ def test_a_long_regular_run_runs_again_with_the_witness():
     assert "could reach the tolerance: run again with the witness" in sol.message
     assert sol.options["quencher_precision"] == "double-double"
     ref = extended_reference(prentice.hamiltonian, prentice.parameter_array, y0, times)
-    assert ref.estimated_error < 1e-12
+    assert ref.estimated_error < 1e-11  # 4.9e-12 stated (20ec0c2), 0.5 % of the tolerance
     assert np.abs(sol.y - ref.y).max() <= 1.05e-9 + ref.estimated_error
 
 
@@ -263,8 +263,8 @@ def test_close_approaches_make_a_run_again_with_the_witness():
     problem = hamrkq.load_problem("kepler", e=0.93)
     y0, rtol, atol = problem.y0, np.zeros(4), np.full(4, 1e-8)
     size = np.array([1.93, 0.0, 0.0, 5.25])  # apocentre, the speed at pericentre
-    assert close_approach_factor(8.8) == 1.0  # the catalogue's Kepler, e = 0.6
-    assert close_approach_factor(236.0) == pytest.approx(14.75)
+    assert close_approach_factor(1.84) == 1.0  # prentice2011, whose law it is
+    assert close_approach_factor(236.0) == pytest.approx(118.0)
     assert not needs_witness_after_run(atol, rtol, y0, 5602, size)
     assert needs_witness_after_run(atol, rtol, y0, 5602, size, step_range=236.0)
 
