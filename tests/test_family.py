@@ -757,3 +757,20 @@ def test_a_finished_run_after_an_exponential_reading_measures_its_rounding():
     assert sol.status is Status.SUCCESS
     assert "the run before it had read an exponential growth" in sol.message
     assert np.abs(sol.y - kepler.exact(sol.t)).max() <= 1.05e-8
+
+
+def test_a_burst_read_twice_by_the_same_quencher_steps_is_not_two_readings():
+    """QA (2026-11-27): Kepler at e = 0.995 over 50 periods at 1e-8 stopped at
+    its first pericentre after the start, t = 2 pi: the burst there read as
+    an exponential growth in the first run, again in the witness's (the same
+    quencher steps), and so in the run in double-double, and auto stopped
+    saying more quencher steps only delay the stop.  They do not: five carry
+    it to the end.  The run in double-double carries the reading before the
+    witness's, and a second reading needs more quencher steps."""
+    from hamrkq.catalogue.exact import kepler
+
+    problem = hamrkq.load_problem("kepler", e=0.995)
+    sol = hamrkq.solve(problem, t_span=(0, 100 * np.pi), atol=1e-8)
+    assert sol.success and sol.t[-1] == 100 * np.pi
+    assert sol.options["z_substeps"] > 2
+    assert np.abs(sol.y - kepler(sol.t, problem.y0)).max() <= 1.05e-8  # 0.992e-8
