@@ -37,7 +37,8 @@ def _quad(ham, params, y0, t, tol):
     import heyoka as hy
     import mpmath as mp
 
-    from hamrkq.analysis.extended_reference import _products, _propagate
+    from hamrkq.analysis.extended_reference import _products
+    from hamrkq.analysis.heyoka_steps import propagate
 
     quad = hy.real128
     symbols = {s: hy.expression(f"y{k}") for k, s in enumerate(ham.state)}
@@ -61,7 +62,7 @@ def _quad(ham, params, y0, t, tol):
     # the extended reference's own stepping (its first step and growth
     # bounded), in quad precision: heyoka's own steps at tol 1e-32 (order
     # 38) return inf on the q^10 oscillator from (0, 1), as in long double at 1e-19
-    return _propagate(system, y0, t[0], t, tol, fp_type=quad)
+    return propagate(system, y0, t[0], t, tol, fp_type=quad)
 
 
 def _difference(states, quad) -> np.ndarray:
@@ -119,12 +120,12 @@ class _Growth:
 
 class _Counted:
     """Counts the steps of the extended reference's runs and the ones taken
-    again (its ``_Steps`` stopped heyoka at them)."""
+    again (``hamrkq.analysis.heyoka_steps._Steps`` stopped heyoka at them)."""
 
     steps = retaken = 0
 
     def __init__(self):
-        from hamrkq.analysis import extended_reference as ext
+        from hamrkq.analysis import heyoka_steps as ext
 
         self.module, self.original = ext, ext._Steps
         outer = self
@@ -253,6 +254,7 @@ def growth_table() -> list[str]:
     """The actual error on the q^10 oscillator from (2, 0) over [0, 199] for
     several bounds on a step's growth over the one before."""
     from hamrkq.analysis import extended_reference as ext
+    from hamrkq.analysis import heyoka_steps
 
     problem = _Oscillator(10, (2.0, 0.0), (0.0, 199.0))
     ham, y0 = problem.hamiltonian, problem.y0
@@ -267,10 +269,10 @@ def growth_table() -> list[str]:
         "| growth bound | " + " | ".join(f"tol {tol:g}" for tol in tols) + " |",
         "|---|" + "---|" * len(tols),
     ]
-    original = ext.STEP_GROWTH
+    original = heyoka_steps.STEP_GROWTH
     try:
         for bound in (1.3, 1.5, 2.0, 3.0):
-            ext.STEP_GROWTH = bound
+            heyoka_steps.STEP_GROWTH = bound
             errors = [
                 float(np.max(_difference(ext.extended_states(ham, [], y0, t, tol=tol), quad)))
                 for tol in tols
@@ -278,7 +280,7 @@ def growth_table() -> list[str]:
             lines.append(f"| {bound:g} | " + " | ".join(f"{e:.1e}" for e in errors) + " |")
             print(lines[-1], flush=True)
     finally:
-        ext.STEP_GROWTH = original
+        heyoka_steps.STEP_GROWTH = original
     errors = [float(np.max(_difference(_heyoka_steps(ham, [], y0, t, tol), quad))) for tol in tols]
     lines.append("| heyoka's own steps | " + " | ".join(f"{e:.1e}" for e in errors) + " |")
     return lines

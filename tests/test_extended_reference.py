@@ -13,6 +13,7 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.analysis import extended_reference as ext
+from hamrkq.analysis import heyoka_steps
 from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError, IntegrationError
@@ -250,6 +251,6 @@ def test_a_run_that_cannot_finish_is_an_error_not_a_hang(monkeypatch):
     blowup = hamrkq.Hamiltonian(p**2 / 2 - q**4 / 4, q=[q], p=[p])
     with pytest.raises(IntegrationError, match="heyoka's Taylor step failed"):
         ext.extended_reference(blowup, [], (1.0, 1.0), np.linspace(0.0, 3.0, 4))
-    monkeypatch.setattr(ext, "MAX_STEPS", 50)
+    monkeypatch.setattr(heyoka_steps, "MAX_STEPS", 50)
     with pytest.raises(IntegrationError, match="stopped after 50 steps"):
         ext.extended_reference(Q10, [], (2.0, 0.0), np.linspace(0.0, 199.0, 11))
