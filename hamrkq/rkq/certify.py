@@ -21,6 +21,7 @@ __all__ = [
     "projected_ratio",
     "quencher_share",
     "record_ratio",
+    "stored_share",
     "time_rounding",
 ]
 
@@ -77,6 +78,26 @@ def dense_attainability(work, z, gamma):
         size = max(abs(z[i]), abs(V[ZOLD, i]), abs(V[ZHI, i]))
         ratios[i] = quencher_share(V[RHO2, i], size, gamma[i], V[FLOOR, i]) / V[DELTA, i]
     return arith.vmax(ratios)
+
+
+@jitable
+def stored_share(work, z):
+    """``max_k eps u_k / delta_k`` at a dense value (``u_k`` the larger of it
+    and the two nodes' quencher values, as :func:`dense_attainability` takes
+    it, ``delta`` as that left it in ``V[DELTA]``): the value's own rounding
+    alone, which neither more quencher steps nor the quencher in
+    double-double reduce.  Measured where the value is, not over the run:
+    the double pendulum at ``rtol`` 1e-10 (``atol`` 1e-13), whose angle
+    grows to 48, failed at ``t = 9.45`` where ``p2`` crosses zero between
+    nodes of size 1.1 and 1.2 (0.003 of ``atol``); the angle's largest size
+    over ``atol`` (0.108) made ``auto`` give up instead of running the
+    quencher in double-double, which succeeds."""
+    V = work.V
+    top = 0.0
+    for i in range(z.shape[0]):
+        size = max(abs(z[i]), abs(V[ZOLD, i]), abs(V[ZHI, i]))
+        top = max(top, EPS * size / V[DELTA, i])
+    return top
 
 
 @jitable

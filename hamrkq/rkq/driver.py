@@ -160,6 +160,10 @@ class RunOutput:
     #: The ratio of the largest free step to the smallest
     #: (:func:`hamrkq.rkq.loop.step_range`).
     step_range: float = 1.0
+    #: Where the run ended at an output time inside a step: the value's own
+    #: rounding alone over the tolerance there
+    #: (:func:`hamrkq.rkq.certify.stored_share`), else 0.
+    stored_ratio: float = 0.0
 
     def rows(self, kept: Any) -> RunOutput:
         """The same run with only the returned nodes ``kept`` (a slice, an
@@ -426,6 +430,7 @@ class Integration:
             thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
             rounding=rounding if use_z else None,
             step_range=float(loop.step_range(s)),
+            stored_ratio=float(s["stored_ratio"]),
         )
 
     def _checkpoints(self) -> np.ndarray:

@@ -127,6 +127,9 @@ STATE = np.dtype(
         ("prev_rejected", _I),
         ("bad_component", _I),  # first non-finite component found, or -1
         ("floor_ratio", _F),  # the witness's share of the ratio that ended the run
+        # At an output time inside a step that ended the run: the value's own
+        # rounding alone over the tolerance there (hamrkq.rkq.certify.stored_share)
+        ("stored_ratio", _F),
         ("projected", _F),  # |Gamma| / delta projected to t_end when abandoned (ST_ABANDONED)
         ("t_old", _F),  # the node before the last step, while its t_eval times are pending
         ("t_old_lo", _F),

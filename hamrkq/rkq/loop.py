@@ -29,7 +29,13 @@ import math
 
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
-from hamrkq.rkq.certify import attainability, dense_attainability, projected_ratio, record_ratio
+from hamrkq.rkq.certify import (
+    attainability,
+    dense_attainability,
+    projected_ratio,
+    record_ratio,
+    stored_share,
+)
 from hamrkq.rkq.clock import advance_time, representable_step, time_low_word
 from hamrkq.rkq.jit import borrow, jitable
 from hamrkq.rkq.layout import (
@@ -539,6 +545,7 @@ def write_dense(rhs, problem, tab, c, s, work, out, p):
     if not record_ratio(s, c, ratio, V[FLOOR], V[DELTA]):
         # The promise cannot be kept at p: the run ends before it, reported
         # where it failed (the step's node, beyond p, is not returned).
+        s["stored_ratio"] = stored_share(work, out.z[n])
         s["t"] = p
         s["t_lo"] = 0.0
         s["status"] = ST_UNATTAINABLE

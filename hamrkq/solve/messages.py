@@ -75,9 +75,10 @@ def _where_it_failed(out: RunOutput, task: Task) -> tuple[str, bool]:
     if output_rounding_limits(out, task):
         return text + (
             " That is an output time of t_eval inside a step, whose value is stepped with "
-            "the quencher's stages in double: its own rounding is an ulp of the state's "
-            f"size, {output_rounding(out, task):.3g} x atol, and where a component passes "
-            "zero under rtol its tolerance there is atol alone. More quencher steps or the "
+            "the quencher's stages in double: its own rounding, an ulp of the state's "
+            f"size there, is {output_rounding(out, task):.3g} x the tolerance, and where a "
+            "component passes zero under rtol its tolerance is atol alone. More quencher "
+            "steps or the "
             "quencher in double-double do not go below it; a larger atol (at least "
             f"{atol_above_output_rounding(out, task):.2g}) "
             "is what works."

@@ -50,11 +50,12 @@ __all__ = [
 class OutputFailure(NamedTuple):
     """The first output time whose value the run cannot certify: its time,
     the quencher's estimated error and rounding over the tolerance there,
-    and the rounding's part of that."""
+    the rounding's part of that, and the value's own rounding alone."""
 
     t: float
     ratio: float
     rounding_ratio: float
+    stored_ratio: float
 
 
 def _key(t: np.ndarray) -> float:
@@ -82,25 +83,27 @@ def first_failure(
     if until is not None:
         times = times[_key(out.t) * times <= _key(out.t) * until]
     values = dense.values_unchecked(times)
-    ratios, rounding, _, _ = attainability(
+    ratios, rounding, _, stored = attainability(
         times, values, out.t, out.z, out.gamma, dense_tolerance(task), out.rounding
     )
     bad = np.flatnonzero(~(ratios <= limit))
     if bad.size == 0:
         return None
     j = int(bad[0])
-    return OutputFailure(float(times[j]), float(ratios[j]), float(rounding[j]))
+    return OutputFailure(float(times[j]), float(ratios[j]), float(rounding[j]), float(stored[j]))
 
 
 def output_rounding(out: RunOutput, task: Task) -> float:
     """For a run that ended at an output time inside a step (``t_eval``, by
-    the kernel or sampled here): the value's own rounding over ``atol``,
-    ``max_k eps u_k / atol_k`` with ``u_k`` the component's largest size
-    along the run; 0 for a run that did not.  The value is stepped with the
-    quencher's stages in double (whatever the quencher's precision), so
-    its rounding is an ulp of the state's size, and where a component
-    passes zero under ``rtol`` its tolerance there is ``atol`` alone: no
-    quencher goes below that, a larger ``atol`` does."""
+    the kernel or sampled here): the value's own rounding over the
+    tolerance there, ``max_k eps u_k / delta_k`` with ``u_k`` the larger of
+    the value and the two nodes' quencher values around it
+    (:attr:`RunOutput.stored_ratio`); 0 for a run that did not.  The value
+    is stepped with the quencher's stages in double (whatever the
+    quencher's precision), so its rounding is an ulp of the state's size
+    there, and where a component passes zero under ``rtol`` its tolerance
+    there is ``atol`` alone: no quencher goes below that, a larger ``atol``
+    does."""
     times = task.requested_times
     if (
         times is None
@@ -108,21 +111,18 @@ def output_rounding(out: RunOutput, task: Task) -> float:
         or not np.any(times == out.t_last)
     ):
         return 0.0
-    return float(np.max(EPS * _state_size(out, task) / task.atol))
+    return out.stored_ratio
 
 
 def atol_above_output_rounding(out: RunOutput, task: Task) -> float:
-    """The ``atol`` at which the value's own rounding at an output time is
-    at most a quarter of ``gamma_limit`` (:func:`output_rounding`), leaving
-    the rest for the quencher's error: the remedy the message names."""
-    return 4.0 * EPS * float(np.max(_state_size(out, task))) / task.options.gamma_limit
-
-
-def _state_size(out: RunOutput, task: Task) -> np.ndarray:
-    """Each component's largest ``|y|`` over the run
-    (:func:`~hamrkq.solve.dispatch.largest_state`), at least ``|y0|``: a
-    run can end before it keeps a row."""
-    return np.maximum(np.abs(task.y0), largest_state(out))
+    """The ``atol`` at which the value's own rounding at any output time is
+    at most a quarter of ``gamma_limit``, leaving the rest for the
+    quencher's error: the remedy the message names.  From each component's
+    largest size over the run, not the size where it failed
+    (:func:`output_rounding`): the run with that ``atol`` passes later zero
+    crossings, whose values around may be larger."""
+    size = np.maximum(np.abs(task.y0), largest_state(out))
+    return 4.0 * EPS * float(np.max(size)) / task.options.gamma_limit
 
 
 def output_rounding_limits(out: RunOutput, task: Task) -> bool:
@@ -146,6 +146,7 @@ def cut_before(out: RunOutput, failure: OutputFailure) -> RunOutput:
         t_last=failure.t,
         max_ratio=failure.ratio,
         floor_ratio=failure.rounding_ratio,
+        stored_ratio=failure.stored_ratio,
     )
 
 
