@@ -9,6 +9,7 @@ written here and nowhere else.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
@@ -123,6 +124,19 @@ class SolveOptions:
         InputError, InputTypeError, OptionError
             The first invalid option, named with its value.
         """
+        # The same options again (every call of a loop over solve) are not
+        # checked again: the options are immutable, and the outcome depends
+        # only on the values given, each keyed with its type (1, 1.0 and True
+        # are equal keys of a dict, and not the same option).  A value that
+        # cannot be hashed is checked every time.
+        try:
+            return _resolved(_given_key(settings, _OPTION_NAMES), _given_key(given))
+        except TypeError:  # unhashable
+            return cls._resolve(given, settings)
+
+    @classmethod
+    def _resolve(cls, given: Mapping[str, Any], settings: Mapping[str, Any]) -> SolveOptions:
+        """:meth:`resolve` without the memo."""
         # The defaults are valid: only what a source sets is checked (each
         # check was about 15 us of a tiny problem's call).
         chosen: dict[str, Any] = {}
@@ -174,10 +188,9 @@ class SolveOptions:
         quencher steps (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
-        name, substeps = auto_member(dim, tolerance)
-        return replace(self, method=name, z_substeps=self.z_substeps or substeps)
+        return _with_member(self, *auto_member(dim, tolerance))
 
-    @property
+    @functools.cached_property  # (immutable options; a solve asks it a dozen times)
     def gamma_name(self) -> str:
         """The Gamma estimate: the option, or the method's default."""
         if self.global_error_estimate is not None:
@@ -197,6 +210,34 @@ class SolveOptions:
             "rule": TOLERANCE_RULES[self.tolerance_rule],
             "gamma": GAMMA_MODES[self.gamma_name],
         }
+
+
+def _given_key(values: Mapping[str, Any], names: Any = None) -> tuple:
+    """The values set (not None) of ``values`` (of the ``names`` only, if
+    given), each with its type: a key of :func:`_resolved`."""
+    return tuple(
+        (key, type(value), value)
+        for key, value in values.items()
+        if value is not None and (names is None or key in names)
+    )
+
+
+@functools.lru_cache(maxsize=128)
+def _resolved(settings: tuple, given: tuple) -> SolveOptions:
+    """:meth:`SolveOptions.resolve` of the values of two :func:`_given_key`
+    keys, memoised (an invalid option raises, and is not remembered)."""
+    return SolveOptions._resolve(
+        {key: value for key, _, value in given}, {key: value for key, _, value in settings}
+    )
+
+
+@functools.lru_cache(maxsize=128)
+def _with_member(options: SolveOptions, name: str, substeps: int) -> SolveOptions:
+    """``options`` of ``method="auto"`` running the member ``name``, with
+    ``substeps`` quencher steps unless given (:meth:`SolveOptions.with_auto`),
+    memoised: the options are immutable, and a copy of them costs microseconds
+    of every call."""
+    return replace(options, method=name, z_substeps=options.z_substeps or substeps)
 
 
 def _check_z_method_applies(method: str, z_method: str) -> None:

@@ -152,9 +152,9 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
 
     The ``srepr`` text is printed and hashed once per Hamiltonian object (a
     :class:`~hamrkq.symbolic.hamiltonian.Hamiltonian` is immutable) and the
-    digest remembered for as long as the object lives; a later call hashes
-    that digest with the versions and ``extra``, a few microseconds instead
-    of a printing of the expression tree.
+    digest remembered for as long as the object lives; a later call looks up
+    the key of that digest with the versions and ``extra`` (hashed once),
+    instead of printing the expression tree.
     """
     try:
         expressions = _KEYS.get(ham)
@@ -175,7 +175,15 @@ def cache_key(ham: Hamiltonian, extra: str = "") -> str:
             _KEYS[ham] = expressions
         except TypeError:
             pass
-    text = "\n".join([expressions, _versions(), extra])
+    return _key_digest(expressions, _versions(), extra)
+
+
+@functools.lru_cache(maxsize=256)
+def _key_digest(expressions: str, versions: str, extra: str) -> str:
+    # Memoised: a solve asks the key of its system three times (the backend,
+    # the kernel's functions, the energy at the nodes); the versions are an
+    # argument, so a changed version still changes the key.
+    text = "\n".join([expressions, versions, extra])
     return hashlib.sha256(text.encode()).hexdigest()
 
 

@@ -32,6 +32,7 @@ from hamrkq.rkq.layout import (
     RET_DONE,
     ST_INTERRUPTED,
     ST_RUNNING,
+    STATE,
     YMAX,
     Inputs,
     Output,
@@ -185,6 +186,39 @@ class RunOutput:
         return self.floor_ratio >= 0.5 * self.max_ratio
 
 
+#: A new run's state record at t = 0 (:func:`~hamrkq.rkq.layout.new_state`),
+#: as its bytes: every run copies them and views the copy as the record
+#: (NumPy copies a record array field by field, seven times slower).
+_STATE_AT_ZERO = new_state(0.0).view(np.uint8)
+
+#: :func:`_member_config` of the members met so far, by id (with the member,
+#: so that an id is not reused while it is kept).
+_MEMBER_CONFIGS: dict[int, tuple[Member, dict[str, float]]] = {}
+
+
+def _member_config(member: Member) -> dict[str, float]:
+    """The fields of the kernel's configuration a member fixes, computed once
+    per member (members are immutable; ``richardson`` alone, a Fraction,
+    took microseconds of every run)."""
+    known = _MEMBER_CONFIGS.get(id(member))
+    if known is not None and known[0] is member:
+        return known[1]
+    fields = {
+        "use_z": int(member.use_z),
+        "z_substeps": member.z_substeps,
+        "fsal": int(member.fsal),
+        "richardson": member.richardson,
+        "shadow_scale": member.shadow_scale,
+        "error_exponent": 1.0 / (member.error_order + 1),
+        "beta": member.beta,
+        "witness_stochastic": int(member.stage_rounding_dominates),
+    }
+    if len(_MEMBER_CONFIGS) >= 256:  # members made on the fly (replace): bounded
+        _MEMBER_CONFIGS.clear()
+    _MEMBER_CONFIGS[id(member)] = (member, fields)
+    return fields
+
+
 def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
@@ -247,29 +281,22 @@ class Integration:
         self.tableaus = member.tableaus
         gamma = settings.gamma if member.use_z else GAMMA_OFF
         self.config = new_config(
+            **_member_config(member),
             quench_mode=settings.quench,
             rule=settings.rule,
             gamma_mode=gamma,
-            use_z=int(member.use_z),
             keep_every=settings.keep_every,
             max_steps=settings.max_steps,
             use_t_eval=int(use_teval),
-            relative=int(np.any(self.inputs.rtol > 0)),
-            z_substeps=member.z_substeps,
-            fsal=int(member.fsal),
+            relative=int(self.inputs.rtol.max(initial=0.0) > 0.0),
             safety=settings.safety,
             theta=settings.theta,
             max_step=settings.max_step,
             first_step=0.0 if settings.first_step is None else float(settings.first_step),
             gamma_limit=settings.gamma_limit,
             t_end=self.t_end,
-            richardson=member.richardson,
-            shadow_scale=member.shadow_scale,
-            error_exponent=1.0 / (member.error_order + 1),
-            beta=member.beta,
             witness=int(settings.witness and gamma in (GAMMA_SHADOW, GAMMA_TANGENT)),
             witness_scale=WITNESS_SAFETY,
-            witness_stochastic=int(member.stage_rounding_dominates),
             project=int(settings.project and member.use_z),
             t_start=self.t0,
             project_from=AUTO_PROJECT_FROM,
@@ -278,7 +305,9 @@ class Integration:
             z_double_double=int(settings.double_double and gamma == GAMMA_SHADOW),
             dense_share=settings.dense_share,
         )
-        self.state = new_state(self.t0)
+        # the same record as new_state(t0), in a third of the time
+        self.state = _STATE_AT_ZERO.copy().view(STATE)
+        self.state["t"] = self.t0
         y0 = _floats(y0)
         self.work = allocate_work(y0, self.tableaus.b.shape[0], self.tableaus.bz.shape[0])
         self.first_step = 0.0

@@ -485,7 +485,8 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
     arguments.check_time_assumptions(ham, t0, t_end)
     arguments.check_time_rounding(options, ham, atol_v, rtol_v, y0, t0, t_end)
     requested = options
-    options = options.with_auto(ham.dim, auto_tolerance(atol_v, rtol_v, y0))
+    if options.method == "auto":  # (the tolerance it reads is not needed otherwise)
+        options = options.with_auto(ham.dim, auto_tolerance(atol_v, rtol_v, y0))
     spec = METHODS[options.method]
     if t_eval_v is not None and options.keep_every != 1:
         raise InputError(
@@ -539,14 +540,11 @@ def _prepare(  # noqa: PLR0913 - solve's arguments, by name
         )
     watch = _events.terminal_watch(event_list)
     task = Task(
-        ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling
-    )
-    task = replace(
-        task,
-        project=auto.projects(requested, task),
-        auto=requested.method == "auto",
-        output_times=output_times,
-    )
+        ham, params, t0, t_end, y0, atol_v, rtol_v, options, t_eval_v, bar, watch, compiling,
+        auto=requested.method == "auto", output_times=output_times,
+    )  # fmt: skip
+    if auto.projects(requested, task):  # (a copy of the task only where it projects)
+        task = replace(task, project=True)
     return Prepared(
         task, spec, chosen, compile_s, event_list, requested, events_note, events is not None
     )

@@ -259,6 +259,8 @@ class Hamiltonian:
         return f"Hamiltonian({label}H={self._H}, q={list(self._q)}, p={list(self._p)})"
 
     def __eq__(self, other: object) -> bool:
+        if other is self:  # the common case of the memos keyed by a system
+            return True
         if not isinstance(other, Hamiltonian):
             return NotImplemented
         return (self._H, self._q, self._p, self._params, self._t) == (
@@ -270,6 +272,13 @@ class Hamiltonian:
         ) and self._defaults == other._defaults
 
     def __hash__(self) -> int:
+        return self._hash
+
+    @cached_property
+    def _hash(self) -> int:
+        # Hashed once: the memos keyed by a system (its cache key, its numeric
+        # functions) ask on every solve, and hashing the expression tree
+        # costs microseconds.
         return hash((self._H, self._q, self._p, self._params, self._t))
 
     # -- derived, symbolic ----------------------------------------------------
