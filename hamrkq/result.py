@@ -258,8 +258,9 @@ class Solution:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         for name in _ARRAY_FIELDS:
-            dtype = bool if name == "quenched" else float
-            set_(self, name, _solution_array(getattr(self, name), dtype))
+            value = getattr(self, name)
+            if value is not None:
+                set_(self, name, _solution_array(value, bool if name == "quenched" else float))
         for name in ("atol", "rtol"):
             value = getattr(self, name)
             if np.shape(value) != (2 * self.n,):

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING
 
 import sympy as sp
 
+from hamrkq import _version
 from hamrkq.backends.dd_printer import DD_FUNCTIONS, rhs_dd_block
 from hamrkq.backends.numba_cache import CACHE_FORMAT
 from hamrkq.backends.scalar_printer import block, rhs_jvp_block
@@ -126,9 +127,8 @@ def _called_sources_digest() -> str:
 
 
 def _versions() -> str:
-    # Read from the module each time (a dictionary lookup), not bound at import.
-    from hamrkq import _version
-
+    # The version read from its module each time (a dictionary lookup), not
+    # bound at import.
     # numba_cache.CACHE_FORMAT: numba's files written without a checksum by
     # an earlier hamrkq are then never met (they would read as damaged).
     return (

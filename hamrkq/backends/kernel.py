@@ -180,6 +180,11 @@ class CompiledKernel:
         self._by_types: dict[tuple, Any] = {}
         #: The numba dispatcher of each signature compiled so far.
         self.dispatchers: dict[tuple, Any] = {}
+        #: The description of each member's tableaus met so far, by id (with
+        #: the tableaus, so that an id is not reused while it is kept): a
+        #: member's tableaus are immutable and passed to every run of it, and
+        #: their nine arrays were a third of the key's cost.
+        self._tableaus: dict[int, tuple[Any, tuple]] = {}
 
     def __reduce__(self):
         # Compiled entry points cannot be pickled; another process uses its own
@@ -187,7 +192,8 @@ class CompiledKernel:
         return (kernel, ())
 
     def __call__(self, rhs, tangent, jac, *args):
-        key = tuple(describe(a) for a in args)
+        # args: (problem, tableaus, cfg, state, work, out, budget), loop.advance's
+        key = (describe(args[0]), self._describe_tableaus(args[1]), *map(describe, args[2:]))
         entry = self._by_types.get(key)
         if entry is None:
             with LOCK:
@@ -202,6 +208,17 @@ class CompiledKernel:
                     self.dispatchers[key] = dispatcher
                     self._by_types[key] = entry
         return entry(rhs, tangent, jac, *args)
+
+    def _describe_tableaus(self, tableaus: tuple) -> tuple:
+        """:func:`describe` of a member's tableaus, remembered."""
+        known = self._tableaus.get(id(tableaus))
+        if known is not None and known[0] is tableaus:
+            return known[1]
+        described = describe(tableaus)
+        if len(self._tableaus) >= 256:  # members made on the fly: bounded
+            self._tableaus.clear()
+        self._tableaus[id(tableaus)] = (tableaus, described)
+        return described
 
 
 def describe(value: Any) -> Any:
