@@ -161,17 +161,23 @@ def test_kepler_near_parabolic_underflows_at_pericentre():
 
 
 def test_kepler_e_0_999999_stops_when_the_tolerance_cannot_be_vouched_for():
-    # With the catalogue's atol = 1e-8 the quencher's estimated error plus its
-    # rounding reaches 5 % of the tolerance as the orbit falls into its second
-    # pericentre: the run stops just before t = 2 pi, not near apocentre.
+    # With the catalogue's atol = 1e-8 the quencher's error bursts at the
+    # second pericentre (t = 2 pi).  auto meets it with more quencher steps
+    # and shorter steps (the burst read over the same stretch twice is not
+    # two exponential readings: hamrkq.solve.auto.reads_growth_again) and
+    # passes the pericentre, where the shadow behind Gamma saturates: the run
+    # stops just after t = 2 pi, every node within the tolerance (0.998 of
+    # it against the exact solution; before, it stopped just before 2 pi).
+    from hamrkq.catalogue.exact import kepler
+
     problem = hamrkq.load_problem("kepler", e=0.999999)
     sol = solve_quietly(problem, t_span=(0, 2 * math.pi + 0.5))
     assert sol.status is Status.TOLERANCE_UNATTAINABLE
-    assert 2.0 < sol.t[-1] < 2 * math.pi  # before the second pericentre
-    assert f"t = {float(sol.t[-1])!r}" in sol.message and "gamma_limit = 0.05" in sol.message
+    assert 2.0 < sol.t[-1] < 2 * math.pi + 0.5
+    assert f"t = {float(sol.t[-1])!r}" in sol.message
     atol = problem.integration["atol"]
     assert np.abs(sol.global_error).max() <= atol
-    assert np.abs(sol.gamma[-1]).max() > 0.05 * atol * 0.9
+    assert np.abs(sol.y - kepler(sol.t, problem.y0)).max() <= 1.05 * atol
 
 
 def test_step_limit_keeps_every_node_and_they_are_right():

@@ -415,21 +415,36 @@ def test_output_times_already_past_the_shadows_saturation_certify_nothing():
     assert sol.message.startswith("By the first output time the shadow track")
 
 
-@pytest.mark.parametrize("atol", [1e-6, 1e-8])
-def test_output_times_far_apart_do_not_hide_an_exponential_growth(atol):
+def test_output_times_far_apart_do_not_hide_an_exponential_growth():
     """The chaotic Henon-Heiles orbit asked for t = 150 and 300 only: the
     rules after a run read Gamma's growth from the two returned rows (none)
     and auto returned SUCCESS 94 (1e-6) and 9633 (1e-8) times the tolerance
     off (heyoka in long double); the run with every node stops by t = 162.
     Now they read the kernel's maxima over every node, and so does the
-    ensemble's batch loop."""
+    ensemble's batch loop: at 1e-6 the run stops (t = 97.4); at 1e-8 it
+    reaches t = 300 with ten quencher steps in double-double and steps of
+    at most 0.2, both values within 0.117 of the tolerance against heyoka
+    in 160-bit floats (a stop in double-double with the same quencher
+    steps, at the same place, is not a second exponential reading:
+    hamrkq.solve.auto.reads_growth_again)."""
+    from helpers import multiprecision_states
+
     problem, q0, p0 = _henon_heiles_chaotic()
-    options = {"t_span": (0, 300), "method": "auto", "atol": atol, "t_eval": [150.0, 300.0]}
-    sol = hamrkq.solve(problem, q0=q0, p0=p0, **options)
-    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
-    ens = hamrkq.ensemble(problem, q0=np.array([q0]), p0=np.array([p0]), workers=1, **options)
-    assert ens.status[0] == hamrkq.Status.TOLERANCE_UNATTAINABLE.code
-    assert np.isnan(ens.y[0, -1]).all()
+    for atol in (1e-6, 1e-8):
+        options = {"t_span": (0, 300), "method": "auto", "atol": atol, "t_eval": [150.0, 300.0]}
+        sol = hamrkq.solve(problem, q0=q0, p0=p0, **options)
+        ens = hamrkq.ensemble(problem, q0=np.array([q0]), p0=np.array([p0]), workers=1, **options)
+        assert ens.status[0] == sol.status.code
+        if sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE:
+            assert atol == 1e-6 and sol.t.size == 0
+            assert np.isnan(ens.y[0, -1]).all()
+            continue
+        assert atol == 1e-8 and sol.status is hamrkq.Status.SUCCESS
+        np.testing.assert_array_equal(ens.y[0], sol.y)
+        params = list(sol.options["parameters"].values())
+        times = np.concatenate([[0.0], sol.t])
+        reference = multiprecision_states(problem.hamiltonian, params, q0 + p0, times)[1:]
+        assert np.abs(sol.y - reference).max() <= 1.05 * atol
 
 
 def test_an_exponential_reading_always_measures_the_rounding():
@@ -480,13 +495,17 @@ def test_auto_on_the_arenstorf_orbit_stops_where_its_error_can_no_longer_be_cert
     # 2.3 from the periodic orbit at the end (3e9 times the tolerance from
     # heyoka's extended-precision reference).  Against rk34q8 at 1e-10 (its
     # tangent estimate carries the error with the Jacobian and stops in time).
+    # It stops at t = 61.4 (3.6 periods; 0.976 of the tolerance against
+    # heyoka in 160-bit floats): a stop of the quencher in double-double in
+    # the same steps, at the same place, is not a second exponential reading
+    # (hamrkq.solve.auto.reads_growth_again), so auto tries five steps.
     problem = hamrkq.load_problem("arenstorf")
     period = problem.t_span[1]
     times = np.linspace(0.0, 10 * period, 401)[1:]
     auto = hamrkq.solve(problem, t_span=(0, 10 * period), t_eval=times, method="auto", atol=1e-8)
     tight = hamrkq.solve(problem, t_span=(0, 10 * period), t_eval=times, method="rk34q8",
                          atol=1e-10)  # fmt: skip
-    assert auto.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and auto.t[-1] < 3 * period
+    assert auto.status is hamrkq.Status.TOLERANCE_UNATTAINABLE and auto.t[-1] < 4 * period
     common = min(auto.t.size, tight.t.size)
     assert common > 20
     assert np.abs(auto.y[:common] - tight.y[:common]).max() <= 1.05 * (1e-8 + 1e-10)
@@ -774,3 +793,27 @@ def test_a_burst_read_twice_by_the_same_quencher_steps_is_not_two_readings():
     assert sol.success and sol.t[-1] == 100 * np.pi
     assert sol.options["z_substeps"] > 2
     assert np.abs(sol.y - kepler(sol.t, problem.y0)).max() <= 1.05e-8  # 0.992e-8
+
+
+def test_a_burst_read_again_over_the_same_stretch_is_not_a_second_reading():
+    """QA (2026-11-27): Kepler at e = 0.9 over ten orbits at rtol 1e-7 (atol
+    1e-13) with the event ``p1``: the pericentre at t = 2 pi read as a
+    2 040-fold growth in the run abandoned at t = 6.2738 and again in the
+    next, with three quencher steps, stopped at the event state there
+    (t = 6.2832); auto gave up saying more quencher steps only delay the
+    stop.  A second reading must come from a run that reached further
+    (``READING_REACH``); six quencher steps carry it to the end, every node
+    (0.912) and event state (0.023) within the tolerance."""
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    span = (0.0, 20 * np.pi)
+    sol = hamrkq.solve(problem, t_span=span, atol=1e-13, rtol=1e-7, events="p1")
+    assert sol.status is Status.SUCCESS, sol.message
+    assert sol.t[-1] == span[1]
+
+    def worst(t, y):
+        truth = problem.exact(t)
+        return np.max(np.abs(y - truth) / np.maximum(1e-13, 1e-7 * np.abs(truth)))
+
+    assert worst(sol.t, sol.y) <= 1.05
+    assert sol.t_events[0].size == 20  # p1 = 0 at every apocentre and pericentre
+    assert worst(sol.t_events[0], sol.y_events[0]) <= 1.05

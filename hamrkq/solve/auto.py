@@ -131,9 +131,10 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # linear regime, and the rounding grows alike.
     if out.status not in (ST_ABANDONED, Status.TOLERANCE_UNATTAINABLE.code):
         return None  # finished, or ended where no rerun helps
-    unstable = exponential and task.grew_exponentially
-    reading_before = task.grew_exponentially
-    task = replace(task, grew_exponentially=exponential)  # for the next run's decision
+    unstable = exponential and reads_growth_again(task, out)
+    reading_before = task.exponential_until
+    # for the next run's decision
+    task = replace(task, exponential_until=out.t_last if exponential else None)
     if out.status == ST_ABANDONED:
         if unstable:
             # The rounding measured, or (the quencher in double-double, where
@@ -147,20 +148,45 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     return _after_a_stop(requested, task, out, factor if unstable else None, reading_before)
 
 
+#: A second exponential reading counts only from a run that reached at least
+#: this many times as far from ``t0`` as the one that read the first
+#: (:func:`reads_growth_again`).
+READING_REACH = 1.05
+
+
+def reads_growth_again(task: Task, out: Any) -> bool:
+    """Whether a run whose estimate grew exponentially is the second such
+    run in a row (``task.exponential_until``, the first's end) and reached
+    further than it, by :data:`READING_REACH`: on a chaotic orbit more
+    quencher steps push the stop later by ``log(m'^z / m^z) / lambda``, a
+    good part of the time reached, whereas a burst read over the same
+    stretch of the orbit twice says nothing more.  Kepler at e = 0.9 over
+    ten orbits at ``rtol`` 1e-7 (``atol`` 1e-13) with the event ``p1``: the
+    pericentre at t = 2 pi read as a 2 040-fold growth in the run abandoned
+    at t = 6.2738 and in the next, with three quencher steps, stopped at
+    the event state there (t = 6.2832, where ``p1``'s tolerance is
+    ``atol``); auto gave up, its message saying more quencher steps only
+    delay the stop, where six carry it to the end (QA)."""
+    if task.exponential_until is None:
+        return False
+    before = abs(task.exponential_until - task.t0)
+    return abs(out.t_last - task.t0) >= READING_REACH * before
+
+
 def _after_a_stop(
     requested: SolveOptions,
     task: Task,
     out: Any,
     growth: float | None,
-    reading_before: bool = False,
+    reading_before: float | None = None,
 ) -> Task | None:
     """:func:`rerun` of a run stopped with ``TOLERANCE_UNATTAINABLE`` (not
     abandoned): ``method="auto"`` with more quencher steps, or the quencher
     in double-double, where that can help; ``growth``: the estimate's
     growth where it was exponential twice in a row, else None;
-    ``reading_before``: whether the run before this one read an exponential
-    growth (what the run in double-double, the same quencher steps again,
-    carries on: its reading is not a second one)."""
+    ``reading_before``: where the run before this one ended if it read an
+    exponential growth (what the run in double-double, the same quencher
+    steps again, carries on: its reading is not a second one)."""
     if requested.method != "auto" or requested.z_substeps is not None:
         return None
     if out.gamma is None:
@@ -184,7 +210,7 @@ def _after_a_stop(
         # stopped there in double-double without trying more quencher steps,
         # which carry it to the end (QA; tests/test_family.py).
         dd = _in_double_double(requested, task)
-        return None if dd is None else replace(dd, grew_exponentially=reading_before)
+        return None if dd is None else replace(dd, exponential_until=reading_before)
     # After two exponential readings more quencher steps only push the stop
     # a little later, and the shadow's error, m^z times the quencher's,
     # leaves the linear regime (the estimate saturates at the orbit's size

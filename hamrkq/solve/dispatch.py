@@ -87,10 +87,12 @@ class Task:
     #: ``method="auto"``'s runs made again with a smaller ``max_step`` after
     #: the shadow track saturated (:func:`within_linear_shadow`).
     shorter_steps: int = 0
-    #: The run before this one (``method="auto"``'s) grew exponentially
-    #: (:func:`hamrkq.rkq.auto_rules.error_growth`); a second such run in a
-    #: row makes auto measure the rounding instead of adding quencher steps.
-    grew_exponentially: bool = False
+    #: Where the run before this one (``method="auto"``'s) ended, if its
+    #: estimate grew exponentially (:func:`hamrkq.rkq.auto_rules.error_growth`),
+    #: else None; a second such run in a row that reaches further makes auto
+    #: measure the rounding instead of adding quencher steps
+    #: (:func:`hamrkq.solve.auto.reads_growth_again`).
+    exponential_until: float | None = None
     #: Run for ``method="auto"`` (``options.method`` is the member it chose).
     auto: bool = False
     #: The caller's ``t_eval`` where events or dense output need every node:
@@ -104,6 +106,11 @@ class Task:
         """The ``t_eval`` the caller gave: the kernel's, or the times sampled
         from the dense output (:attr:`output_times`)."""
         return self.t_eval if self.output_times is None else self.output_times
+
+    @property
+    def grew_exponentially(self) -> bool:
+        """Whether the run before this one read an exponential growth."""
+        return self.exponential_until is not None
 
 
 @dataclass(frozen=True)
