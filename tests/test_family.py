@@ -817,3 +817,27 @@ def test_a_burst_read_again_over_the_same_stretch_is_not_a_second_reading():
     assert worst(sol.t, sol.y) <= 1.05
     assert sol.t_events[0].size == 20  # p1 = 0 at every apocentre and pericentre
     assert worst(sol.t_events[0], sol.y_events[0]) <= 1.05
+
+
+def test_a_shadow_shorter_steps_do_not_cure_gives_way_to_the_tangent_estimate(monkeypatch):
+    """QA (2026-11-27): Kepler at e = 0.5 over 10 000 periods at atol = rtol =
+    1e-3 stopped at t = 54 632 of 62 832 after its runs with shorter steps,
+    every one cut where its shadow (the quencher in one step where it takes
+    ten) saturated; the tangent estimate, which has no shadow, reaches the
+    end (0.066 of the tolerance, benchmarks/shadow_saturation.txt).  Here
+    over 200 periods with no shorter-step runs allowed, so that the first
+    saturation goes to the tangent estimate: SUCCESS, every node within the
+    tolerance of Kepler's exact solution (0.26 measured)."""
+    from hamrkq.solve import auto
+
+    monkeypatch.setattr(auto, "MAX_SHORTER_STEPS", 0)
+    problem = hamrkq.load_problem("kepler", e=0.5)
+    span = (0.0, 400 * np.pi)
+    times = np.linspace(*span, 401)
+    sol = hamrkq.solve(problem, t_span=span, atol=1e-3, rtol=1e-3, t_eval=times)
+    assert sol.status is Status.SUCCESS, sol.message
+    assert sol.options["global_error_estimate"] == "tangent"
+    assert "its shadow track had moved" in sol.message
+    assert "Gamma from the tangent flow" in sol.message
+    truth = problem.exact(sol.t)
+    assert np.max(np.abs(sol.y - truth) / np.maximum(1e-3, 1e-3 * np.abs(truth))) <= 1.05

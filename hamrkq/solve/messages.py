@@ -552,10 +552,15 @@ def rerun_note(
 
 
 def _quencher_setting(task: Task) -> str:
-    """``with z_substeps=3`` (and ``, the quencher in double-double`` or
-    ``and the rounding witness``)."""
+    """``with z_substeps=3`` (and ``, the quencher in double-double``,
+    ``, Gamma from the tangent flow`` or ``and the rounding witness``)."""
     options = task.options
     extended = ", the quencher in double-double" if options.double_double else ""
     witness = " and the rounding witness" if uses_witness(task) else ""
     shorter = f", max_step={options.max_step:.4g}" if task.shorter_steps else ""
-    return f"with z_substeps={member_of(task).z_substeps}{shorter}{extended}{witness}"
+    tangent = (
+        ", Gamma from the tangent flow (global_error_estimate='tangent')"
+        if task.auto and options.gamma_name == "tangent"
+        else ""
+    )
+    return f"with z_substeps={member_of(task).z_substeps}{shorter}{tangent}{extended}{witness}"
