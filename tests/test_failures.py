@@ -183,6 +183,11 @@ def test_kepler_e_0_999999_stops_when_the_tolerance_cannot_be_vouched_for():
 def test_step_limit_keeps_every_node_and_they_are_right():
     sol = solve_quietly(HARMONIC, [0.0], [1.0], (0, 100), atol=1e-8, max_steps=50)
     assert_partial(sol, Status.MAX_STEPS, "max_steps = 50")
+    # what the interval would need at the run's pace (QA: a run with a small
+    # max_step stopped so without saying what to raise)
+    pace = 50 * 100 / sol.t[-1]
+    needed = int(sol.message.split("needs about ")[1].split(" steps")[0].replace(",", ""))
+    assert needed == math.ceil(pace) and "a larger max_steps lets it finish." in sol.message
     assert sol.stats["steps"] + sol.stats["rejected"] == 50
     assert len(sol) == sol.stats["steps"] + 1 and sol.t[-1] < 100
     assert np.abs(sol.y - harmonic_exact(sol.t)).max() <= 1.05e-8

@@ -416,6 +416,25 @@ def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
     return remedies
 
 
+def _steps_needed(out: RunOutput, task: Task) -> str:
+    """What a run stopped by ``max_steps`` would need at the pace it went:
+    its step attempts over the share of the interval it covered."""
+    covered = (float(out.t_last) - task.t0) / (task.t_end - task.t0)
+    attempts = out.stats.get("steps", 0) + out.stats.get("rejected", 0)
+    if not 0.0 < covered < 1.0 or attempts == 0:
+        return ""
+    needed = math.ceil(attempts / covered)
+    also = (
+        f", or a max_step larger than {task.options.max_step:g}"
+        if task.options.max_step < math.inf
+        else ""
+    )
+    return (
+        f" At that pace the interval needs about {needed:,} steps: a larger max_steps "
+        f"lets it finish{also}."
+    )
+
+
 def message(status: Status, out: RunOutput, task: Task) -> str:
     t = out.t_last
     if status is Status.SUCCESS:
@@ -445,6 +464,7 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
     elif status is Status.MAX_STEPS:
         text = (
             f"The step limit max_steps = {task.options.max_steps} was reached at t = {float(t)!r}."
+            + _steps_needed(out, task)
         )
     elif status is Status.INTERRUPTED:
         text = f"Interrupted (KeyboardInterrupt) near t = {float(t)!r}."
