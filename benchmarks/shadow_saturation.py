@@ -7,9 +7,10 @@ tolerance, where auto takes many quencher steps, it leaves the linear regime
 (half the orbit's size from the quencher) while the quencher is still far
 within the tolerance.  auto first runs again with shorter steps
 (``MAX_SHORTER_STEPS`` runs); where they do not cure it, with Gamma from the
-tangent flow, which has no shadow.  Each case is run twice in one process,
-the fallback off (as before) and on, and checked against Kepler's exact
-solution on 2001 output times.
+tangent flow, which has no shadow (whose stop stands: the quencher in
+double-double has the shadow's Gamma only).  Each case is run twice in one
+process, the fallback off (as before) and on, and checked against Kepler's
+exact solution on 2001 output times, or at every node (``nodes``).
 
 Run: ``python benchmarks/shadow_saturation.py > benchmarks/shadow_saturation.txt``
 (a few minutes).
@@ -28,18 +29,19 @@ import hamrkq
 from hamrkq.solve import auto
 
 CASES = [
-    # (eccentricity, periods, atol, rtol)
-    (0.5, 10_000, 1e-3, 1e-3),
-    (0.3, 10_000, 1e-3, 1e-3),
-    (0.95, 100, 1e-8, 1e-5),
+    # (eccentricity, periods, atol, rtol, every node)
+    (0.5, 10_000, 1e-3, 1e-3, False),
+    (0.3, 10_000, 1e-3, 1e-3, False),
+    (0.95, 100, 1e-8, 1e-5, False),
+    (0.95, 100, 1e-8, 1e-5, True),
 ]
 
 
-def run(e: float, periods: float, atol: float, rtol: float) -> str:
+def run(e: float, periods: float, atol: float, rtol: float, nodes: bool) -> str:
     """One case as auto runs it: status, reach, worst node, time, how."""
     problem = hamrkq.load_problem("kepler", e=e)
     span = (0.0, 2 * np.pi * periods)
-    times = np.linspace(*span, 2001)
+    times = None if nodes else np.linspace(*span, 2001)
     started = time.perf_counter()
     sol = hamrkq.solve(problem, t_span=span, atol=atol, rtol=rtol, t_eval=times)
     seconds = time.perf_counter() - started
@@ -57,14 +59,16 @@ def run(e: float, periods: float, atol: float, rtol: float) -> str:
 def main() -> None:
     warnings.simplefilter("ignore")
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average "
-          f"{os.getloadavg()[0]:.2f} at the start; Kepler, auto, 2001 output times")  # fmt: skip
+          f"{os.getloadavg()[0]:.2f} at the start; Kepler, auto")  # fmt: skip
     with_tangent = auto._with_tangent
-    for e, periods, atol, rtol in CASES:
-        print(f"\ne = {e}, {periods} periods, atol {atol:g}, rtol {rtol:g}")
+    for case in CASES:
+        e, periods, atol, rtol, nodes = case
+        where = "every node" if nodes else "2001 output times"
+        print(f"\ne = {e}, {periods} periods, atol {atol:g}, rtol {rtol:g}, {where}")
         auto._with_tangent = lambda requested, task: None
-        print(f"  without the tangent fallback: {run(e, periods, atol, rtol)}", flush=True)
+        print(f"  without the tangent fallback: {run(*case)}", flush=True)
         auto._with_tangent = with_tangent
-        print(f"  with it:                      {run(e, periods, atol, rtol)}", flush=True)
+        print(f"  with it:                      {run(*case)}", flush=True)
     print(f"\n# load average {os.getloadavg()[0]:.2f} at the end")
 
 

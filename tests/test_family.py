@@ -841,3 +841,23 @@ def test_a_shadow_shorter_steps_do_not_cure_gives_way_to_the_tangent_estimate(mo
     assert "Gamma from the tangent flow" in sol.message
     truth = problem.exact(sol.t)
     assert np.max(np.abs(sol.y - truth) / np.maximum(1e-3, 1e-3 * np.abs(truth))) <= 1.05
+
+
+def test_after_the_tangent_estimate_the_quencher_stays_in_double(monkeypatch):
+    """Kepler at e = 0.95 over 100 periods at rtol 1e-5 (atol 1e-8): the
+    shadow saturated, the runs with shorter steps did not cure it, and the
+    run with the tangent estimate stopped at double precision's floor;
+    auto then ran the quencher in double-double, whose Gamma is the
+    shadow's only, with the tangent estimate still chosen: nodes 1.52 delta
+    off.  Now the tangent run's stop stands (t = 377 of 628), every node
+    within the tolerance of Kepler's exact solution (0.996).  (No runs
+    with shorter steps here, which the path does not need: 1 s, not 10.)"""
+    from hamrkq.solve import auto
+
+    monkeypatch.setattr(auto, "MAX_SHORTER_STEPS", 0)
+    problem = hamrkq.load_problem("kepler", e=0.95)
+    sol = hamrkq.solve(problem, t_span=(0.0, 200 * np.pi), atol=1e-8, rtol=1e-5)
+    assert sol.options["global_error_estimate"] == "tangent"
+    assert sol.options["quencher_precision"] != "double-double"
+    truth = problem.exact(sol.t)
+    assert np.max(np.abs(sol.y - truth) / np.maximum(1e-8, 1e-5 * np.abs(truth))) <= 1.05
