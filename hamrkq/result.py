@@ -31,6 +31,7 @@ __all__ = [
     "freeze_in_place",
     "frozen_copy",
     "kept_nodes_note",
+    "owned",
 ]
 
 
@@ -171,6 +172,27 @@ def _solution_array(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
     # the callback is called with the dead reference: _KEPT.pop(key, ref)
     _KEPT[key] = weakref.ref(kept, functools.partial(_KEPT.pop, key))
     return kept
+
+
+def owned(array: np.ndarray) -> np.ndarray:
+    """``array``, made by the caller for a :class:`Solution` and held by no
+    one else, made read-only where it is and taken as the Solution's own
+    (:func:`_solution_array` passes it on without a copy): the arrays a run
+    returns (:func:`hamrkq.solve.outcome.solution`; a copy each was a
+    third of building the Solution of a tiny problem).  An array that is
+    not a float64 or bool array owning its data is left as it is (the
+    Solution copies it)."""
+    if (
+        type(array) is np.ndarray
+        and array.base is None
+        and array.flags.c_contiguous
+        and (array.dtype == np.float64 or array.dtype == np.bool_)
+        and _KEPT.get(id(array)) is None
+    ):
+        array.setflags(write=False)
+        key = id(array)
+        _KEPT[key] = weakref.ref(array, functools.partial(_KEPT.pop, key))
+    return array
 
 
 @dataclass(frozen=True, eq=False)

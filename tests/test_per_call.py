@@ -68,3 +68,60 @@ def test_a_dead_solutions_arrays_leave_the_registry():
     gc.collect()
     assert len(result._KEPT) < kept
     assert not any(i in result._KEPT and result._KEPT[i]() is not None for i in ids)
+
+
+def test_a_configuration_record_is_numpys_record_of_the_values():
+    from hamrkq.rkq.layout import CONFIG, new_config
+
+    for k, special in enumerate((0.0, -0.0, np.inf, np.nan, 1e-310, np.float64(2.5), 7, 3.9)):
+        values = {
+            name: (k if CONFIG.fields[name][0].kind == "i" else special) for name in CONFIG.names
+        }
+        values["keep_every"] = special if isinstance(special, int) else 2  # a float truncates
+        expected = np.array([tuple(values[name] for name in CONFIG.names)], dtype=CONFIG)
+        made = new_config(**values)
+        assert made.tobytes() == expected.tobytes() and made.shape == (1,)
+        assert made.flags.writeable and made.flags.aligned and made.flags.c_contiguous
+    values["keep_every"] = 2.7  # struct refuses it: NumPy's conversion, as before
+    assert new_config(**values)[0]["keep_every"] == 2
+    with pytest.raises(TypeError, match="missing"):
+        new_config(**{k: v for k, v in values.items() if k != "beta"})
+    with pytest.raises(TypeError, match="unknown"):
+        new_config(**values, bogus=1.0)
+
+
+def test_the_two_scales_of_a_run_are_each_scale_alone():
+    from hamrkq.rkq import witness_rules as wr
+
+    rng = np.random.default_rng(7)
+    for d in (1, 2, 3, 6):
+        for atol in (np.full(d, 1e-8), rng.random(d) * 1e-9, np.float64(1e-6)):
+            y0 = rng.normal(size=d)
+            y0[0] = 0.0
+            size = np.abs(y0) * rng.uniform(0.5, 40.0, size=d)
+            start = wr.component_scales(atol, y0)
+            reached = wr.component_scales(atol, np.maximum(np.abs(y0), size))
+            grew = float(np.max(reached / start)) > wr.STATE_GROWTH
+            rtol = np.zeros(d)
+            steps = wr.WITNESS_REFERENCE_STEPS
+            expected = grew and (
+                wr.needs_witness_after_run(atol, rtol, y0, steps, size)
+                and not wr.needs_witness_after_run(atol, rtol, y0, steps)
+            )
+            assert wr.state_outgrew_its_start(atol, rtol, y0, size) == expected
+
+
+def test_a_solutions_run_arrays_are_its_own_and_read_only():
+    problem = hamrkq.load_problem("harmonic")
+    sol = hamrkq.solve(problem, t_span=(0.0, 0.1), method="rk34q8")
+    again = hamrkq.solve(problem, t_span=(0.0, 0.1), method="rk34q8")
+    for name in ("t", "y", "z", "global_error", "gamma", "energy", "quenched", "atol", "rtol"):
+        array = getattr(sol, name)
+        assert not array.flags.writeable and array.base is None
+        assert array.tobytes() == getattr(again, name).tobytes()
+        assert not np.shares_memory(array, getattr(again, name))
+    assert sol.quenched.dtype == bool
+    # an array a caller holds is still copied
+    y = np.array(sol.y)
+    assert result.owned(y[1:]).flags.writeable and y.flags.writeable  # a view: left as it is
+    assert sol.replace(y=y).y is not y

@@ -131,7 +131,19 @@ def system_functions(system: CompiledSystem, gamma: str = "tangent"):
     with the compiled kernel (``gamma``: see :func:`kernel_functions`)."""
     from hamrkq.rkq.driver import KernelFunctions
 
-    return KernelFunctions(*system.kernel_arguments(gamma), kernel_module.kernel())
+    kernel = kernel_module.kernel()
+    known = _FUNCTIONS.get((id(system), gamma))
+    if known is not None and known[0] is system and known[1].advance is kernel:
+        return known[1]
+    functions = KernelFunctions(*system.kernel_arguments(gamma), kernel)
+    _FUNCTIONS[(id(system), gamma)] = (system, functions)
+    return functions
+
+
+#: :func:`system_functions` by system (its id, kept with it) and estimate of
+#: Gamma: the same functions for every run of a system (a compiled system's
+#: functions never change once compiled).
+_FUNCTIONS: dict[tuple[int, str], tuple] = {}
 
 
 #: Seconds of preparing a system before the first use is announced: loading

@@ -69,11 +69,18 @@ def available() -> tuple[bool, str]:
     """
     if _disabled_by_env():
         return False, f"the environment variable {DISABLE_ENV} is set"
+    if _IMPORTED:  # imported once: asked again by every solve
+        return True, ""
     try:
         import numba  # noqa: F401
     except Exception as exc:  # ImportError, or a broken install (llvmlite)
         return False, f"numba cannot be imported ({type(exc).__name__}: {exc})"
+    _IMPORTED.append(True)
     return True, ""
+
+
+#: Not empty once numba has been imported here (:func:`available`).
+_IMPORTED: list[bool] = []
 
 
 def numba_module():

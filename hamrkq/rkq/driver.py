@@ -223,6 +223,26 @@ def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
 
+def _parameters(params: Any) -> np.ndarray:
+    """``np.require(params, np.float64, ("C", "W"))``, with the common case
+    (a writable C-contiguous float64 array, as every solve passes) returned
+    without np.require's checks: the same array either way."""
+    if (
+        type(params) is np.ndarray
+        and params.dtype == np.float64
+        and params.flags.c_contiguous
+        and params.flags.writeable
+    ):
+        return params
+    return np.require(params, np.float64, ("C", "W"))
+
+
+#: Positions of the state record's fields in ``state.item(0)``: the fields
+#: read after a run, read at once (a record's field costs as much as the
+#: whole tuple).
+_AT = {name: k for k, name in enumerate(STATE.names)}
+
+
 class Integration:
     """One RKQ (or pair-only) integration from ``(t0, y0)`` to ``t_end``.
 
@@ -268,14 +288,15 @@ class Integration:
         self.t0, self.t_end = float(t0), float(t_end)
         self.settings = settings
         use_teval = settings.t_eval is not None
-        params = np.require(params, np.float64, ("C", "W"))
+        params = _parameters(params)
         witness_params = np.empty_like(params)
         arith.nudge(params, witness_params)
         self.inputs = Inputs(
             params=params,
             atol=_floats(atol),
             rtol=_floats(rtol),
-            t_eval=_floats(settings.t_eval if use_teval else []),
+            # (np.empty(0): the same empty float64 array as _floats([]))
+            t_eval=_floats(settings.t_eval) if use_teval else np.empty(0),
             witness_params=witness_params,
         )
         self.tableaus = member.tableaus
@@ -425,14 +446,19 @@ class Integration:
     def stats(self) -> dict[str, int]:
         """The counters: steps, rejected, quenches, nfev, njev (and
         roundoff_steps where Gamma is estimated by Richardson)."""
-        s = self.record
-        stats = {key: int(s[key]) for key in ("steps", "rejected", "quenches", "nfev", "njev")}
+        return self._stats(self.state.item(0))
+
+    def _stats(self, s: tuple) -> dict[str, int]:
+        """:meth:`stats` from the state record's values (``state.item(0)``)."""
+        stats = {key: s[_AT[key]] for key in ("steps", "rejected", "quenches", "nfev", "njev")}
         if self.member.use_z and self.config[0]["gamma_mode"] in (GAMMA_TANGENT, GAMMA_PAPER):
-            stats["roundoff_steps"] = int(s["roundoff_steps"])
+            stats["roundoff_steps"] = s[_AT["roundoff_steps"]]
         return stats
 
     def _output(self, chunks, status: int) -> RunOutput:
-        s = self.record
+        # the record's values as Python floats and ints, read at once
+        values = self.state.item(0)
+        s = dict(zip(STATE.names, values, strict=True))
         use_z = self.member.use_z
         if len(chunks) == 1:  # a short run: its one chunk is a copy already
             t, y, z, gam, q, rounding = chunks[0]
@@ -445,26 +471,26 @@ class Integration:
             gamma=gam if use_z else None,
             quenched=q.astype(bool) if use_z else None,
             status=status,
-            t_last=float(s["t"]),
-            h_fail=float(s["failed_h"]),
+            t_last=s["t"],
+            h_fail=s["failed_h"],
             first_step=float(self.first_step),
-            max_ratio=float(s["max_ratio"]),
-            floor_ratio=float(s["floor_ratio"]),
-            bad_component=int(s["bad_component"]),
-            stats=self.stats(),
-            projected=float(s["projected"]),
+            max_ratio=s["max_ratio"],
+            floor_ratio=s["floor_ratio"],
+            bad_component=s["bad_component"],
+            stats=self._stats(values),
+            projected=s["projected"],
             y_max=self.work.V[YMAX].copy(),
             gamma_max=self.work.V[GMAX].copy() if use_z else None,
-            gamma_checkpoints=self._checkpoints() if use_z else None,
+            gamma_checkpoints=self._checkpoints(s["checkpoint"]) if use_z else None,
             thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
             rounding=rounding if use_z else None,
             step_range=float(loop.step_range(s)),
-            stored_ratio=float(s["stored_ratio"]),
+            stored_ratio=s["stored_ratio"],
         )
 
-    def _checkpoints(self) -> np.ndarray:
+    def _checkpoints(self, passed: int) -> np.ndarray:
         rows = self.work.V[CHK0 : CHK0 + CHECKPOINTS].copy()
-        rows[int(self.record["checkpoint"]) :] = np.nan  # not passed
+        rows[passed:] = np.nan  # not passed
         return rows
 
 

@@ -18,6 +18,8 @@ the numbers the configuration and the status field hold.
 
 from __future__ import annotations
 
+import operator
+import struct
 from typing import NamedTuple
 
 import numpy as np
@@ -296,10 +298,13 @@ def allocate_work(y0: np.ndarray, stages: int, z_stages: int) -> Work:
         dKz=np.zeros((max(z_stages, 1), d)),
         JM=np.zeros((d, d)),
     )
-    for row in (U, ZHI, SHI, WHI):
-        work.V[row] = y0
-    work.V[YMAX] = np.abs(y0)
+    work.V[_STARTING_ROWS] = y0
+    np.abs(y0, out=work.V[YMAX])
     return work
+
+
+#: The rows of :attr:`Work.V` a run starts at ``y0`` (:func:`allocate_work`).
+_STARTING_ROWS = [U, ZHI, SHI, WHI]
 
 
 def allocate_output(rows: int, d: int, with_z: bool) -> Output:
@@ -315,15 +320,35 @@ def allocate_output(rows: int, d: int, with_z: bool) -> Output:
     )
 
 
+#: The configuration's fields, as a set and in order, and its record as
+#: packed bytes (native order, no padding: CONFIG's own layout).
+_CONFIG_NAMES = frozenset(CONFIG.names)
+_CONFIG_VALUES = operator.itemgetter(*CONFIG.names)
+_CONFIG_BYTES = struct.Struct(
+    "=" + "".join("q" if CONFIG.fields[name][0] == _I else "d" for name in CONFIG.names)
+)
+assert _CONFIG_BYTES.size == CONFIG.itemsize
+
+
 def new_config(**values: float) -> np.ndarray:
     """A one-row :data:`CONFIG` array; every field must be given."""
-    missing = set(CONFIG.names) - set(values)
-    unknown = set(values) - set(CONFIG.names)
-    if missing or unknown:
+    if values.keys() != _CONFIG_NAMES:
+        missing = _CONFIG_NAMES - set(values)
+        unknown = set(values) - _CONFIG_NAMES
         raise TypeError(f"config fields missing {sorted(missing)}, unknown {sorted(unknown)}")
     # one record from a tuple in field order: a store per field costs ten
-    # times as much (every solve pays this)
-    return np.array([tuple(values[name] for name in CONFIG.names)], dtype=CONFIG)
+    # times as much (every solve pays this); packed as the record's bytes
+    # (doubles and integers stored as they are), a third of NumPy's
+    # conversion of the tuple, which remains for what struct does not take
+    # as it is (a float for an integer field, which NumPy truncates)
+    row = _CONFIG_VALUES(values)
+    try:
+        packed = _CONFIG_BYTES.pack(*row)
+    except (struct.error, TypeError, OverflowError):
+        return np.array([row], dtype=CONFIG)
+    # (a writable buffer of them: NumPy copies a record array field by
+    # field, and CONFIG's alignment is 1, so any buffer is aligned for it)
+    return np.frombuffer(bytearray(packed), dtype=CONFIG)
 
 
 def new_state(t0: float) -> np.ndarray:

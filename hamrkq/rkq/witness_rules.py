@@ -118,23 +118,31 @@ def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
     because its momenta run from Jupiter's 5e-6 to Pluto's 2e-11.
     """
     size = np.abs(np.asarray(y0, dtype=np.float64))
-    d = size.shape[0]
-    floor = np.asarray(atol, dtype=np.float64)
-    # One row per half (whole-array operations: every solve pays this)
+    return _scales(np.asarray(atol, dtype=np.float64), size.reshape(1, -1))[0]
+
+
+def _scales(floor: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """:func:`component_scales` of each row of ``size`` (the ``|y0|`` of
+    several states, shape ``(k, d)``), in whole-array operations: every solve
+    asks two (:func:`state_outgrew_its_start`)."""
+    k, d = size.shape
+    # One row per half of each state
     halves = 2 if d % 2 == 0 and d > 0 else 1
-    size_rows = size.reshape(halves, -1)
-    top = size_rows.max(axis=1, initial=0.0)
+    size_rows = size.reshape(k, halves, -1)
+    top = size_rows.max(axis=2, initial=0.0)
     if not top.all():
         # a half that is all zeros is measured by the whole state (or 1)
-        top[top == 0.0] = size.max(initial=0.0) or 1.0
+        whole = size.max(axis=1, initial=0.0)
+        whole[whole == 0.0] = 1.0
+        top = np.where(top == 0.0, whole[:, None], top)
     if floor.ndim == 0 or not d or floor.min() == floor.max():
         # One atol for every component: each share is 1, and no |y0_i|
         # exceeds its half's largest (10 us less of every call).
-        return top.repeat(d // halves)
-    floor_rows = np.broadcast_to(floor, size.shape).reshape(halves, -1)
+        return top.repeat(d // halves, axis=1)
+    floor_rows = np.broadcast_to(floor, (d,)).reshape(halves, -1)
     largest = floor_rows.max(axis=1, keepdims=True, initial=0.0)
     share = np.divide(floor_rows, largest, out=np.ones_like(floor_rows), where=largest > 0.0)
-    return np.maximum(size_rows, top[:, None] * share).reshape(d)
+    return np.maximum(size_rows, top[:, :, None] * share).reshape(k, d)
 
 
 def needs_witness(
@@ -364,8 +372,13 @@ def state_outgrew_its_start(
     t = 800 (q = 2080): its quencher's rounding grows with ``|q|``, and the
     tangent Gamma does not see rounding.
     """
-    start = component_scales(atol, np.abs(y0))
-    grew = float(np.max(component_scales(atol, np.maximum(np.abs(y0), size)) / start))
+    # the scales at the start and at the run's largest state, in one pass
+    start_size = np.abs(np.asarray(y0, dtype=np.float64))
+    sizes = np.empty((2, start_size.shape[0]))
+    sizes[0] = start_size
+    np.maximum(start_size, size, out=sizes[1])
+    start, reached = _scales(np.asarray(atol, dtype=np.float64), sizes)
+    grew = float(np.max(reached / start))
     if not grew > STATE_GROWTH:  # the common case, decided without the rules (every call pays)
         return False
     at_size = needs_witness_after_run(atol, rtol, y0, WITNESS_REFERENCE_STEPS, size)

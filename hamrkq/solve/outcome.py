@@ -12,7 +12,7 @@ import math
 from typing import Any
 
 from hamrkq.backends.numeric import numeric_of
-from hamrkq.result import Solution, Status
+from hamrkq.result import Solution, Status, owned
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.solve.assumptions import Breach, breach_message
 from hamrkq.solve.dispatch import MethodSpec, Task, member_of, uses_witness
@@ -37,11 +37,11 @@ def solution(
     stats = dict(out.stats)
     status = _STATUS_BY_CODE[out.status]
     if not out.t.size:
-        energy = out.t
+        energy = out.t.copy()  # (not the array t, owned below)
     elif backend == "numba":
         from hamrkq.backends import compiled
 
-        energy = compiled.energy(task.ham, out.t, out.y, task.params)
+        energy = owned(compiled.energy(task.ham, out.t, out.y, task.params))  # a new array
     else:  # the same generated code as the compiled backend's, interpreted
         energy = numeric_of(task.ham).energy_as_compiled(out.t, out.y, task.params)
     options: dict[str, Any] = {
@@ -78,9 +78,12 @@ def solution(
             rounding_witness=witness,
         )
     has_gamma = spec.rk8 and gamma_mode != "off"
+    # The run's arrays are its own copies (hamrkq.rkq.driver), held by no
+    # one else once the Solution is made: taken as they are, not copied
+    # again (owned() copies nothing it cannot take).
     return Solution(
-        t=out.t,
-        y=out.y,
+        t=owned(out.t),
+        y=owned(out.y),
         energy=energy,
         status=status,
         message=message(status, out, task) if breach is None else breach_message(breach, out.t),
@@ -91,8 +94,8 @@ def solution(
         rtol=task.rtol,
         stats=stats,
         options=options,
-        z=out.z,
-        global_error=None if out.z is None else out.y - out.z,
-        gamma=out.gamma if has_gamma else None,
-        quenched=out.quenched,
+        z=None if out.z is None else owned(out.z),
+        global_error=None if out.z is None else owned(out.y - out.z),
+        gamma=owned(out.gamma) if has_gamma else None,
+        quenched=None if out.quenched is None else owned(out.quenched),
     )
