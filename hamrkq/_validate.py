@@ -58,7 +58,8 @@ def span(t_span: Any) -> tuple[float, float]:
         length = None
     if length != 2:
         raise InputError(f"t_span must be two numbers (t0, t_end), got {show(t_span)}")
-    t0, t_end = (real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
+    # (a float is its own float: real() is for the rest)
+    t0, t_end = (v if type(v) is float else real(f"t_span[{i}]", v) for i, v in enumerate(t_span))
     if not (math.isfinite(t0) and math.isfinite(t_end)):
         raise InputError(f"t_span must be finite, got {show(t_span)}")
     return t0, t_end
