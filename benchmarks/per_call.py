@@ -7,7 +7,9 @@ measures it once per checkout, among its fresh-process rows): here each
 round runs every checkout in turn, each in a fresh interpreter with its own
 warm caches (warmed by a first round that is not counted), and each round
 takes the median of 300 calls of ``solve`` on the harmonic oscillator over a
-span of five nodes, with the paper's method and with ``method="auto"``.  The
+span of five nodes, with the paper's method and with ``method="auto"``: of
+their wall time, and of the CPU time of the calling thread (which time taken
+by other processes on a shared machine does not count).  The
 rounds alternate, so that a change in the machine's load touches every
 checkout alike.  Writes ``benchmarks/per_call.json`` (or ``--out``) and the
 table beside it (``per_call.md``): the median over the rounds, and the
@@ -39,12 +41,14 @@ span = (0.0, 0.05)
 result = {{}}
 for method in ("rk34q8", "auto"):
     hamrkq.solve(problem, t_span=span, method=method)  # load the compiled code
-    times = []
+    times, cpu = [], []
     for _ in range({calls}):
-        started = time.perf_counter()
+        started, started_cpu = time.perf_counter(), time.thread_time()
         hamrkq.solve(problem, t_span=span, method=method)
+        cpu.append(time.thread_time() - started_cpu)
         times.append(time.perf_counter() - started)
     result[method] = statistics.median(times) * 1e3
+    result[method + ":cpu"] = statistics.median(cpu) * 1e3
 result["file"] = hamrkq.__file__
 print(json.dumps(result))
 """
@@ -87,8 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     for entry, measured in zip(results["checkouts"], rounds, strict=True):
         for method in METHODS:
             values = [r[method] for r in measured]
+            cpu = [r[method + ":cpu"] for r in measured]
             entry[method] = {"rounds": values, "median": statistics.median(values),
-                             "lowest": min(values), "highest": max(values)}  # fmt: skip
+                             "lowest": min(values), "highest": max(values),
+                             "cpu_rounds": cpu, "cpu_median": statistics.median(cpu),
+                             "cpu_lowest": min(cpu)}  # fmt: skip
     measure.save_record(args.out.parent, args.out.stem, measure.end_record(results), table)
     return 0
 
@@ -96,14 +103,16 @@ def main(argv: list[str] | None = None) -> int:
 def table(results: dict) -> str:
     """Markdown: one row per checkout and method."""
     lines = [
-        "| checkout | method | median ms a call | lowest round | highest round |",
-        "|---|---|---|---|---|",
+        "| checkout | method | median ms a call | lowest round | highest round "
+        "| median CPU ms a call | lowest round (CPU) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for e in results["checkouts"]:
         for method in METHODS:
             m = e[method]
             lines.append(f"| {e['commit']} | {method} | {m['median']:.3f} | "
-                         f"{m['lowest']:.3f} | {m['highest']:.3f} |")  # fmt: skip
+                         f"{m['lowest']:.3f} | {m['highest']:.3f} | "
+                         f"{m['cpu_median']:.3f} | {m['cpu_lowest']:.3f} |")  # fmt: skip
     lines.append("")
     lines.append(f"{results['rounds']} alternating rounds of {results['calls']} calls each, "
                  f"{results['started']}, load average {results['machine']['load_average']} at "
