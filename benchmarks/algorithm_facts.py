@@ -641,13 +641,13 @@ def dd_shortfall():
 
     prentice = hamrkq.load_problem("prentice2011")
     params = np.asarray(prentice.parameter_array, dtype=float).ravel()
-    equations = _equations(prentice.hamiltonian, params)
+    system = _equations(prentice.hamiltonian, params)
 
     def states(bits: int) -> np.ndarray:
         real = [hy.real(float(v), bits) for v in prentice.y0]
         tol, start = hy.real(2.0 ** (16 - bits), bits), hy.real(0.0, bits)
-        ta = hy.taylor_adaptive(equations, np.array(real), fp_type=hy.real, prec=bits, tol=tol,
-                                time=start)  # fmt: skip
+        ta = hy.taylor_adaptive(system.equations, np.array(real), fp_type=hy.real, prec=bits,
+                                tol=tol, time=start, pars=system.pars(hy.real, bits))  # fmt: skip
         ta.propagate_until(hy.real(1000.0, bits))
         return np.array([float(v) for v in ta.state])
 

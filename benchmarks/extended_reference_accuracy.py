@@ -80,13 +80,14 @@ def _heyoka_steps(ham, params, y0, t, tol, callback=None) -> np.ndarray:
 
     from hamrkq.analysis.extended_reference import _equations
 
-    equations = _equations(ham, np.asarray(params, dtype=float).ravel())
+    system = _equations(ham, np.asarray(params, dtype=float).ravel())
     ta = hy.taylor_adaptive(
-        equations,
+        system.equations,
         np.asarray(y0, dtype=np.longdouble),
         time=np.longdouble(t[0]),
         fp_type=np.longdouble,
         tol=np.longdouble(tol),
+        pars=system.pars(),
     )
     states = np.full((t.size, len(y0)), np.nan, dtype=np.longdouble)
     part = ta.propagate_grid(np.asarray(t, dtype=np.longdouble), callback=callback)[-1]

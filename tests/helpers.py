@@ -124,13 +124,14 @@ def multiprecision_states(ham, params, y0, times, bits: int = 160) -> np.ndarray
 
     from hamrkq.analysis.extended_reference import _equations
 
-    equations = _equations(ham, np.asarray(params, dtype=float).ravel())
+    system = _equations(ham, np.asarray(params, dtype=float).ravel())
 
     def run(precision: int) -> np.ndarray:
         real = [hy.real(float(v), precision) for v in np.asarray(y0, dtype=float)]
         tol = hy.real(2.0 ** (16 - precision), precision)
-        ta = hy.taylor_adaptive(equations, np.array(real), fp_type=hy.real, prec=precision,
-                                tol=tol, time=hy.real(0.0, precision))  # fmt: skip
+        ta = hy.taylor_adaptive(system.equations, np.array(real), fp_type=hy.real, prec=precision,
+                                tol=tol, time=hy.real(0.0, precision),
+                                pars=system.pars(hy.real, precision))  # fmt: skip
         grid = np.array([hy.real(float(t), precision) for t in times])
         states = ta.propagate_grid(grid)[-1]
         assert states.shape[0] == grid.size

@@ -10,12 +10,13 @@ heyoka's Taylor method in x86 extended precision (``numpy.longdouble``, a
 64-bit mantissa, eps = 1.1e-19) at a tolerance of 1e-18 (heyoka's order 22).
 The equations are hamrkq's own symbolic right-hand side, translated by
 ``heyoka.from_sympy`` (heyoka's code, not hamrkq's generated code, evaluates
-them), with the parameters, the initial state and the rational constants as
-extended-precision numbers, so that the problem integrated is the
-mathematical one, not its rounding to double.  Its own error is estimated by
-the same integration at two looser tolerances, 1e-17 and 1e-16 (orders 21
-and 20): :data:`ROUNDING_SAFETY` times the largest difference from either
-(see :func:`extended_reference`).
+them), with the initial state as extended-precision numbers and the
+parameters and rational constants as heyoka's runtime parameters, each
+correctly rounded (never folded into products or sums of rounded numbers),
+so that the problem integrated is the mathematical one, not its rounding.
+Its own error is estimated by the same integration at two looser
+tolerances, 1e-17 and 1e-16 (orders 21 and 20): :data:`ROUNDING_SAFETY`
+times the largest difference from either (see :func:`extended_reference`).
 
 Its steps are heyoka's, bounded (:mod:`hamrkq.analysis.heyoka_steps`:
 where the solution's Taylor series has no terms at the two highest orders,
@@ -31,7 +32,8 @@ forced oscillator of the tests); functions heyoka cannot translate (``Abs``,
 
 from __future__ import annotations
 
-from typing import Any
+from fractions import Fraction
+from typing import Any, NamedTuple
 
 import numpy as np
 import sympy as sp
@@ -86,12 +88,6 @@ def available() -> bool:
     return not unavailable_reason()
 
 
-def _constant(value: Any):
-    import heyoka as hy
-
-    return hy.expression(np.longdouble(value))
-
-
 def _products(expr: sp.Basic) -> sp.Basic:
     """``expr`` with every integer power ``x**n`` (n >= 2) written as the
     product ``x*x*...*x``, unevaluated: heyoka differentiates ``x**3.0`` by
@@ -107,37 +103,80 @@ def _products(expr: sp.Basic) -> sp.Basic:
     return expr.func(*args)
 
 
-def _equations(ham: Any, params: np.ndarray) -> list:
-    """Hamilton's equations as heyoka (variable, expression) pairs."""
+class HeyokaSystem(NamedTuple):
+    """Hamilton's equations for heyoka and the values of their runtime
+    parameters (``hy.par[i]``): H's parameters that the equations use, then
+    the rational constants
+    whose denominator is not a power of two (1/6), as exact fractions, to be
+    rounded to the precision of the run (:meth:`pars`)."""
+
+    equations: list
+    constants: tuple[Fraction, ...]
+
+    def pars(self, fp_type: Any = np.longdouble, precision: int | None = None) -> np.ndarray:
+        """The parameters' values in ``fp_type`` (``heyoka.real`` takes its
+        ``precision`` in bits): each fraction correctly rounded."""
+        import heyoka as hy
+
+        if fp_type is hy.real:
+            return np.array(
+                [hy.real(c.numerator, precision) / hy.real(c.denominator, precision)
+                 for c in self.constants]
+            )  # fmt: skip
+        return np.array(
+            [fp_type(c.numerator) / fp_type(c.denominator) for c in self.constants],
+            dtype=fp_type,
+        )
+
+
+def _equations(ham: Any, params: np.ndarray) -> HeyokaSystem:
+    """Hamilton's equations as heyoka (variable, expression) pairs, with
+    H's parameters and non-dyadic rationals as runtime parameters.
+
+    Not as numbers in the expressions: heyoka folds products and sums of
+    numbers as it builds them, in the numbers' precision, so ``g (m1 + m2)
+    l1`` became one long double, rounded, and the problem integrated was
+    not the mathematical one.  On the double pendulum over [0, 100], whose
+    state at t = 96.86 moves 4.9e-4 for an ulp of its start, the reference
+    so built (in 160-bit floats, with those long-double constants) was
+    2.3e-7 off one with the parameters exact, and made hamrkq's nodes look
+    2272 tolerances off at 1e-10 (QA, 2026-11-27; they are within 0.014).
+    SymPy would likewise fold a sum of parameter Floats (1 - mu) to 53
+    bits, and heyoka takes only dyadic rationals."""
     import heyoka as hy
 
     rhs = list(ham.rhs)
     symbols: dict[sp.Basic, Any] = {s: hy.expression(f"y{k}") for k, s in enumerate(ham.state)}
     symbols[ham.t] = hy.time
-    # Parameters and non-dyadic rationals (1/6) as extended-precision
-    # constants, through placeholders: heyoka takes only dyadic rationals,
-    # and SymPy would fold a sum of parameter Floats (1 - mu) to 53 bits.
+    constants: list[Fraction] = []
     replacements: dict[sp.Basic, sp.Basic] = {}
+
+    def runtime(placeholder: sp.Basic, value: Fraction) -> None:
+        symbols[placeholder] = hy.par[len(constants)]
+        constants.append(value)
+
+    used = set().union(*(e.free_symbols for e in rhs))
     for symbol, value in zip(ham.parameters, np.asarray(params, dtype=float), strict=True):
+        if symbol not in used:  # (Kepler's e sets the start only: heyoka counts pars)
+            continue
         placeholder = sp.Dummy()
-        symbols[placeholder] = _constant(value)
+        runtime(placeholder, Fraction(float(value)))
         replacements[symbol] = placeholder
     rhs = [e.xreplace(replacements) for e in rhs]
     rationals = set().union(*(e.atoms(sp.Rational) for e in rhs))
     replacements = {}
-    for rational in rationals:
+    for rational in sorted(rationals, key=lambda r: (r.q, r.p)):
         if rational.q & (rational.q - 1):  # the denominator is not a power of two
             placeholder = sp.Dummy()
-            symbols[placeholder] = hy.expression(
-                np.longdouble(rational.p) / np.longdouble(rational.q)
-            )
+            runtime(placeholder, Fraction(int(rational.p), int(rational.q)))
             replacements[rational] = placeholder
     rhs = [_products(e.xreplace(replacements)) for e in rhs]
     variables = [symbols[s] for s in ham.state]
     try:
-        return [(v, hy.from_sympy(e, symbols)) for v, e in zip(variables, rhs, strict=True)]
+        equations = [(v, hy.from_sympy(e, symbols)) for v, e in zip(variables, rhs, strict=True)]
     except (TypeError, ValueError) as exc:
         raise InputError(f"the extended reference cannot translate H for heyoka: {exc}") from exc
+    return HeyokaSystem(equations, tuple(constants))
 
 
 def extended_states(
@@ -156,8 +195,8 @@ def extended_states(
     if reason:
         raise InputError(f"reference='extended' is not available: {reason}")
     t = _times(t_nodes)
-    equations = _equations(ham, np.asarray(params, dtype=float).ravel())
-    return propagate(equations, _state(y0, "y0"), _start(t, t0), t, tol)
+    system = _equations(ham, np.asarray(params, dtype=float).ravel())
+    return propagate(system.equations, _state(y0, "y0"), _start(t, t0), t, tol, pars=system.pars())
 
 
 def _start(t: np.ndarray, t0: float | None) -> float:

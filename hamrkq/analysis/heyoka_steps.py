@@ -129,14 +129,21 @@ def _dense(ta: Any, grid: np.ndarray, states: np.ndarray, done: int, sign: int) 
 
 
 def propagate(
-    equations, y0, t0: float, t: np.ndarray, tol: float, fp_type: Any = np.longdouble
+    equations,
+    y0,
+    t0: float,
+    t: np.ndarray,
+    tol: float,
+    fp_type: Any = np.longdouble,
+    pars: np.ndarray | None = None,
 ) -> np.ndarray:
     """The states at ``t`` from ``y0`` at ``t0``: heyoka's adaptive Taylor
     steps in ``fp_type``, each at most :data:`STEP_GROWTH` times the one
     before (the first at most :func:`_first_step_bound`), at most
     :data:`MAX_STEPS` of them.  heyoka's ``propagate_grid`` takes the steps
     (its dense output gives the states between them) and stops at a step
-    longer than that; the step is then taken again, bounded."""
+    longer than that; the step is then taken again, bounded.  ``pars``: the
+    values of the equations' runtime parameters (``hy.par[i]``)."""
     import heyoka as hy
 
     ta = hy.taylor_adaptive(
@@ -145,6 +152,7 @@ def propagate(
         time=fp_type(float(t0)),
         fp_type=fp_type,
         tol=fp_type(tol),
+        pars=np.zeros(0, dtype=fp_type) if pars is None else pars,
     )
     grid = np.array([fp_type(float(v)) for v in t])
     end = grid[-1]
