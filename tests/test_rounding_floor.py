@@ -325,6 +325,34 @@ def test_a_chaotic_forced_run_keeps_the_witnesss_stop_at_the_floor():
     assert np.abs(sol.y - truth).max() <= 1.05e-10  # 1.035e-10
 
 
+def test_a_forced_run_in_double_double_that_reads_chaos_goes_back_to_the_witness():
+    """QA (2026-11-27): the same forced pendulum at atol = rtol = 1e-10 over
+    [0, 200] (its forcing parameters): the witness run stopped at the floor
+    at t = 34.9 before any exponential reading, so auto ran the quencher in
+    double-double, which read one (6340-fold) and, with three quencher
+    steps, stopped at t = 84.8: 59 of its 437 nodes, from t = 70 on, up to
+    2451 times the tolerance off (its stage times are doubles, their
+    rounding amplified and measured by no witness).  Now such a reading
+    sends auto back to the quencher in double with the witness, whose stop
+    stands (t = 34.9, every node within 0.98), and the message no longer
+    offers double-double."""
+    from helpers import multiprecision_states
+
+    t, q, p, a, w = sp.symbols("t q p A w")
+    ham = hamrkq.Hamiltonian(
+        p**2 / 2 - sp.cos(q) - a * q * sp.cos(w * t), q=[q], p=[p], t=t,
+        parameters={a: 1.2, w: 2 / 3},
+    )  # fmt: skip
+    sol = hamrkq.solve(ham, q0=[0.5], p0=[0.0], t_span=(0.0, 200.0), atol=1e-10, rtol=1e-10)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert sol.options["quencher_precision"] == "double"
+    assert "double-double (" not in sol.message.split(" method='auto' ran")[0]
+    params = list(sol.options["parameters"].values())
+    truth = multiprecision_states(ham, params, [0.5, 0.0], sol.t)
+    delta = np.maximum(1e-10, 1e-10 * np.abs(truth))
+    assert np.max(np.abs(sol.y - truth) / delta) <= 1.05
+
+
 def test_the_kernel_measures_the_range_of_its_free_steps():
     """The ratio of the largest free step to the smallest, without the first
     steps' growth (until the controller first asks for none) and the steps

@@ -130,6 +130,15 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     # Kepler orbit's pericentre passages early in a run): more quencher steps
     # only push the stop a little later and carry the shadow out of its
     # linear regime, and the rounding grows alike.
+    if exponential and task.options.double_double and task.ham.equations_time_dependent:
+        # Its stage times are doubles, their rounding amplified like the
+        # rest and measured by no witness there: a forced pendulum (H =
+        # p^2/2 - cos q - 1.2 q cos(2t/3), from q = 0.5 at 1e-10) went to
+        # double-double at the floor at t = 34.9 before any exponential
+        # reading, read one there and stopped at t = 84.8, its nodes from
+        # t = 70 up to 2451 delta off (QA).  The run in double with the
+        # witness, whose stage times are rounded stochastically, stands.
+        return _in_double_with_witness(requested, task)
     if out.status not in (ST_ABANDONED, Status.TOLERANCE_UNATTAINABLE.code):
         return None  # finished, or ended where no rerun helps
     unstable = exponential and reads_growth_again(task, out)
@@ -261,7 +270,9 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
     if codegen.double_double_unsupported(task.ham) or time_rounding_limits(task):
         # (its stage times are doubles: the time's rounding stays)
         return None
-    if task.grew_exponentially and task.ham.equations_time_dependent:
+    if task.stage_times_amplified or (
+        task.grew_exponentially and task.ham.equations_time_dependent
+    ):
         # The stage times' rounding, which double-double keeps, amplified
         # like the rest: a chaotic forced pendulum (H = p^2/2 - cos q -
         # 1.2 q cos(2t/3), from q = 0.5 at 1e-10), whose witness run stopped
@@ -400,6 +411,14 @@ def reruns_with_witness(task: Task) -> bool:
     tangent's estimate, without the witness, the quencher in double."""
     # without building the task (every finished run asks)
     return can_witness(task.options) and not uses_witness(task)
+
+
+def _in_double_with_witness(requested: SolveOptions, task: Task) -> Task:
+    """``task`` with its quencher in double again and the witness, not
+    projected, never again in double-double
+    (``Task.stage_times_amplified``)."""
+    options = replace(task.options, quencher_precision=requested.quencher_precision)
+    return replace(task, options=options, witness=True, stage_times_amplified=True, project=False)
 
 
 def _witnessed(task: Task) -> Task | None:

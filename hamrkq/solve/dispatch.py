@@ -93,6 +93,11 @@ class Task:
     #: measure the rounding instead of adding quencher steps
     #: (:func:`hamrkq.solve.auto.reads_growth_again`).
     exponential_until: float | None = None
+    #: A run of this time-dependent H with the quencher in double-double read
+    #: an exponential growth: the rounding of its stage times (doubles),
+    #: amplified, is not measured there, so auto keeps the quencher in
+    #: double with the witness from then on (:func:`hamrkq.solve.auto.rerun`).
+    stage_times_amplified: bool = False
     #: Run for ``method="auto"`` (``options.method`` is the member it chose).
     auto: bool = False
     #: The caller's ``t_eval`` where events or dense output need every node:

@@ -366,6 +366,8 @@ def _double_double_available(task: Task) -> bool:
 
     if task.options.double_double or task.options.gamma_name != "shadow":
         return False
+    if task.stage_times_amplified:
+        return False  # (auto's run in double-double found its stage times' rounding amplified)
     return not (codegen.double_double_unsupported(task.ham) or time_rounding_limits(task))
 
 
