@@ -58,6 +58,7 @@ from hamrkq.solve.output_times import output_rounding_limits
 
 __all__ = [
     "MIN_GROWTH_STEPS",
+    "double_double_can_help",
     "folded_growth",
     "growth",
     "projected_departure",
@@ -251,38 +252,45 @@ def retry_substeps(out: Any, task: Task, growth: float | None = None) -> int | N
 
 
 def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
-    """``task`` with its quencher in double-double, or None when that was
-    chosen already, refused (``quencher_precision="double"``), is not
-    available for ``f`` (``DD_UNSUPPORTED`` of the generated module), or
-    cannot go below the floor: the rounding of the stage times, where ``H``
-    depends on the time and it could reach the tolerance, or where the
-    estimate grew exponentially and amplifies it alike."""
-    from hamrkq.backends import codegen
-
-    if requested.quencher_precision is not None or task.options.double_double:
-        return None
-    if task.options.gamma_name != "shadow":
-        # (the quencher in double-double has the shadow's Gamma only: after
-        # auto's run with the tangent estimate, _with_tangent, it ran with
-        # a Gamma neither computed, and returned nodes 1.52 delta off on
-        # Kepler at e = 0.95, rtol 1e-5, atol 1e-8, over 100 periods)
-        return None
-    if codegen.double_double_unsupported(task.ham) or time_rounding_limits(task):
-        # (its stage times are doubles: the time's rounding stays)
-        return None
-    if task.stage_times_amplified or (
-        task.grew_exponentially and task.ham.equations_time_dependent
-    ):
-        # The stage times' rounding, which double-double keeps, amplified
-        # like the rest: a chaotic forced pendulum (H = p^2/2 - cos q -
-        # 1.2 q cos(2t/3), from q = 0.5 at 1e-10), whose witness run stopped
-        # at the floor at t = 48.6, ran on in double-double to t = 73.7
-        # returning nodes 4.58 times the tolerance off, Gamma blind to it
-        # and no witness (QA; tests/test_rounding_floor.py).  The witness's
-        # stop, its stage times rounded stochastically, stands.
+    """``task`` with its quencher in double-double, or None when the caller
+    refused it (``quencher_precision="double"``) or
+    :func:`double_double_can_help` says no."""
+    if requested.quencher_precision is not None or not double_double_can_help(task):
         return None
     task = replace(task, options=replace(task.options, quencher_precision="double-double"))
     return replace(task, project=projects(requested, task))
+
+
+def double_double_can_help(task: Task) -> bool:
+    """Whether the quencher in double-double could carry ``task`` below
+    double precision's floor: not where it runs so already, with another
+    estimate than the shadow's (its only Gamma in double-double: after
+    auto's run with the tangent estimate, :func:`_with_tangent`, a run in
+    double-double with a Gamma neither computed returned nodes 1.52 delta
+    off on Kepler at e = 0.95, rtol 1e-5, atol 1e-8, over 100 periods), where
+    ``f`` has no double-double form (``DD_UNSUPPORTED`` of the generated
+    module), or where the rounding of its stage times, which stay doubles,
+    could reach the tolerance: by the time's size
+    (:func:`~hamrkq.solve.dispatch.time_rounding_limits`), or amplified by
+    an exponential growth where ``H`` depends on the time.  What auto runs
+    (:func:`_in_double_double`) and what a stop's message offers."""
+    from hamrkq.backends import codegen
+
+    if task.options.double_double or task.options.gamma_name != "shadow":
+        return False
+    if codegen.double_double_unsupported(task.ham) or time_rounding_limits(task):
+        return False
+    # A chaotic forced pendulum (H = p^2/2 - cos q - 1.2 q cos(2t/3), from
+    # q = 0.5 at 1e-10), whose witness run stopped at the floor at t = 48.6,
+    # ran on in double-double to t = 73.7 returning nodes 4.58 times the
+    # tolerance off, Gamma blind to the stage times' rounding and no witness
+    # (QA; tests/test_rounding_floor.py); and one that read the growth in
+    # double-double only (Task.stage_times_amplified).  The witness's stop,
+    # its stage times rounded stochastically, stands.
+    return not (
+        task.stage_times_amplified
+        or (task.grew_exponentially and task.ham.equations_time_dependent)
+    )
 
 
 #: Fewer accepted steps than this say nothing about how the estimate grows

@@ -20,7 +20,7 @@ from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.rkq.witness_rules import close_approach_factor
-from hamrkq.solve.auto import growth, reruns_for_rounding, retry_substeps
+from hamrkq.solve.auto import double_double_can_help, growth, reruns_for_rounding, retry_substeps
 from hamrkq.solve.dispatch import (
     Task,
     largest_state,
@@ -132,7 +132,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "or step size in double goes below it."
             )
         text += _time_floor_note(task)
-        if not _double_double_available(task):
+        if not double_double_can_help(task):
             if member.stage_rounding_dominates:
                 # rk34q8 (the tangent estimate): no double-double quencher,
                 # but another member, or auto, goes below this floor
@@ -358,17 +358,6 @@ def _time_floor_note(task: Task) -> str:
         "to start at 0, and H written for the shifted time, its phases moved by w t0 "
         "computed once (cos(w t + phi), phi = w t0 mod 2 pi)."
     )
-
-
-def _double_double_available(task: Task) -> bool:
-    """Whether the quencher could run in double-double and does not already."""
-    from hamrkq.backends import codegen
-
-    if task.options.double_double or task.options.gamma_name != "shadow":
-        return False
-    if task.stage_times_amplified:
-        return False  # (auto's run in double-double found its stage times' rounding amplified)
-    return not (codegen.double_double_unsupported(task.ham) or time_rounding_limits(task))
 
 
 def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
