@@ -42,7 +42,6 @@ from hamrkq.rkq.layout import (
     new_config,
     new_state,
 )
-from hamrkq.rkq.start import begin
 from hamrkq.rkq.witness_rules import WITNESS_SAFETY
 
 __all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings"]
@@ -331,7 +330,6 @@ class Integration:
         self.state["t"] = self.t0
         y0 = _floats(y0)
         self.work = allocate_work(y0, self.tableaus.b.shape[0], self.tableaus.bz.shape[0])
-        self.first_step = 0.0
         self.integrate_s = 0.0
 
     # -- the run -----------------------------------------------------------------
@@ -341,18 +339,11 @@ class Integration:
         """The state record (``record["t"]``, ``record["steps"]``, ...)."""
         return self.state[0]
 
-    def start(self, out: Output) -> int:
-        """Write the first node (unless ``t_eval`` skips it), evaluate
-        ``f(t0, y0)`` and choose the first step (:func:`hamrkq.rkq.start.begin`).
-        Returns the status so far."""
-        status = begin(
-            self.functions.rhs, self.inputs, self.config[0], self.record, self.work, out
-        )
-        self.first_step = abs(float(self.record["h"]))
-        return int(status)
-
     def advance(self, out: Output, budget: int = BUDGET) -> int:
-        """Run the kernel once; returns its code (``RET_*``)."""
+        """Run the kernel once; returns its code (``RET_*``).  The first call
+        starts the run: it writes the first node (unless ``t_eval`` skips
+        it), evaluates ``f(t0, y0)`` and chooses the first step
+        (:func:`hamrkq.rkq.start.begin`)."""
         started = time.perf_counter()
         f = self.functions
         ret = f.advance(
@@ -392,7 +383,6 @@ class Integration:
         checked = 0  # rows of the current buffer already shown to ``stop``
         chunk = budget if self.upgrade is None else 1
         try:
-            status = self.start(out)
             while status == ST_RUNNING:
                 if self.upgrade is not None:
                     chunk = self._try_upgrade(chunk, budget)
@@ -473,7 +463,7 @@ class Integration:
             status=status,
             t_last=s["t"],
             h_fail=s["failed_h"],
-            first_step=float(self.first_step),
+            first_step=s["first_h"],
             max_ratio=s["max_ratio"],
             floor_ratio=s["floor_ratio"],
             bad_component=s["bad_component"],

@@ -144,6 +144,9 @@ STATE = np.dtype(
         ("h_least", _F),
         ("h_most", _F),
         ("ramped", _I),
+        # The first step size tried, |h| (hamrkq.rkq.start.begin; 0 before it,
+        # or where the run ended at its start)
+        ("first_h", _F),
     ]
 )
 

@@ -25,8 +25,6 @@ run (the state's counters carry across calls).
 
 from __future__ import annotations
 
-import math
-
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
 from hamrkq.rkq.certify import (
@@ -86,12 +84,11 @@ from hamrkq.rkq.layout import (
     U,
     checkpoint_fraction,
 )
+from hamrkq.rkq.start import FLOOR_ULPS, begin, write_node, write_rounding
 
 # Step-size control (Hairer, Norsett & Wanner, Solving ODEs I, II.4).
 MIN_FACTOR = 0.2  # never shrink by more than 5x on one rejection
 MAX_FACTOR = 5.0  # never grow by more than 5x on one acceptance
-#: A step shorter than this many ulps of t cannot advance t reliably.
-FLOOR_ULPS = 10.0
 #: :func:`quench_phase`'s "the run ends at the current node", apart from its
 #: -1, "this attempt is over" (it was ``-1 - RET_DONE``, which with
 #: ``RET_DONE = 0`` is -1 too: every rejected or redone attempt ended the
@@ -99,31 +96,6 @@ FLOOR_ULPS = 10.0
 #: SciPy solver, stepping once, took for the end: ``quench="redo"`` raised
 #: KeyError there).
 RUN_ENDS = -2
-
-
-@jitable
-def write_node(t, quenched, work, out, state, use_z):
-    """Append the current node to the output buffers."""
-    n = state["nout"]
-    out.t[n] = t
-    arith.copy(work.V[U], out.y[n])
-    if use_z:
-        arith.copy(work.V[ZHI], out.z[n])
-        arith.copy(work.V[GAM], out.gamma[n])
-        out.quenched[n] = quenched
-        write_rounding(work, out.rounding[n])
-    # Count the node only once it is complete: an interrupt never leaves half a row.
-    state["nout"] = n + 1
-    state["last_written"] = 1
-
-
-@jitable
-def write_rounding(work, row):
-    """The quencher's rounding now, modelled and measured (``sqrt(RHO2) +
-    FLOOR``), into ``row`` of :attr:`~hamrkq.rkq.layout.Output.rounding`."""
-    V = work.V
-    for i in range(row.shape[0]):
-        row[i] = math.sqrt(V[RHO2, i]) + V[FLOOR, i]
 
 
 @jitable
@@ -210,6 +182,12 @@ def advance(rhs, tangent, jac, problem, tab, cfg, state, work, out, budget):
     problem, tab, work, out = borrow(problem), borrow(tab), borrow(work), borrow(out)
     c = borrow(cfg)[0]
     s = borrow(state)[0]
+    # A run's first call starts it (nothing evaluated yet: the SciPy solver
+    # and the batch loop start their runs themselves), here rather than in
+    # the driver, where begin ran interpreted (about 20 us of a tiny
+    # problem's call; benchmarks/per_call.py).
+    if s["nfev"] == 0 and begin(rhs, problem, c, s, work, out) != ST_RUNNING:
+        return RET_DONE
     attempts = 0
     while True:
         if s["dense_pending"]:

@@ -1,9 +1,13 @@
 """The start of a run: the first node, ``f(t0, y0)`` and the first step size.
 
 Kernel code (``@jitable``, see :mod:`hamrkq.rkq.loop` for the conventions):
-the driver calls :func:`begin` in Python before the compiled step loop, and the
-batch loop (:mod:`hamrkq.rkq.batch`) calls it compiled for every member, so a
-member of an ensemble starts exactly as the same run alone.
+the step loop's :func:`~hamrkq.rkq.loop.advance` calls :func:`begin` on a
+run's first call, compiled with it (the driver called it interpreted before,
+about 20 us of a tiny problem's 0.38 ms call), and the batch loop
+(:mod:`hamrkq.rkq.batch`) calls it for every member, so a member of an
+ensemble starts exactly as the same run alone.  :func:`write_node`, which
+writes the first node and every later one, lives here so that the loop can
+import this module.
 """
 
 from __future__ import annotations
@@ -16,16 +20,47 @@ from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import (
     CAND,
     DELTA,
+    FLOOR,
+    GAM,
     K1,
+    RHO2,
     ST_NON_FINITE,
     ST_RUNNING,
     ST_SUCCESS,
     TMP,
+    ZHI,
     U,
 )
-from hamrkq.rkq.loop import FLOOR_ULPS, write_node
 
-__all__ = ["begin", "initial_step"]
+__all__ = ["FLOOR_ULPS", "begin", "initial_step", "write_node", "write_rounding"]
+
+#: A step shorter than this many ulps of t cannot advance t reliably.
+FLOOR_ULPS = 10.0
+
+
+@jitable
+def write_node(t, quenched, work, out, state, use_z):
+    """Append the current node to the output buffers."""
+    n = state["nout"]
+    out.t[n] = t
+    arith.copy(work.V[U], out.y[n])
+    if use_z:
+        arith.copy(work.V[ZHI], out.z[n])
+        arith.copy(work.V[GAM], out.gamma[n])
+        out.quenched[n] = quenched
+        write_rounding(work, out.rounding[n])
+    # Count the node only once it is complete: an interrupt never leaves half a row.
+    state["nout"] = n + 1
+    state["last_written"] = 1
+
+
+@jitable
+def write_rounding(work, row):
+    """The quencher's rounding now, modelled and measured (``sqrt(RHO2) +
+    FLOOR``), into ``row`` of :attr:`~hamrkq.rkq.layout.Output.rounding`."""
+    V = work.V
+    for i in range(row.shape[0]):
+        row[i] = math.sqrt(V[RHO2, i]) + V[FLOOR, i]
 
 
 @jitable
@@ -106,4 +141,5 @@ def begin(rhs, problem, c, s, work, out):
         h0 = initial_step(rhs, t0, t_end, problem, c, work)
         s["nfev"] += 1
     s["h"] = h0 if t_end > t0 else -h0
+    s["first_h"] = h0
     return ST_RUNNING
