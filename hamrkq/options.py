@@ -148,29 +148,38 @@ class SolveOptions:
         if given.get("z_method") is not None:
             _check_z_method_applies(options.method, options.z_method)
         _check_options_apply(options.method, given)
-        if options.method in MEMBERS or options.method == "auto":
+        options.check_combination()
+        return options
+
+    def check_combination(self) -> None:
+        """Raise :class:`OptionError` where options valid one by one do not go
+        together: the shadow estimate with fewer than two quencher steps a
+        step, the quencher in double-double without the shadow estimate.
+        :meth:`resolve` checks the caller's options; ``method="auto"`` checks
+        each of its reruns' (:func:`hamrkq.solve.auto.rerun`), which it
+        builds with :func:`dataclasses.replace` and no :meth:`resolve`."""
+        if self.method in MEMBERS or self.method == "auto":
             member = get_member(
                 # auto's members share their Gamma and steps (tests/test_family.py)
-                AUTO_MEMBER if options.method == "auto" else options.method,
-                options.z_method,
-                options.z_substeps,
+                AUTO_MEMBER if self.method == "auto" else self.method,
+                self.z_method,
+                self.z_substeps,
             )
-            if options.gamma_name == "shadow" and member.z_substeps < 2:
+            if self.gamma_name == "shadow" and member.z_substeps < 2:
                 raise OptionError(
                     "global_error_estimate='shadow' compares the quencher with a track on a "
                     f"mesh z_substeps times coarser: it needs z_substeps >= 2, got "
                     f"{member.z_substeps}"
                 )
-        if options.double_double and (
-            options.method not in (*MEMBERS, "auto") or options.gamma_name != "shadow"
+        if self.double_double and (
+            self.method not in (*MEMBERS, "auto") or self.gamma_name != "shadow"
         ):
             raise OptionError(
                 "quencher_precision='double-double' needs a quencher whose Gamma comes from "
                 "the shadow track (method='auto' or a family member other than 'rk34q8', "
-                f"with global_error_estimate='shadow'); got method={options.method!r}, "
-                f"global_error_estimate={options.gamma_name!r}"
+                f"with global_error_estimate='shadow'); got method={self.method!r}, "
+                f"global_error_estimate={self.gamma_name!r}"
             )
-        return options
 
     @property
     def double_double(self) -> bool:

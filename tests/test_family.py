@@ -8,6 +8,7 @@ counted in f-evaluations plus Jacobian products, which are deterministic.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -19,7 +20,7 @@ import sympy as sp
 
 import hamrkq
 from hamrkq.backends import compiled, first_use, kernel
-from hamrkq.errors import HamrkqWarning, InputError
+from hamrkq.errors import HamrkqWarning, InputError, OptionError
 from hamrkq.result import Status
 from hamrkq.rkq.auto_rules import (
     AUTO_FIRST_SUBSTEPS,
@@ -861,3 +862,73 @@ def test_after_the_tangent_estimate_the_quencher_stays_in_double(monkeypatch):
     assert sol.options["quencher_precision"] != "double-double"
     truth = problem.exact(sol.t)
     assert np.max(np.abs(sol.y - truth) / np.maximum(1e-8, 1e-5 * np.abs(truth))) <= 1.05
+
+
+def test_auto_returns_its_run_that_reached_furthest():
+    """QA (2026-11-27): the double pendulum over [0, 100] at atol = rtol =
+    1e-3.  auto's run with four quencher steps, ``max_step`` 0.04 and the
+    rounding witness was cut at t = 68.40 where its shadow saturated; the
+    runs after it with the tangent estimate stopped at t = 43.2 and 54.65,
+    and auto returned the last.  Now the furthest run whose nodes stand,
+    its 1713 nodes within 0.951 of the tolerance of the extended-precision
+    reference (its own error 5.3e-8)."""
+    ext = pytest.importorskip("hamrkq.analysis.extended_reference")
+    if not ext.available():
+        pytest.skip(ext.unavailable_reason())
+    problem = hamrkq.load_problem("double_pendulum")
+    sol = hamrkq.solve(problem, t_span=(0.0, 100.0), atol=1e-3, rtol=1e-3)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.t[-1] > 68.0, sol.message
+    assert "returns its run of" in sol.message and "after it, the run" in sol.message
+    assert sol.options["global_error_estimate"] == "shadow"
+    ref = ext.extended_reference(problem.hamiltonian, problem.parameter_array, problem.y0, sol.t)
+    assert ref.estimated_error < 1e-6
+    delta = np.maximum(1e-3, 1e-3 * np.abs(ref.y))
+    assert np.max(np.abs(sol.y - ref.y) / delta) <= 1.05
+
+
+def test_a_run_whose_rerun_added_the_witness_is_not_returned():
+    """:func:`hamrkq.solve.auto.returned_run` keeps a run only where no later
+    run added the rounding witness (its Gamma was blind to the rounding):
+    the furthest such stop, else the last run."""
+    from types import SimpleNamespace
+
+    from hamrkq.solve import prepare
+    from hamrkq.solve.auto import returned_run
+
+    problem = hamrkq.load_problem("kepler", e=0.5)
+    task = prepare(problem, t_span=(0.0, 10.0), atol=1e-6, rtol=1e-6).task
+    witnessed = dataclasses.replace(task, witness=True)
+    stop = Status.TOLERANCE_UNATTAINABLE.code
+
+    def run(t_last, status=stop):
+        return SimpleNamespace(t_last=t_last, status=status)
+
+    # the furthest standing stop, not an earlier or a shorter one
+    assert returned_run([(task, run(3.0)), (task, run(8.0)), (task, run(5.0))]) == 1
+    assert returned_run([(task, run(8.0)), (task, run(8.0))]) == 1  # ties: the last
+    # a run the witness was added after does not stand; one with it does
+    assert returned_run([(task, run(8.0)), (witnessed, run(5.0))]) == 1
+    assert returned_run([(witnessed, run(8.0)), (witnessed, run(5.0))]) == 0
+    # only a stop on the estimate replaces a stop on the estimate
+    assert returned_run([(task, run(8.0)), (task, run(5.0, Status.MAX_STEPS.code))]) == 1
+    assert returned_run([(task, run(8.0, Status.SUCCESS.code)), (task, run(5.0))]) == 1
+
+
+def test_options_auto_builds_for_a_rerun_are_checked_as_the_callers():
+    """auto builds its reruns' options with ``dataclasses.replace``, past
+    :meth:`SolveOptions.resolve`'s checks; ``check_combination`` is the
+    check both run: the tangent estimate with the quencher in double-double
+    (a combination auto once made, 701e72c) is refused."""
+    from hamrkq.options import SolveOptions
+
+    options = SolveOptions.resolve({"method": "auto", "quencher_precision": "double-double"}, {})
+    options.check_combination()
+    tangent = dataclasses.replace(options, global_error_estimate="tangent")
+    with pytest.raises(OptionError, match="needs a quencher whose Gamma comes from"):
+        tangent.check_combination()
+    with pytest.raises(OptionError, match="needs a quencher whose Gamma comes from"):
+        SolveOptions.resolve(
+            {"method": "auto", "quencher_precision": "double-double"},
+            {"global_error_estimate": "tangent"},
+        )

@@ -275,29 +275,29 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
     # singular initial node, would only be noise.
     with np.errstate(all="ignore"):
         started = time.perf_counter()
-        # method="auto"'s runs that ran again (more quencher steps, the
-        # rounding witness, or the quencher in double-double): (their task, run)
-        discarded: list[tuple[Task, Any]] = []
-        last = None  # the last run made: (its task, run, events located)
+        # every run made: (its task, run, events located); method="auto"'s
+        # run again (more quencher steps, the rounding witness, the quencher
+        # in double-double, shorter steps, the tangent estimate)
+        runs: list[tuple[Task, Any, Any]] = []
+        returned = -1  # which of them is returned (auto.returned_run)
         try:
             out, located = run_certified(task, spec, prepared.events, chosen)
-            last = (task, out, located)
+            runs.append((task, out, located))
             while (rerun := auto.rerun(prepared.requested, task, out)) is not None:
-                discarded.append((task, out))
                 task = rerun
                 out, located = run_certified(task, spec, prepared.events, chosen)
-                last = (task, out, located)
+                runs.append((task, out, located))
+            returned = auto.returned_run([(t, r) for t, r, _ in runs])
+            task, out, located = runs[returned]
         except KeyboardInterrupt:
             # Ctrl-C or SIGTERM outside a step loop and outside the location
             # of events, which handle it themselves: while a run was set up
             # (a rerun's f compiled in double-double) or its nodes gathered.
             # The last run made stands, marked interrupted; before the
             # first, there is nothing to keep.
-            if last is None:
+            if not runs:
                 raise
-            task, out, located = last
-            if discarded and discarded[-1][1] is out:
-                discarded.pop()
+            task, out, located = runs[-1]
             out, located = _interrupted(task, out, located, prepared.events, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
@@ -315,9 +315,11 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         # compiling f in double-double for a rerun, counts as compiling, in
         # every run made; a run that ended before the code was ready ran in
         # Python.
-        runs = [r for _, r in discarded] + [out]
+        returned %= len(runs)
+        later = len(runs) - 1 - returned  # runs made after the one returned
+        discarded = [(t, r) for i, (t, r, _) in enumerate(runs) if i != returned]
         out.stats["compile_s"] = prepared.compile_s + sum(
-            r.stats.pop("compile_wait_s", 0.0) for r in runs
+            r.stats.pop("compile_wait_s", 0.0) for _, r, _ in runs
         )
         if task.compiling is not None and not task.compiling.loaded:
             chosen = "python"
@@ -327,13 +329,13 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             )
             out.stats["discarded_s"] = sum(r.stats["integrate_s"] for _, r in discarded)
         try:
-            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output)
+            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output, later)
         except KeyboardInterrupt:
             # Landed while the solution was put together (H at the nodes,
             # the events of a run cut at an event state located again): the
             # same, marked interrupted, once more.
             out, located = _interrupted(task, out, located, prepared.events, chosen)
-            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output)
+            sol = _solution(prepared, task, out, located, discarded, chosen, dense_output, later)
         return _with_events_note(sol, prepared)
 
 
@@ -357,9 +359,11 @@ def _solution(
     discarded: list,
     chosen: str,
     dense_output: bool,
+    later: int = 0,
 ) -> Solution:
     """The :class:`Solution` of an RKQ-family run ``out`` of ``task``: its
-    message with the runs ``discarded`` before it, and its events; ended
+    message with the runs ``discarded`` (the last ``later`` of them made
+    after it), and its events; ended
     before the first node whose state contradicts an assumption declared on
     its symbols (:func:`assumptions.within_assumptions`), as a baseline's is."""
     out, located, breach = assumptions.within_assumptions(task, out, located, prepared.events)
@@ -373,6 +377,7 @@ def _solution(
             discarded,
             out.stats["discarded_evaluations"],
             auto=prepared.requested.method == "auto",
+            later=later,
         )
         sol = sol.replace(message=sol.message + note)
     if dense_output or prepared.events or task.output_times is not None:

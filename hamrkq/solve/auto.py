@@ -68,6 +68,7 @@ __all__ = [
     "reruns_for_rounding",
     "reruns_with_witness",
     "retry_substeps",
+    "returned_run",
     "witness_rerun_needed",
 ]
 
@@ -97,7 +98,20 @@ def rerun(requested: SolveOptions, task: Task, out: Any) -> Task | None:
     abandoned on its projection
     (:func:`hamrkq.rkq.auto_rules.auto_abandon_substeps`) or stopped on the
     quencher's truncation error before ``t_end``
-    (:func:`hamrkq.rkq.auto_rules.auto_retry_substeps`)."""
+    (:func:`hamrkq.rkq.auto_rules.auto_retry_substeps`).  Each next run's
+    options are checked as the caller's are
+    (:meth:`hamrkq.options.SolveOptions.check_combination`): its rules build
+    them with :func:`dataclasses.replace`, past that check, which is how the
+    tangent estimate and the quencher in double-double came together once
+    (701e72c)."""
+    following = _next_run(requested, task, out)
+    if following is not None:
+        following.options.check_combination()
+    return following
+
+
+def _next_run(requested: SolveOptions, task: Task, out: Any) -> Task | None:
+    """:func:`rerun` before its check."""
     if isinstance(out, Solution):
         return None
     member = member_of(task)
@@ -525,3 +539,40 @@ def _with_substeps(requested: SolveOptions, task: Task, substeps: int) -> Task:
     it could run again with more."""
     task = replace(task, options=replace(task.options, z_substeps=substeps))
     return replace(task, project=projects(requested, task))
+
+
+def returned_run(runs: list[tuple[Task, Any]]) -> int:
+    """Which of ``method="auto"``'s runs ``(their task, run)``, in the order
+    made, ``solve`` returns: the last, unless it stopped on its estimate
+    (``TOLERANCE_UNATTAINABLE``) short of an earlier run that stopped so too
+    and reached further from ``t0``, whose nodes stand: the furthest such run.
+    A run's nodes stand where no later run added the rounding witness to
+    what it ran without (its Gamma was blind to an amplified rounding: the
+    witness's rule, or a time-dependent ``H`` read growing in double-double,
+    :func:`_in_double_with_witness`); a run cut where its shadow saturated
+    keeps only the nodes before the cut
+    (:func:`hamrkq.solve.dispatch.within_linear_shadow`).  The double
+    pendulum over [0, 100] at ``atol`` = ``rtol`` = 1e-3: the run with four
+    quencher steps, ``max_step`` 0.04 and the witness reached t = 68.40 (cut
+    where its shadow saturated); the runs after it with the tangent
+    estimate stopped at t = 43.2 and 54.65, the last of which auto returned
+    (QA)."""
+    last = len(runs) - 1
+    if runs[last][1].status != Status.TOLERANCE_UNATTAINABLE.code:
+        return last
+    witness_added = [
+        any(uses_witness(later) and not uses_witness(task) for later, _ in runs[i + 1 :])
+        for i, (task, _) in enumerate(runs)
+    ]
+
+    def reach(i: int) -> float:
+        task, out = runs[i]
+        return abs(out.t_last - task.t0)
+
+    standing = [
+        i
+        for i, (_, out) in enumerate(runs[:last])
+        if out.status == Status.TOLERANCE_UNATTAINABLE.code and not witness_added[i]
+    ]
+    furthest = max(standing, key=reach, default=last)
+    return furthest if reach(furthest) > reach(last) else last

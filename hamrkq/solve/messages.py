@@ -251,11 +251,15 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
             "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
             "is what works."
         )
+    tangent = "global_error_estimate='tangent' (the error carried by the Jacobian, no shadow); "
+    if task.auto and task.options.global_error_estimate is None and not task.options.double_double:
+        # auto ran it after this run (auto.rerun), and it stopped earlier:
+        # auto returns the run that reached furthest (auto.returned_run)
+        tangent = ""
     return text + (
         " What helps: a smaller max_step (the shadow's error falls like "
         f"h^{member.z_order}; more quencher steps do not change it); "
-        "global_error_estimate='tangent' (the error carried by the Jacobian, no shadow); a "
-        "shorter interval."
+        f"{tangent}a shorter interval."
     )
 
 
@@ -480,13 +484,19 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
 
 
 def rerun_note(
-    task: Task, discarded: list[tuple[Task, RunOutput]], evaluations: int, auto: bool = True
+    task: Task,
+    discarded: list[tuple[Task, RunOutput]],
+    evaluations: int,
+    auto: bool = True,
+    later: int = 0,
 ) -> str:
     """What the discarded runs (``(their task, run)``, with ``evaluations``
     between them) of ``method="auto"`` (``auto``) or of a member run again
-    with the rounding witness did, for the message."""
+    with the rounding witness did, for the message; the last ``later`` of
+    them were made after the run returned, which reached further
+    (:func:`hamrkq.solve.auto.returned_run`)."""
     notes = []
-    for earlier, run in discarded:
+    for index, (earlier, run) in enumerate(discarded):
         if run.status == Status.SUCCESS.code:
             what = (
                 f"reached t = {run.t_last!r}, the quencher's estimated error at most "
@@ -549,12 +559,15 @@ def rerun_note(
                 f"with the state's size{approaches}), could reach the tolerance: run again "
                 "with the witness"
             )
-        notes.append(f"the run {_quencher_setting(earlier)} {what}")
-    ran = (
-        f"method='auto' ran {task.options.method}"
-        if auto
-        else f"This is {task.options.method}'s second run"
-    )
+        after = "after it, " if index == len(discarded) - later else ""
+        notes.append(f"{after}the run {_quencher_setting(earlier)} {what}")
+    method = task.options.method
+    if later:
+        ran = f"method='auto' returns its run of {method} that reached furthest,"
+    elif auto:
+        ran = f"method='auto' ran {method}"
+    else:
+        ran = f"This is {method}'s second run"
     return (
         f" {ran} {_quencher_setting(task)}: "
         f"{'; '.join(notes)} "
