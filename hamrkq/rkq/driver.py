@@ -9,6 +9,7 @@ progress can be reported and Ctrl-C ends the run with the nodes kept so far.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -177,6 +178,20 @@ class RunOutput:
             self, t=self.t[kept], y=self.y[kept], z=cut(self.z), gamma=cut(self.gamma),
             quenched=cut(self.quenched), rounding=cut(self.rounding),
         )  # fmt: skip
+
+    @functools.cached_property
+    def largest_state(self) -> np.ndarray:
+        """Each component's largest ``|y_k|`` over the run's nodes (zeros
+        for none; over every node of the run where the returned rows are
+        thinned), read-only: the size the rules after a run measure
+        against, computed once (a call of :func:`hamrkq.solve` asked it
+        twice or more; :func:`hamrkq.solve.dispatch.largest_state`)."""
+        kept = np.abs(self.y).max(axis=0) if self.y.shape[0] else np.zeros(self.y.shape[1])
+        if self.thinned and self.y_max is not None:
+            # the kernel's maximum over every node, kept or not
+            kept = np.maximum(kept, self.y_max)
+        kept.setflags(write=False)
+        return kept
 
     @property
     def at_rounding_floor(self) -> bool:

@@ -117,6 +117,14 @@ class Task:
         """Whether the run before this one read an exponential growth."""
         return self.exponential_until is not None
 
+    @functools.cached_property
+    def runs_witness(self) -> bool:
+        """:func:`uses_witness` of this task, computed once: a task does not
+        change (another run is another task, ``replace``), and a call of
+        :func:`hamrkq.solve` asked it four times (2 us each with the shadow
+        estimate)."""
+        return _witness_rule(self)
+
 
 @dataclass(frozen=True)
 class MethodSpec:
@@ -156,7 +164,8 @@ def can_witness(options: SolveOptions) -> bool:
 
 
 def uses_witness(task: Task) -> bool:
-    """Whether an RKQ-family task runs the rounding witness: the shadow
+    """Whether an RKQ-family task runs the rounding witness (remembered by
+    the task, :attr:`Task.runs_witness`): the shadow
     estimate at a tolerance near double precision's floor, or with a
     quencher whose weights magnify its stages' rounding (:func:`needs_witness`);
     or where a run is made again with it (``Task.witness``: after a run whose
@@ -164,6 +173,11 @@ def uses_witness(task: Task) -> bool:
     estimate, :func:`hamrkq.solve.auto.witness_rerun_needed`).  The tangent
     estimate (``rk34q8``'s) does not run it from the start, so that the
     paper's runs stay the paper's; the paper's own estimate never runs it."""
+    return task.runs_witness
+
+
+def _witness_rule(task: Task) -> bool:
+    """:func:`uses_witness`, computed."""
     if not can_witness(task.options):
         return False
     if task.witness is not None:
@@ -300,12 +314,9 @@ def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.n
 def largest_state(out: RunOutput) -> np.ndarray:
     """Each component's largest ``|y_k|`` over a run's nodes (zeros for none;
     over every node of the run where the returned rows are thinned): the
-    size the rules after a run measure against."""
-    kept = np.abs(out.y).max(axis=0) if out.y.shape[0] else np.zeros(out.y.shape[1])
-    if out.thinned and out.y_max is not None:
-        # the kernel's maximum over every node, kept or not
-        return np.maximum(kept, out.y_max)
-    return kept
+    size the rules after a run measure against (read-only, computed once
+    per run: :attr:`~hamrkq.rkq.driver.RunOutput.largest_state`)."""
+    return out.largest_state
 
 
 def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
