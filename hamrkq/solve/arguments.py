@@ -9,6 +9,7 @@ system are checked by :class:`~hamrkq.options.SolveOptions`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -24,7 +25,7 @@ from hamrkq.catalogue.problems import Problem
 from hamrkq.errors import InputError, InputTypeError, OptionError, warn
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.options import MIN_ATOL, MIN_RTOL, SolveOptions
-from hamrkq.rkq.loop import FLOOR_ULPS
+from hamrkq.rkq.start import FLOOR_ULPS
 from hamrkq.rkq.witness_rules import time_rounding_matters
 from hamrkq.symbolic.assumptions import assumption_conflict, declares_checked
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -137,6 +138,15 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
     problem's, else 1e-6 and 0); an rtol below 100 eps is raised to it."""
     atol_given = atol if atol is not None else defaults.get("atol", 1e-6)
     rtol_given = rtol if rtol is not None else defaults.get("rtol", 0.0)
+    if (
+        type(atol_given) is float
+        and type(rtol_given) is float
+        and MIN_ATOL <= atol_given < math.inf
+        and (rtol_given == 0.0 or MIN_RTOL <= rtol_given < math.inf)
+    ):
+        # two numbers that pass every check below, the common case, without
+        # its reductions (every solve pays this)
+        return np.full(dim, atol_given), np.full(dim, rtol_given)
     atol_v = _tolerance("atol", atol_given, dim, positive=True)
     rtol_v = _tolerance("rtol", rtol_given, dim, positive=False)
     # (one reduction each where nothing is wrong: every solve pays these)
