@@ -45,7 +45,7 @@ from hamrkq.rkq.layout import (
 )
 from hamrkq.rkq.witness_rules import WITNESS_SAFETY
 
-__all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings"]
+__all__ = ["Integration", "KernelFunctions", "RunOutput", "Settings", "largest_over_nodes"]
 
 #: Step attempts per call of the kernel: progress and Ctrl-C are seen between calls.
 BUDGET = 2000
@@ -186,18 +186,26 @@ class RunOutput:
         thinned), read-only: the size the rules after a run measure
         against, computed once (a call of :func:`hamrkq.solve` asked it
         twice or more; :func:`hamrkq.solve.dispatch.largest_state`)."""
-        kept = np.abs(self.y).max(axis=0) if self.y.shape[0] else np.zeros(self.y.shape[1])
-        if self.thinned and self.y_max is not None:
-            # the kernel's maximum over every node, kept or not
-            kept = np.maximum(kept, self.y_max)
-        kept.setflags(write=False)
-        return kept
+        return largest_over_nodes(self)
 
     @property
     def at_rounding_floor(self) -> bool:
         """Whether rounding ended the run: the witness's part is at least half
         the ratio that stopped it (double precision's floor for the orbit)."""
         return self.floor_ratio >= 0.5 * self.max_ratio
+
+
+def largest_over_nodes(out: Any) -> np.ndarray:
+    """Each component's largest ``|y_k|`` over the nodes of a run ``out``
+    (a :class:`RunOutput`, or anything with its ``y``, ``thinned`` and
+    ``y_max``): zeros for none, over every node of the run where the
+    returned rows are thinned; read-only."""
+    kept = np.abs(out.y).max(axis=0) if out.y.shape[0] else np.zeros(out.y.shape[1])
+    if out.thinned and out.y_max is not None:
+        # the kernel's maximum over every node, kept or not
+        kept = np.maximum(kept, out.y_max)
+    kept.setflags(write=False)
+    return kept
 
 
 #: A new run's state record at t = 0 (:func:`~hamrkq.rkq.layout.new_state`),

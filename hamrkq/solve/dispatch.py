@@ -26,7 +26,14 @@ from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
-from hamrkq.rkq.driver import BUDGET, Integration, RunOutput, Settings, python_functions
+from hamrkq.rkq.driver import (
+    BUDGET,
+    Integration,
+    RunOutput,
+    Settings,
+    largest_over_nodes,
+    python_functions,
+)
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.witness_rules import component_scales, needs_witness, time_rounding_matters
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -116,6 +123,14 @@ class Task:
     def grew_exponentially(self) -> bool:
         """Whether the run before this one read an exponential growth."""
         return self.exponential_until is not None
+
+    def projecting(self) -> Task:
+        """This task with ``project=True``, its :attr:`runs_witness` carried
+        over when known (the projection does not change it)."""
+        task = replace(self, project=True)
+        if "runs_witness" in self.__dict__:
+            task.__dict__["runs_witness"] = self.runs_witness
+        return task
 
     @functools.cached_property
     def runs_witness(self) -> bool:
@@ -314,9 +329,12 @@ def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.n
 def largest_state(out: RunOutput) -> np.ndarray:
     """Each component's largest ``|y_k|`` over a run's nodes (zeros for none;
     over every node of the run where the returned rows are thinned): the
-    size the rules after a run measure against (read-only, computed once
-    per run: :attr:`~hamrkq.rkq.driver.RunOutput.largest_state`)."""
-    return out.largest_state
+    size the rules after a run measure against (read-only; computed once
+    per run, :attr:`~hamrkq.rkq.driver.RunOutput.largest_state`, for a
+    RunOutput, and here for anything else with its fields)."""
+    if type(out) is RunOutput:
+        return out.largest_state
+    return largest_over_nodes(out)
 
 
 def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
@@ -327,6 +345,8 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
     TOLERANCE_UNATTAINABLE, ``saturated`` the departure found.  Not with
     ``gamma_limit=inf``, which turns the certificate off."""
     if out.gamma is None or out.t.shape[0] == 0:
+        return out
+    if _far_within_linear_shadow(task, out.gamma, largest_state(out)):
         return out
     departure = shadow_departures(task, out.gamma, largest_state(out))
     if departure is None:
@@ -345,6 +365,21 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
         saturated=float(departure[kept]),
         saturated_step=abs(out.t_last - task.t0) / max(out.stats.get("steps", 0), 1),
     )
+
+
+def _far_within_linear_shadow(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> bool:
+    """Whether the shadow departures of the rows ``gamma`` (:func:`shadow_departures`)
+    are surely at most half of :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION`:
+    each component's scale is at least its largest ``|y_k|`` (``y_size``), so
+    ``m^z - 1`` times each column's largest ``|Gamma_k|`` over ``y_size_k``
+    bounds them.  A shadow estimate only (where the departures are read); a
+    bound that does not say so (NaN, a component at zero) leaves it to the
+    departures themselves, which cost 18 us of a tiny problem's call."""
+    if task.options.gamma_name != "shadow":
+        return False
+    largest = np.abs(gamma).max(axis=0).tolist()
+    limit = 0.5 * SHADOW_SATURATION / member_of(task).shadow_scale
+    return all(g <= limit * s for g, s in zip(largest, y_size.tolist(), strict=True))
 
 
 def _inplace(fun: Callable, matrix: bool) -> Callable:

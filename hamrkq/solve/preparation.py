@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import inspect
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from hamrkq import events as _events
@@ -169,7 +169,7 @@ def prepare_by_name(  # noqa: PLR0913 - solve's arguments, by name
         auto=requested.method == "auto", output_times=output_times,
     )  # fmt: skip
     if auto.projects(requested, task):  # (a copy of the task only where it projects)
-        task = replace(task, project=True)
+        task = task.projecting()
     return Prepared(
         task, spec, chosen, compile_s, event_list, requested, events_note, events is not None
     )
