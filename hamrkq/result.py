@@ -114,6 +114,10 @@ class FrozenDict(Mapping):
 
 
 _ARRAY_FIELDS = ("t", "y", "z", "global_error", "gamma", "energy", "quenched")
+#: Each array field with its dtype.
+_ARRAY_DTYPES = tuple(
+    (name, np.dtype(bool) if name == "quenched" else np.dtype(float)) for name in _ARRAY_FIELDS
+)
 #: Lists of arrays, one per event function: saved as ``t_events_0``, ...
 _EVENT_FIELDS = ("t_events", "y_events", "event_bound")
 
@@ -158,14 +162,20 @@ def freeze_in_place(array: np.ndarray) -> np.ndarray:
 _KEPT: dict[int, weakref.ref] = {}
 
 
+def _kept(array: Any, dtype: Any) -> bool:
+    """Whether ``array`` is an array of ``dtype`` that a Solution keeps
+    already (:func:`owned`, or made by :func:`_solution_array`)."""
+    known = _KEPT.get(id(array))
+    return known is not None and known() is array and array.dtype == dtype
+
+
 def _solution_array(array: np.ndarray | None, dtype=float) -> np.ndarray | None:
     """An array of a :class:`Solution`: None stays None, an array a Solution
     already keeps is passed on as it is, any other becomes a
     :func:`frozen_copy` (so nothing the caller holds can change it)."""
     if array is None:
         return None
-    known = _KEPT.get(id(array))
-    if known is not None and known() is array and array.dtype == dtype:
+    if _kept(array, dtype):
         return array
     kept = frozen_copy(array, dtype)
     key = id(kept)
@@ -279,15 +289,17 @@ class Solution:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        for name in _ARRAY_FIELDS:
+        for name, dtype in _ARRAY_DTYPES:
             value = getattr(self, name)
-            if value is not None:
-                set_(self, name, _solution_array(value, bool if name == "quenched" else float))
+            if value is not None and not _kept(value, dtype):
+                set_(self, name, _solution_array(value, dtype))
+        shape = (2 * self.n,)
         for name in ("atol", "rtol"):
             value = getattr(self, name)
-            if np.shape(value) != (2 * self.n,):
-                value = np.broadcast_to(value, (2 * self.n,))
-            set_(self, name, _solution_array(value))
+            if np.shape(value) != shape:
+                value = np.broadcast_to(value, shape)
+            if not _kept(value, np.float64):
+                set_(self, name, _solution_array(value))
         set_(self, "stats", FrozenDict(self.stats))
         set_(self, "options", FrozenDict(self.options))
         set_(self, "names", tuple(self.names))
