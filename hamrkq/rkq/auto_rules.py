@@ -29,10 +29,13 @@ __all__ = [
     "SHADOW_SATURATION",
     "auto_abandon_substeps",
     "auto_member",
+    "auto_member_per_row",
     "auto_retry_substeps",
     "auto_tolerance",
+    "auto_tolerance_per_row",
     "error_growth",
     "growth_of_maxima",
+    "growth_of_maxima_per_row",
     "middle_of",
     "shadow_departure",
 ]
@@ -87,9 +90,23 @@ def auto_member(dim: int, tolerance: float = 0.0) -> tuple[str, int]:
     its first run's quencher steps per step.  Both members estimate Gamma
     with the shadow track and start with :data:`AUTO_FIRST_SUBSTEPS`
     (``tests/test_family.py``)."""
-    loose = tolerance >= AUTO_LOOSE_TOLERANCE
-    name = AUTO_LARGE_MEMBER if dim >= AUTO_LARGE_DIM or loose else AUTO_MEMBER
+    name = AUTO_LARGE_MEMBER if _runs_the_large_member(dim, tolerance) else AUTO_MEMBER
     return name, AUTO_FIRST_SUBSTEPS
+
+
+def auto_member_per_row(dim: int, tolerances: np.ndarray) -> np.ndarray:
+    """The name of the member :func:`auto_member` runs at each of
+    ``tolerances`` (an ensemble's members', :func:`auto_tolerance_per_row`),
+    in whole-array operations; every member's first run takes
+    :data:`AUTO_FIRST_SUBSTEPS`."""
+    large = _runs_the_large_member(dim, np.asarray(tolerances, dtype=np.float64))
+    return np.where(large, AUTO_LARGE_MEMBER, AUTO_MEMBER)
+
+
+def _runs_the_large_member(dim: int, tolerance: float | np.ndarray) -> bool | np.ndarray:
+    """Whether :func:`auto_member` is :data:`AUTO_LARGE_MEMBER`, elementwise
+    where ``tolerance`` is an array."""
+    return (dim >= AUTO_LARGE_DIM) | (tolerance >= AUTO_LOOSE_TOLERANCE)
 
 
 def auto_tolerance(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> float:
@@ -98,9 +115,17 @@ def auto_tolerance(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> float:
     state's size where that is above one (``max(1, max_k |y0_k|)``: a state
     in large units, astronomical units of 25 say, counts its tolerance
     relative to that size)."""
-    y0 = np.abs(np.asarray(y0, dtype=np.float64))
-    delta = np.maximum(atol, rtol * y0)
-    return float(delta.min() / max(1.0, float(y0.max(initial=0.0))))
+    return float(auto_tolerance_per_row(atol, rtol, y0))
+
+
+def auto_tolerance_per_row(atol: np.ndarray, rtol: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """:func:`auto_tolerance` of each row of ``states`` (shape ``(m, d)``:
+    an ensemble's ``y0``), in whole-array operations; of the one state
+    where ``states`` is 1-D (a 0-d array then)."""
+    sizes = np.abs(np.asarray(states, dtype=np.float64))
+    delta = np.maximum(atol, rtol * sizes)
+    # fmax: a size that is NaN counts as 1
+    return delta.min(axis=-1) / np.fmax(1.0, sizes.max(axis=-1, initial=0.0))
 
 
 #: The most quencher steps per step ``method="auto"`` tries.
@@ -274,14 +299,36 @@ def growth_of_maxima(to_middle: np.ndarray, to_end: np.ndarray, delta: np.ndarra
     largest ratio up to the middle of ``max_k |Gamma_k| / delta_k`` is
     ``max_k to_middle_k / delta_k``, the same bits (a division by a fixed
     ``delta_k`` keeps the order of its numerators)."""
+    return float(growth_of_maxima_per_row(to_middle, to_end, delta))
+
+
+def growth_of_maxima_per_row(
+    to_middle: np.ndarray, to_end: np.ndarray, delta: np.ndarray
+) -> np.ndarray:
+    """:func:`growth_of_maxima` of each row of ``to_middle``, ``to_end`` and
+    ``delta`` (shape ``(m, d)``, or ``delta`` one row for all: an
+    ensemble's members), in whole-array operations; of the one run where
+    they are 1-D (a 0-d array then)."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        at_middle = np.max(np.asarray(to_middle) / delta)
-        at_end = np.max(np.asarray(to_end) / delta)
-    if not (np.isfinite(at_middle) and np.isfinite(at_end)):
+        at_middle = np.max(np.asarray(to_middle) / delta, axis=-1)
+        at_end = np.max(np.asarray(to_end) / delta, axis=-1)
+    return np.asarray(_each_growth_of_ratios(at_middle, at_end), dtype=np.float64)
+
+
+def _growth_of_ratios(at_middle: float, at_end: float) -> float:
+    """The growth from the largest ratio of Gamma to the tolerance up to the
+    middle and up to the end (:func:`growth_of_maxima`)."""
+    if not (math.isfinite(at_middle) and math.isfinite(at_end)):
         return math.inf
     if at_middle <= 0.0:
         return math.inf if at_end > 0.0 else 1.0
-    return float(at_end / at_middle)
+    return at_end / at_middle
+
+
+#: :func:`_growth_of_ratios` element by element: a run's two numbers decide
+#: in Python, which numpy's ufuncs on two numbers would make four times as
+#: slow (every solve asks), and an ensemble's members in one call.
+_each_growth_of_ratios = np.frompyfunc(_growth_of_ratios, 2, 1)
 
 
 def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
@@ -313,7 +360,8 @@ def error_growth(t: np.ndarray, ratio: np.ndarray) -> float:
         return 1.0
     middle, direction = middle_of(t[0], t[-1])
     before = (t - middle) * direction <= 0.0
-    return growth_of_maxima(ratio[before].max(initial=0.0), ratio.max(initial=0.0), 1.0)
+    to_middle = ratio[before].max(initial=0.0, keepdims=True)
+    return growth_of_maxima(to_middle, ratio.max(initial=0.0, keepdims=True), 1.0)
 
 
 #: The shadow track (the quencher in one step a step, whose error is

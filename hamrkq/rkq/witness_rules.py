@@ -33,9 +33,13 @@ __all__ = [
     "length_factor",
     "needs_witness",
     "needs_witness_after_run",
+    "needs_witness_after_run_per_row",
+    "needs_witness_per_row",
     "state_outgrew_its_start",
+    "state_outgrew_its_start_per_row",
     "tightest_tolerance",
     "time_rounding_matters",
+    "time_rounding_matters_per_row",
 ]
 
 
@@ -116,8 +120,13 @@ def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
     relative sizes: the outer solar system's file gives the momenta
     ``atol_i`` near ``m_i 1e-11``, from the Sun's 1e-11 to Pluto's 8e-20,
     because its momenta run from Jupiter's 5e-6 to Pluto's 2e-11.
+
+    ``y0`` is one state, or several as the rows of a 2-D array (an
+    ensemble's members), whose scales are then the rows of the result.
     """
     size = np.abs(np.asarray(y0, dtype=np.float64))
+    if size.ndim == 2:
+        return _scales(np.asarray(atol, dtype=np.float64), size)
     return _scales(np.asarray(atol, dtype=np.float64), size.reshape(1, -1))[0]
 
 
@@ -184,30 +193,82 @@ def needs_witness(
     depends on the time, ``time_scale`` is the largest ``|t|`` of the run
     (zero otherwise): :func:`time_rounding_matters`.
     """
-    if stage_rounding or substeps >= WITNESS_SUBSTEPS:
+    if _witness_whatever_the_tolerance(stage_rounding, substeps):
         return True
     if time_rounding_matters(atol, rtol, y0, time_scale):
         return True
     # By content: a solve asks this of the same arrays several times.
     atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
-    below = WITNESS_BELOW
-    if substeps >= WITNESS_SUBSTEPS_NEAR_FLOOR:
-        below = max(below, WITNESS_SUBSTEPS_BELOW)
     return _tolerance_below(
-        below, atol.shape, atol.tobytes(), rtol.shape, rtol.tobytes(), y0.shape, y0.tobytes()
+        _witness_threshold(substeps),
+        atol.shape,
+        atol.tobytes(),
+        rtol.shape,
+        rtol.tobytes(),
+        y0.shape,
+        y0.tobytes(),
     )
+
+
+def needs_witness_per_row(
+    atol: np.ndarray,
+    rtol: np.ndarray,
+    states: np.ndarray,
+    *,
+    time_scale: float = 0.0,
+    stage_rounding: bool = False,
+    substeps: int = 1,
+) -> np.ndarray:
+    """:func:`needs_witness` of each row of ``states`` (shape ``(m, d)``: an
+    ensemble's ``y0``), in whole-array operations; the other arguments are
+    the same for every row.
+
+    Returns
+    -------
+    ndarray of bool, shape ``(m,)``
+        The same decision as :func:`needs_witness` of that row alone.
+    """
+    states = np.asarray(states, dtype=np.float64)
+    if _witness_whatever_the_tolerance(stage_rounding, substeps):
+        return np.ones(states.shape[0], dtype=bool)
+    atol, rtol = (np.asarray(a, dtype=np.float64) for a in (atol, rtol))
+    below = _tolerances_below(_witness_threshold(substeps), atol, rtol, states)
+    return time_rounding_matters_per_row(atol, rtol, states, time_scale) | below
+
+
+def _witness_whatever_the_tolerance(stage_rounding: bool, substeps: int) -> bool:
+    """Whether a run with the shadow estimate runs the witness at every
+    tolerance (:func:`needs_witness`): its quencher's weights magnify its
+    stages' rounding, or it takes :data:`WITNESS_SUBSTEPS` steps a step."""
+    return stage_rounding or substeps >= WITNESS_SUBSTEPS
+
+
+def _witness_threshold(substeps: int) -> float:
+    """The tolerance, over the state's size, below which a quencher of
+    ``substeps`` steps a step runs the witness (:func:`needs_witness`)."""
+    if substeps >= WITNESS_SUBSTEPS_NEAR_FLOOR:
+        return max(WITNESS_BELOW, WITNESS_SUBSTEPS_BELOW)
+    return WITNESS_BELOW
 
 
 @functools.lru_cache(maxsize=32)
 def _tolerance_below(below, atol_shape, atol, rtol_shape, rtol, y0_shape, y0) -> bool:
-    """Whether some component's tolerance is below ``below`` times its size
-    (:func:`component_scales`), on the arrays' bytes (hashable: memoised)."""
+    """:func:`_tolerances_below` of one state, on the arrays' bytes
+    (hashable: memoised)."""
     atol, rtol, y0 = (
         np.frombuffer(data).reshape(shape)
         for shape, data in ((atol_shape, atol), (rtol_shape, rtol), (y0_shape, y0))
     )
-    tolerance = component_tolerance(atol, rtol, y0)
-    return bool(np.any(tolerance < below * component_scales(atol, y0)))
+    return bool(_tolerances_below(below, atol, rtol, y0.reshape(1, -1))[0])
+
+
+def _tolerances_below(
+    below: float, atol: np.ndarray, rtol: np.ndarray, states: np.ndarray
+) -> np.ndarray:
+    """Per row of ``states``, whether some component's tolerance is below
+    ``below`` times its size (:func:`component_scales`)."""
+    tolerance = component_tolerance(atol, rtol, states)
+    return np.any(tolerance < below * component_scales(atol, states), axis=1)
 
 
 #: Where ``H`` depends on the time, the witness runs when some component's
@@ -233,12 +294,23 @@ def time_rounding_matters(
     300, at 1e-9 to 1e-12, within it.  Measured against 1e-3 of the
     tolerance over the state's size: from t0 = 0 over a few thousand time
     units at 1e-9 nothing runs the witness, from t0 = 1e4 at 1e-9 it runs."""
+    # decided without arrays where H does not depend on t (every solve asks)
+    return time_scale > 0.0 and bool(time_rounding_matters_per_row(atol, rtol, y0, time_scale))
+
+
+def time_rounding_matters_per_row(
+    atol: np.ndarray, rtol: np.ndarray, states: np.ndarray, time_scale: float
+) -> np.ndarray:
+    """:func:`time_rounding_matters` of each row of ``states`` (shape
+    ``(m, d)``), in whole-array operations: a bool per row (of the one
+    state where ``states`` is 1-D)."""
+    states = np.asarray(states, dtype=np.float64)
     if time_scale <= 0.0:
-        return False
-    atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
-    tolerance = component_tolerance(atol, rtol, y0)
+        return np.zeros(states.shape[:-1], dtype=bool)
+    atol, rtol = (np.asarray(a, dtype=np.float64) for a in (atol, rtol))
+    tolerance = component_tolerance(atol, rtol, states)
     relative_rounding = EPS * time_scale * TIME_ROUNDING_MARGIN
-    return bool(np.any(tolerance < relative_rounding * component_scales(atol, y0)))
+    return np.any(tolerance < relative_rounding * component_scales(atol, states), axis=-1)
 
 
 #: The steps of the runs :data:`WITNESS_BELOW` was measured on (prentice2011
@@ -338,13 +410,43 @@ def needs_witness_after_run(
     chaotic Henon-Heiles orbit (53-fold) put the rounding at 0.03 of the
     tolerance where it was 0.92.
     """
-    ratio = length_factor(steps) * close_approach_factor(step_range)
+    return bool(needs_witness_after_run_per_row(atol, rtol, y0, steps, size, step_range))
+
+
+def needs_witness_after_run_per_row(
+    atol: np.ndarray,
+    rtol: np.ndarray,
+    states: np.ndarray,
+    steps: int | np.ndarray,
+    sizes: np.ndarray | None = None,
+    step_range: float | np.ndarray = 1.0,
+) -> np.ndarray:
+    """:func:`needs_witness_after_run` of each row of ``states`` (shape
+    ``(m, d)``: an ensemble's ``y0``), with its row of ``sizes`` and its
+    element of ``steps`` and ``step_range`` (or one value for every row), in
+    whole-array operations: a bool per row (of the one state where
+    ``states`` is 1-D, and ``steps`` and ``step_range`` numbers)."""
+    states = np.asarray(states, dtype=np.float64)
+    if np.isscalar(steps) and np.isscalar(step_range):
+        ratio = length_factor(steps) * close_approach_factor(step_range)
+    else:  # one ratio per row, along the components
+        ratio = _each_length_factor(steps) * _each_close_approach_factor(step_range)
+        ratio = np.asarray(ratio, dtype=np.float64)[..., None]
     # The tolerance at y0, as the rule at the start (with rtol, a component
     # that is 0 there has atol, as it has wherever it crosses zero); the
     # rounding at the run's largest state (it grows with |y|).
-    tolerance = component_tolerance(atol, rtol, y0)
-    largest = np.maximum(np.abs(y0), y0 if size is None else size)
-    return bool(np.any(tolerance < WITNESS_BELOW * ratio * component_scales(atol, largest)))
+    tolerance = component_tolerance(atol, rtol, states)
+    largest = np.maximum(np.abs(states), states if sizes is None else sizes)
+    threshold = WITNESS_BELOW * ratio * component_scales(atol, largest)
+    return (tolerance < threshold).any(axis=-1)
+
+
+#: :func:`length_factor` and :func:`close_approach_factor` element by
+#: element (an ensemble's members): the rules in Python on numbers, which
+#: numpy's ufuncs on one number would make several times as slow (every
+#: solve asks).
+_each_length_factor = np.frompyfunc(length_factor, 1, 1)
+_each_close_approach_factor = np.frompyfunc(close_approach_factor, 1, 1)
 
 
 #: How many times its start's size (:func:`component_scales`) a run of the
@@ -372,14 +474,33 @@ def state_outgrew_its_start(
     t = 800 (q = 2080): its quencher's rounding grows with ``|q|``, and the
     tangent Gamma does not see rounding.
     """
+    states = np.asarray(y0, dtype=np.float64).reshape(1, -1)
+    sizes = np.asarray(size, dtype=np.float64).reshape(1, -1)
+    return bool(state_outgrew_its_start_per_row(atol, rtol, states, sizes)[0])
+
+
+def state_outgrew_its_start_per_row(
+    atol: np.ndarray, rtol: np.ndarray, states: np.ndarray, sizes: np.ndarray
+) -> np.ndarray:
+    """:func:`state_outgrew_its_start` of each row of ``states`` (shape
+    ``(m, d)``: an ensemble's ``y0``) with its row of ``sizes``, in
+    whole-array operations: a bool per row."""
+    states = np.asarray(states, dtype=np.float64)
+    sizes = np.asarray(sizes, dtype=np.float64)
+    m = states.shape[0]
     # the scales at the start and at the run's largest state, in one pass
-    start_size = np.abs(np.asarray(y0, dtype=np.float64))
-    sizes = np.empty((2, start_size.shape[0]))
-    sizes[0] = start_size
-    np.maximum(start_size, size, out=sizes[1])
-    start, reached = _scales(np.asarray(atol, dtype=np.float64), sizes)
-    grew = float(np.max(reached / start))
-    if not grew > STATE_GROWTH:  # the common case, decided without the rules (every call pays)
-        return False
-    at_size = needs_witness_after_run(atol, rtol, y0, WITNESS_REFERENCE_STEPS, size)
-    return at_size and not needs_witness_after_run(atol, rtol, y0, WITNESS_REFERENCE_STEPS)
+    both = np.empty((2 * m, states.shape[1]))
+    np.abs(states, out=both[:m])
+    np.maximum(both[:m], sizes, out=both[m:])
+    scales = _scales(np.asarray(atol, dtype=np.float64), both)
+    grew = np.max(scales[m:] / scales[:m], axis=1)
+    # the common case, decided without the rules (every call pays); NaN did not grow
+    outgrew = grew > STATE_GROWTH
+    if not outgrew.any():
+        return outgrew
+    rows = np.flatnonzero(outgrew)
+    steps = WITNESS_REFERENCE_STEPS
+    at_size = needs_witness_after_run_per_row(atol, rtol, states[rows], steps, sizes[rows])
+    at_start = needs_witness_after_run_per_row(atol, rtol, states[rows], steps)
+    outgrew[rows] = at_size & ~at_start
+    return outgrew
