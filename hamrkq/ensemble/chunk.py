@@ -32,17 +32,16 @@ import numpy as np
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.ensemble.request import STATS, ChunkResult, Request
 from hamrkq.result import Status
-from hamrkq.rkq.auto_rules import SHADOW_SATURATION, auto_member, auto_tolerance
+from hamrkq.rkq.auto_rules import (
+    SHADOW_SATURATION,
+    auto_member_per_row,
+    auto_tolerance_per_row,
+)
 from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
-from hamrkq.rkq.witness_rules import needs_witness
+from hamrkq.rkq.witness_rules import needs_witness_per_row
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.auto import (
-    MIN_GROWTH_STEPS,
-    folded_growth,
-    reruns_with_witness,
-    witness_rerun_needed,
-)
+from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
 from hamrkq.solve.dispatch import (
     integration,
     member_of,
@@ -50,10 +49,18 @@ from hamrkq.solve.dispatch import (
     shadow_departures,
     time_scale,
 )
+from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
 from hamrkq.symbolic.assumptions import declares_checked
 from hamrkq.symbolic.kinks import kinks
 
-__all__ = ["BUFFER_ROWS", "batch_groups", "run_batched", "run_chunk", "solve_members"]
+__all__ = [
+    "BUFFER_ROWS",
+    "batch_groups",
+    "decided_by_y0",
+    "run_batched",
+    "run_chunk",
+    "solve_members",
+]
 
 #: Nodes buffered per member between folds when only the last state is kept.
 BUFFER_ROWS = 256
@@ -82,39 +89,46 @@ def run_chunk(request: Request) -> ChunkResult:
 
 def batch_groups(request: Request, prepared: Any = None) -> list[np.ndarray]:
     """The members' indices, grouped by what their ``y0`` decides of the
-    options (:func:`_decided_by_y0`); one group where the batch loop cannot
+    options (:func:`decided_by_y0`); one group where the batch loop cannot
     be used anyway.  ``prepared``: member 0's :func:`hamrkq.solve.prepare`,
     if already made."""
     if prepared is None:
         prepared = _batch_prepared(request)
     if prepared is None:
         return [np.arange(request.size)]
-    groups: dict[tuple, list[int]] = {}
-    for i, y0 in enumerate(request.y0):
-        groups.setdefault(_decided_by_y0(prepared, request.ham.dim, y0), []).append(i)
-    return [np.array(indices) for indices in groups.values()]
+    auto, witness = decided_by_y0(prepared, request.ham.dim, request.y0)
+    # one group per distinct pair, in the order of each pair's first member
+    keys = np.char.add(auto, np.where(witness, "+witness", ""))
+    _, first, group_of = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    return [np.flatnonzero(group_of == group) for group in order]
 
 
-def _decided_by_y0(prepared: Any, dim: int, y0: np.ndarray) -> tuple:
-    """What a member's ``y0`` decides of options that are otherwise the
-    same: ``method="auto"``'s member (from the tolerance over the state's
-    size, :func:`hamrkq.rkq.auto_rules.auto_tolerance`) and whether the
-    rounding witness runs (each component's tolerance against its size,
-    :func:`hamrkq.rkq.witness_rules.needs_witness`)."""
+def decided_by_y0(prepared: Any, dim: int, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What each member's ``y0`` (the rows of ``states``) decides of options
+    that are otherwise member 0's ``prepared``: ``method="auto"``'s member
+    (from the tolerance over the state's size,
+    :func:`hamrkq.rkq.auto_rules.auto_tolerance`; "" for another method)
+    and whether the rounding witness runs (each component's tolerance against
+    its size, :func:`hamrkq.rkq.witness_rules.needs_witness`; False without
+    the shadow estimate).  One array over the members for each, in
+    whole-array operations: the same decisions as those functions member by
+    member (``tests/test_ensemble_rules.py``)."""
     task = prepared.task
-    auto = None
+    m = states.shape[0]
+    auto = np.full(m, "")
     if prepared.requested.method == "auto":
-        auto = auto_member(dim, auto_tolerance(task.atol, task.rtol, y0))
-    witness = None
+        auto = auto_member_per_row(dim, auto_tolerance_per_row(task.atol, task.rtol, states))
+    witness = np.zeros(m, dtype=bool)
     if task.options.gamma_name == "shadow":
         member = member_of(task)
-        witness = needs_witness(
+        witness = needs_witness_per_row(
             task.atol,
             task.rtol,
-            y0,
-            member.stage_rounding_dominates,
-            member.z_substeps,
-            time_scale(task),
+            states,
+            stage_rounding=member.stage_rounding_dominates,
+            substeps=member.z_substeps,
+            time_scale=time_scale(task),
         )
     return auto, witness
 
@@ -241,29 +255,28 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
     again = np.zeros(batch.status.shape[0], dtype=bool)
     if task.options.gamma_name not in ("shadow", "tangent"):
         return again
-    steps = batch.stats[:, 0]
-    nodes = request.times.size if task.t_eval is not None else steps + 1
-    enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
-    witness = reruns_with_witness(task)
-    for i in np.flatnonzero(batch.status == Status.SUCCESS.code).tolist():
-        departure = shadow_departures(task, batch.gamma_to_end[i : i + 1], batch.y_size[i])
-        if departure is not None and departure[0] > SHADOW_SATURATION:
-            again[i] = True
-        elif witness:
-            # as solve.auto.growth: no reading of the growth from a short run
-            factor = 1.0
-            if enough[i]:
-                factor = folded_growth(
-                    task, batch.gamma_to_middle[i], batch.gamma_to_end[i], batch.y_size[i]
-                )
-            again[i] = witness_rerun_needed(
-                task,
-                request.y0[i],
-                batch.y_size[i],
-                factor,
-                int(steps[i]),
-                float(batch.step_range[i]),
-            )
+    # the members that succeeded, decided at once (hamrkq.solve.member_rules)
+    ok = np.flatnonzero(batch.status == Status.SUCCESS.code)
+    if ok.size == 0:
+        return again
+    y_size = batch.y_size[ok]
+    # one row of gamma per member, each with its own row of y_size (the
+    # component scales of each row: hamrkq.rkq.witness_rules.component_scales)
+    departure = shadow_departures(task, batch.gamma_to_end[ok], y_size)
+    if departure is not None:
+        again[ok] = departure > SHADOW_SATURATION
+    if reruns_with_witness(task):
+        steps = batch.stats[ok, 0]
+        nodes = request.times.size if task.t_eval is not None else steps + 1
+        # as solve.auto.growth: no reading of the growth from a short run
+        enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
+        growth = folded_growth_per_row(
+            task, batch.gamma_to_middle[ok], batch.gamma_to_end[ok], y_size
+        )
+        factors = np.where(enough, growth, 1.0)
+        again[ok] |= witness_rerun_needed_per_row(
+            task, request.y0[ok], y_size, factors, steps, batch.step_range[ok]
+        )
     return again
 
 
