@@ -241,3 +241,38 @@ def test_members_whose_y0_decide_differently_group_as_each_alone_decides():
         sol = _assert_member_equals_solve(ens, i, pend, t_span=(0, 0.5), **options)
         assert sol.method == auto[i]
         assert sol.options["rounding_witness"] == witness[i]
+
+
+@pytest.mark.parametrize("method", ["rk78q12", "rk34q8"])
+def test_the_rules_after_a_run_per_row_decide_as_solve_s_for_each_run(method):
+    """hamrkq.solve.member_rules against hamrkq.solve.auto's per-run rules,
+    row by row and for one run alone: the shadow estimate (exponential
+    growth, the length and the state's size) and the tangent estimate (a
+    state grown beyond its start)."""
+    from hamrkq.solve import auto, member_rules, prepare
+
+    problem = hamrkq.load_problem("henon_heiles")
+    task = prepare(problem, q0=[0.1, 0.2], p0=[0.3, 0.0], method=method, atol=1e-8).task
+    assert auto.reruns_with_witness(task)
+    rng = np.random.default_rng(5)
+    states = rng.uniform(-0.3, 0.3, (M, D))
+    states[:20, 0] = 0.0
+    sizes = np.abs(states) * 10.0 ** rng.uniform(0, 2.5, (M, D))
+    to_middle = 1e-9 * 10.0 ** rng.uniform(-4, 0, (M, D))
+    to_end = to_middle * 10.0 ** rng.uniform(0, 3, (M, D))
+    to_middle[:10] = 0.0
+    steps = (10.0 ** rng.uniform(1, 5, M)).astype(np.int64)
+    ranges = 10.0 ** rng.uniform(0, 1.5, M)
+    growth = member_rules.folded_growth_per_row(task, to_middle, to_end, sizes)
+    rerun = member_rules.witness_rerun_needed_per_row(task, states, sizes, growth, steps, ranges)
+    _mixed(growth > ar.EXPONENTIAL_GROWTH)
+    _mixed(rerun)
+    for i in range(M):
+        factor = auto.folded_growth(task, to_middle[i], to_end[i], sizes[i])
+        assert growth[i] == factor
+        assert (
+            member_rules.folded_growth_per_row(task, to_middle[i], to_end[i], sizes[i]) == factor
+        )
+        one = (task, states[i], sizes[i], factor, int(steps[i]), float(ranges[i]))
+        assert rerun[i] == auto.witness_rerun_needed(*one)
+        assert member_rules.witness_rerun_needed_per_row(*one) == rerun[i]

@@ -474,9 +474,7 @@ def state_outgrew_its_start(
     t = 800 (q = 2080): its quencher's rounding grows with ``|q|``, and the
     tangent Gamma does not see rounding.
     """
-    states = np.asarray(y0, dtype=np.float64).reshape(1, -1)
-    sizes = np.asarray(size, dtype=np.float64).reshape(1, -1)
-    return bool(state_outgrew_its_start_per_row(atol, rtol, states, sizes)[0])
+    return bool(state_outgrew_its_start_per_row(atol, rtol, y0, size))
 
 
 def state_outgrew_its_start_per_row(
@@ -484,9 +482,12 @@ def state_outgrew_its_start_per_row(
 ) -> np.ndarray:
     """:func:`state_outgrew_its_start` of each row of ``states`` (shape
     ``(m, d)``: an ensemble's ``y0``) with its row of ``sizes``, in
-    whole-array operations: a bool per row."""
+    whole-array operations: a bool per row (of the one state where
+    ``states`` is 1-D)."""
     states = np.asarray(states, dtype=np.float64)
     sizes = np.asarray(sizes, dtype=np.float64)
+    if states.ndim == 1:
+        return state_outgrew_its_start_per_row(atol, rtol, states[None], sizes[None])[0]
     m = states.shape[0]
     # the scales at the start and at the run's largest state, in one pass
     both = np.empty((2 * m, states.shape[1]))

@@ -7,7 +7,8 @@ and to its end, the largest ``|y_k|``, its steps and its step range.  These
 functions decide for every member at once, in whole-array operations, what
 :func:`hamrkq.solve.auto.folded_growth` and
 :func:`hamrkq.solve.auto.witness_rerun_needed` decide for one run: the same
-decisions, member by member (``tests/test_ensemble_rules.py``).
+decisions, member by member (``tests/test_ensemble_rules.py``).  Given
+one run's (1-D rows, numbers), they decide for it alone.
 """
 
 from __future__ import annotations
