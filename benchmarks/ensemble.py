@@ -5,7 +5,8 @@ because other processes share its cores):
 
 1. the per-member overhead: an ensemble whose members take one tiny step
    (t_span = (0, 1e-9)), so that nearly all of its time is the cost of
-   setting up and packing each member;
+   setting up, deciding and packing each member (the best of three;
+   ``benchmarks/ensemble_overhead.py`` compares checkouts side by side);
 2. the ensemble of MEMBERS orbits on 1 worker and on 2 workers (threads and
    processes), and the speed-up;
 3. a plain Python loop over ``hamrkq.solve`` on the same orbits (what a user
@@ -31,6 +32,7 @@ import hamrkq
 T_END = 100.0
 ATOL = 1e-8
 CHECK = 200  # members whose end states are checked against the reference
+WARM = 40  # members of the run that compiles and warms the caches
 
 
 def initial_states(members: int) -> np.ndarray:
@@ -104,11 +106,16 @@ def main() -> None:
     print(f"# {platform.machine()}, {os.cpu_count()} cores, hamrkq {hamrkq.__version__}, "
           f"numpy {np.__version__}; load average {os.getloadavg()[0]:.2f} at start")  # fmt: skip
     print(f"# Henon-Heiles, {members} members, t in [0, {T_END:g}], atol {ATOL:g}")
-    run(problem, y0[:4], t_span=(0, T_END), workers=1)  # compile / warm the cache
+    # compile / warm the cache, in chunks of several members: the compiled
+    # batch loop is looked up by its arrays' flags, which differ between a
+    # chunk of one member (C- and F-contiguous arrays) and one of several;
+    # warmed with four members, the row below loaded it once more (0.08 s,
+    # 40 us a member)
+    run(problem, y0[:WARM], t_span=(0, T_END), workers=1)
 
     tiny = min(members, 2000)
-    wall, _ = run(problem, y0[:tiny], t_span=(0, 1e-9), workers=1)
-    print(f"per-member overhead (one tiny step, {tiny} members, 1 worker): "
+    wall = min(run(problem, y0[:tiny], t_span=(0, 1e-9), workers=1)[0] for _ in range(3))
+    print(f"per-member overhead (one tiny step, {tiny} members, 1 worker, best of 3): "
           f"{1e6 * wall / tiny:.0f} us")  # fmt: skip
 
     print(f"{'how':<34} {'wall s':>9} {'us/member':>10} {'speed-up':>8}")

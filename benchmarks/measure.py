@@ -12,6 +12,7 @@ import platform
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -158,6 +159,38 @@ def python(
         raise RuntimeError(f"subprocess failed ({done.returncode}):\n{done.stderr[-3000:]}")
     lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
     return wall, (json.loads(lines[-1]) if lines else {})
+
+
+def rounds_at_checkouts(
+    code: str, roots: list[Path], rounds: int, prefix: str
+) -> list[list[dict]]:
+    """Run ``code`` once per checkout and round, each checkout first on
+    ``PYTHONPATH`` in a fresh interpreter with its own warm caches (warmed by
+    a first round that is not counted), the checkouts in turn within each
+    round so that a change in the machine's load touches them alike; the
+    JSON object each printed, per checkout.  ``code`` must print ``"file"``,
+    ``hamrkq.__file__``, which is checked to be the checkout's."""
+    measured: list[list[dict]] = [[] for _ in roots]
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        caches = [Path(tmp) / f"cache-{k}" for k in range(len(roots))]
+
+        def one_round(k: int) -> dict:
+            env = {"PYTHONPATH": str(roots[k]), "HAMRKQ_COMPILE": "wait",
+                   "NUMBA_CACHE_DIR": str(caches[k] / "numba")}  # fmt: skip
+            caches[k].mkdir(exist_ok=True)
+            # run in the cache folder: python -c would import the checkout
+            # it is started in before PYTHONPATH's
+            result = python(code, cache=caches[k], env=env, cwd=caches[k])[1]
+            if not result["file"].startswith(str(roots[k])):
+                raise RuntimeError(f"measured {result['file']}, not the checkout {roots[k]}")
+            return result
+
+        for k in range(len(roots)):
+            one_round(k)  # warm the caches: compiles
+        for _ in range(rounds):
+            for k in range(len(roots)):
+                measured[k].append(one_round(k))
+    return measured
 
 
 def rows_at_checkout(script: str, root: Path, flag: str) -> list[dict]:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -68,26 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     results = measure.begin_record(args.rounds, calls=args.calls,
                                    checkouts=[{"root": str(r), "commit": _commit(r)}
                                               for r in roots])  # fmt: skip
-    rounds: list[list[dict]] = [[] for _ in roots]
-    with tempfile.TemporaryDirectory(prefix="hamrkq-per-call-") as tmp:
-        caches = [Path(tmp) / f"cache-{k}" for k in range(len(roots))]
-
-        def one_round(k: int) -> dict:
-            env = {"PYTHONPATH": str(roots[k]), "HAMRKQ_COMPILE": "wait",
-                   "NUMBA_CACHE_DIR": str(caches[k] / "numba")}  # fmt: skip
-            caches[k].mkdir(exist_ok=True)
-            # run in the cache folder: python -c would import the checkout
-            # it is started in before PYTHONPATH's
-            measured = measure.python(code, cache=caches[k], env=env, cwd=caches[k])[1]
-            if not measured["file"].startswith(str(roots[k])):
-                raise RuntimeError(f"measured {measured['file']}, not the checkout {roots[k]}")
-            return measured
-
-        for k in range(len(roots)):
-            one_round(k)  # warm the caches: compiles
-        for _ in range(args.rounds):
-            for k in range(len(roots)):
-                rounds[k].append(one_round(k))
+    rounds = measure.rounds_at_checkouts(code, roots, args.rounds, "hamrkq-per-call-")
     for entry, measured in zip(results["checkouts"], rounds, strict=True):
         for method in METHODS:
             values = [r[method] for r in measured]
