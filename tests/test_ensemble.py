@@ -455,7 +455,11 @@ def test_a_member_whose_shadow_saturated_in_the_batch_loop_is_solved_alone(monke
     # rk78q12 with eight quencher steps on a chaotic Henon-Heiles orbit: the
     # batch loop ran it to t = 1000 with SUCCESS; solve alone cuts it where
     # its shadow track passes half the orbit's size and runs it again with
-    # the witness (tests/test_family.py).
+    # the witness (tests/test_family.py).  Eight quencher steps now run the
+    # witness from the start, which stops these members in the batch loop
+    # (TOLERANCE_UNATTAINABLE), so they are solved alone as failures; members
+    # whose shadow saturates in a run that succeeded there:
+    # tests/test_ensemble_rules.py (the FPU chain).
     import math
 
     from hamrkq.ensemble import chunk
