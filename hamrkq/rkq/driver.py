@@ -142,7 +142,6 @@ class RunOutput:
     #: The shadow's departure from the quencher over the orbit's size that
     #: ended the run (hamrkq.rkq.auto_rules.SHADOW_SATURATION), or 0.
     saturated: float = 0.0
-    saturated_step: float = 0.0  # the run's mean step where ``saturated`` ended it
     #: Each component's largest ``|y|`` and ``|Gamma|`` over every node of the
     #: run, kept or not, and the largest ``|Gamma|`` up to each checkpoint
     #: (rows by ``hamrkq.rkq.layout.checkpoint_fractions``; those the run did

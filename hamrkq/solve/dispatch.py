@@ -91,9 +91,6 @@ class Task:
     #: :func:`hamrkq.rkq.auto_rules.error_growth`); None: by the tolerance
     #: (:func:`hamrkq.rkq.witness_rules.needs_witness`).
     witness: bool | None = None
-    #: ``method="auto"``'s runs made again with a smaller ``max_step`` after
-    #: the shadow track saturated (:func:`within_linear_shadow`).
-    shorter_steps: int = 0
     #: Where the run before this one (``method="auto"``'s) ended, if its
     #: estimate grew exponentially (:func:`hamrkq.rkq.auto_rules.error_growth`),
     #: else None; a second such run in a row that reaches further makes auto
@@ -363,7 +360,6 @@ def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
         status=Status.TOLERANCE_UNATTAINABLE.code,
         t_last=float(out.t[kept - 1]) if kept else task.t0,
         saturated=float(departure[kept]),
-        saturated_step=abs(out.t_last - task.t0) / max(out.stats.get("steps", 0), 1),
     )
 
 

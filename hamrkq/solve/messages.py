@@ -251,15 +251,17 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
             "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
             "is what works."
         )
-    tangent = "global_error_estimate='tangent' (the error carried by the Jacobian, no shadow); "
     if task.auto and task.options.global_error_estimate is None and not task.options.double_double:
-        # auto ran it after this run (auto.rerun), and it stopped earlier:
-        # auto returns the run that reached furthest (auto.returned_run)
-        tangent = ""
+        # auto ran the tangent estimate after this run (auto.rerun), which
+        # stopped earlier: auto returns the run that reached furthest
+        return text + " What helps: a looser tolerance or a shorter interval."
+    # Not a smaller max_step: it keeps the shadow within its limit without
+    # making Gamma honest again (hamrkq.solve.auto._with_tangent).
     return text + (
-        " What helps: a smaller max_step (the shadow's error falls like "
-        f"h^{member.z_order}; more quencher steps do not change it); "
-        f"{tangent}a shorter interval."
+        " What helps: global_error_estimate='tangent' (the error carried by the Jacobian, no "
+        f"shadow: more quencher steps do not change the shadow's error, the quencher's in one "
+        f"step a step, {member.z_substeps}^{member.z_order} times its own); a looser tolerance "
+        "or a shorter interval."
     )
 
 
@@ -512,7 +514,7 @@ def rerun_note(
             what = (
                 f"stopped after t = {run.t_last!r}, where its shadow track had moved "
                 f"{run.saturated:.3g} of the orbit's size from the quencher (saturated: "
-                "a smaller max_step brings it back, more quencher steps do not)"
+                "Gamma from the tangent flow has no shadow, more quencher steps do not help)"
             )
         elif run.event_failure is not None:
             what = (
@@ -581,10 +583,9 @@ def _quencher_setting(task: Task) -> str:
     options = task.options
     extended = ", the quencher in double-double" if options.double_double else ""
     witness = " and the rounding witness" if uses_witness(task) else ""
-    shorter = f", max_step={options.max_step:.4g}" if task.shorter_steps else ""
     tangent = (
         ", Gamma from the tangent flow (global_error_estimate='tangent')"
         if task.auto and options.gamma_name == "tangent"
         else ""
     )
-    return f"with z_substeps={member_of(task).z_substeps}{shorter}{tangent}{extended}{witness}"
+    return f"with z_substeps={member_of(task).z_substeps}{tangent}{extended}{witness}"
