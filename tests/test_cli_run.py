@@ -108,6 +108,11 @@ def test_stdout_table_shows_the_summary_numbers(prentice_run):
     assert f"{diag['energy']['max_abs']:.3e}" in stdout
     assert f"{diag['energy_bound_ratio']:.4f}" in stdout
     assert "wall time" in stdout and str(out) in stdout
+    # hamrkq's promise per component beside the paper's Euclidean ratio (QA)
+    true = diag["global_error"]
+    worst = f"{true['component_ratio']:.4f} ({true['component_ratio_name']}, t = "
+    assert "error / tolerance (worst component)" in stdout and worst in stdout
+    assert "trajectory / paper's bound" in stdout and 0.5 < true["component_ratio"] <= 1.05
 
 
 def test_exact_reference_is_the_default_where_the_problem_has_one(tmp_path, capsys):

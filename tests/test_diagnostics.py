@@ -283,7 +283,13 @@ def test_to_dict_is_strict_json_and_table_reads_well():
     assert data["energy"]["max_abs"] == diag.energy.max_abs
     assert data["rk8_estimated_global_error_max"] == pytest.approx(1e-10)
     table = diag.table()
-    for label in ("energy error", "energy / bound", "true error", "trajectory / bound"):
+    for label in (
+        "energy error",
+        "energy / bound",
+        "true error",
+        "error / tolerance (worst component)",
+        "trajectory / paper's bound",
+    ):
         assert label in table
     assert diag.series["t"].flags.writeable is False
 
