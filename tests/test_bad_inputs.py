@@ -252,6 +252,12 @@ FILES = [
     pytest.param(edit("k*x**2/2", "sin(" * (MAX_DEPTH + 1) + "x" + ")" * (MAX_DEPTH + 1)),
                  ExpressionError, ["osc.toml:5", f"nested deeper than {MAX_DEPTH} levels"],
                  id="expr-too-deep"),
+    # the expression is named, not its innermost piece (QA: a tower of powers
+    # read "nested deeper than 60 levels: '2'")
+    pytest.param(edit("k*x**2/2", "x" + "**2" * (MAX_DEPTH + 1)), ExpressionError,
+                 ["osc.toml:5", f"nested deeper than {MAX_DEPTH} levels",
+                  "signs inside one another", ": 'x**2**2**2**2"],
+                 id="expr-power-tower-too-deep"),
     pytest.param(edit("k*x**2/2", "x**(10**10)"), ExpressionError,
                  ["exponent larger than 1000"], id="expr-exponent"),
     pytest.param(edit("q = [1]", 'q = ["1/0"]'), ExpressionError,

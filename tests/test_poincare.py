@@ -94,6 +94,29 @@ def test_cli_poincare_explains_what_it_needs_of_another_number_of_degrees_of_fre
     assert not out.exists()
 
 
+def test_cli_poincare_says_a_section_fixes_a_coordinate_to_a_constant(tmp_path, capsys):
+    # Before: "key 'section': unknown name (not a declared symbol, t, pi or
+    # E): 'q2'", of a coordinate of the problem (found by QA).
+    from hamrkq.cli import main
+
+    out = tmp_path / "hh"
+    argv = ["poincare", "henon_heiles", "--section", "q1=q2", "--out", str(out)]
+    assert main(argv) == 2
+    message = capsys.readouterr().err
+    assert "the section 'q1=q2' sets q1 to 'q2', which depends on q2" in message
+    assert "fixes a coordinate to a constant, 'q1 = c'" in message
+    assert "hamrkq.poincare(" in message and "unknown name" not in message
+    assert not out.exists()
+    ham = hamrkq.load_problem("henon_heiles").hamiltonian
+    with pytest.raises(InputError, match="which depends on p1, t"):
+        energy_orbits(ham, 1 / 12, 3, "q1 = p1 + t")
+    # a constant expression is still a section; an unknown name is still unknown
+    q0, _ = energy_orbits(ham, 1 / 12, 3, "q1 = sqrt(2)/20")
+    assert np.all(q0[:, 0] == pytest.approx(np.sqrt(2) / 20, abs=1e-16))
+    with pytest.raises(ExpressionError, match="unknown name"):
+        energy_orbits(ham, 1 / 12, 3, "q1 = zz")
+
+
 def test_cli_poincare_writes_points_and_figure(tmp_path, capsys):
     from hamrkq.cli import main
 

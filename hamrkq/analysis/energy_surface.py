@@ -67,13 +67,14 @@ def energy_orbits(
         raise InputError(
             f"the section must fix a coordinate ({', '.join(names)}), got {section!r}"
         )
+    constant = _section_constant(ham, section, key, rhs)
     energy = float(energy)
     if not np.isfinite(energy):
         raise InputError(f"the energy must be a finite number, got {energy!r}")
     k = names[key]
     other = 1 - k
     params = ham.parameter_values(parameters)
-    guess = float(sp.N(parse_expression(rhs, {}, key="section")))
+    guess = float(sp.N(constant))
     value = _on_section(ham, section, k, guess, params)
     name = ham.q[other].name
     H = numeric_of(ham).energy
@@ -106,6 +107,30 @@ def energy_orbits(
         pk = brentq(lambda s, x=x: h_at(x, s) - energy, 0.0, top, xtol=1e-15, rtol=1e-15)
         q0[j, k], q0[j, other], p0[j, k] = value, x, pk
     return q0, p0
+
+
+def _section_constant(ham: Hamiltonian, section: str, coordinate: str, rhs: str) -> sp.Expr:
+    """The constant ``c`` of the section ``"q_k = c"``.
+
+    The right side goes through the safe parser with the system's names, so
+    that a side naming a state component or a parameter (``"q1 = q2"``) is
+    refused for what it is: not a constant.  Parsed with no names at all, it
+    read "unknown name 'q2'" of a coordinate of the problem (found by QA).
+    """
+    symbols = {s.name: s for s in (*ham.state, *ham.parameters)}
+    symbols["t"] = ham.t
+    constant = parse_expression(rhs, symbols, key="section")
+    if constant.free_symbols:
+        named = ", ".join(sorted(s.name for s in constant.free_symbols))
+        raise InputError(
+            f"the section {section!r} sets {coordinate} to {rhs.strip()!r}, which depends on "
+            f"{named}: orbits seeded at an energy need a section that fixes a coordinate "
+            f"to a constant, '{coordinate} = c' with c a number or an expression of numbers, "
+            "pi and E (1/10, sqrt(2)/20); hamrkq.poincare(problem, section, q0, p0, t_span) "
+            "takes any surface 'lhs = rhs' of the state, the parameters and t, with "
+            "initial values of your own"
+        )
+    return constant
 
 
 def _on_section(ham: Hamiltonian, section: str, k: int, guess: float, params: np.ndarray) -> float:

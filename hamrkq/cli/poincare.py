@@ -60,7 +60,12 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("problem", metavar="NAME|FILE", help="catalogue name or .toml file")
-    p.add_argument("--section", default="q1 = 0", help="the surface, 'q_k = c' (default q1 = 0)")
+    p.add_argument(
+        "--section",
+        default="q1 = 0",
+        help="the surface, 'q_k = c': a coordinate and a constant, such as 'q1 = 1/10' "
+        "(default q1 = 0)",
+    )
     p.add_argument(
         "--energy",
         help="the energy E (a number or '1/8'; default: H at the problem's initial values)",
