@@ -34,11 +34,9 @@ from hamrkq.rkq.auto_rules import (
     EXPONENTIAL_GROWTH,
     auto_abandon_substeps,
     auto_retry_substeps,
-    growth_of_maxima,
     middle_of,
 )
 from hamrkq.rkq.layout import ST_ABANDONED, checkpoint_fractions
-from hamrkq.rkq.witness_rules import needs_witness_after_run, state_outgrew_its_start
 from hamrkq.solve.dispatch import (
     METHODS,
     Task,
@@ -50,6 +48,7 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
+from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
 from hamrkq.solve.output_times import output_rounding_limits
 
 __all__ = [
@@ -344,12 +343,9 @@ def folded_growth(
 ) -> float:
     """:func:`growth` from each component's largest ``|Gamma_k|`` over the
     nodes up to the middle and over all of them, and its largest ``|y_k|``
-    (what the ensemble's batch loop folds)."""
-    # One tolerance per component over the run (at its largest |y_k|), so
-    # that a tolerance with rtol, small where a component crosses zero,
-    # does not count as growth of the error.
-    delta = component_tolerance(task.atol, task.rtol, y_size)
-    return growth_of_maxima(to_middle, to_end, delta)
+    (what the ensemble's batch loop folds): the rule's one home is
+    :func:`hamrkq.solve.member_rules.folded_growth_per_row`."""
+    return float(folded_growth_per_row(task, to_middle, to_end, y_size))
 
 
 def reading_with_the_run_before(task: Task, factor: float) -> float:
@@ -400,24 +396,14 @@ def witness_rerun_needed(
     q = 0 at 1e-8 reached q = 13 000 by t = 5000 (an ulp of q there is
     1.8e-12) and returned nodes 1.08 times the tolerance off.  For the
     tangent estimate only a state grown far beyond its start counts
-    (:func:`hamrkq.rkq.witness_rules.state_outgrew_its_start`)."""
+    (:func:`hamrkq.rkq.witness_rules.state_outgrew_its_start`).  The rule
+    after ``reruns_with_witness`` has its one home in
+    :func:`hamrkq.solve.member_rules.witness_rerun_needed_per_row`, which
+    decides it for an ensemble's members at once."""
     if not reruns_with_witness(task):
         return False
-    if task.options.gamma_name == "tangent":
-        return state_outgrew_its_start(task.atol, task.rtol, y0, y_size)
-    if factor > EXPONENTIAL_GROWTH:
-        # Gamma's growth understates the rounding's on a chaotic orbit:
-        # Henon-Heiles at E = 1/6 with auto at 1e-8 read 53-fold, the law
-        # (needs_witness_after_run) put the amplified rounding at 0.03 of
-        # the tolerance, and the quencher was 0.92 of it off (0.008 in
-        # double-double): nodes of 1.53 delta.  So every exponential reading
-        # is measured (tests/test_family.py).
-        return True
-    # A growth below EXPONENTIAL_GROWTH is a regular orbit's, read noisily
-    # (28-fold on prentice2011's periodic orbit): its amplification is the
-    # length's (prentice2011 at 1e-9 to t = 4000 with t_eval read 5.6-fold,
-    # and would have run again for nothing).
-    return needs_witness_after_run(task.atol, task.rtol, y0, steps, y_size, step_range)
+    needed = witness_rerun_needed_per_row(task, y0, y_size, factor, steps, step_range)
+    return bool(needed)
 
 
 def reruns_with_witness(task: Task) -> bool:

@@ -70,10 +70,15 @@ def witness_rerun_needed_per_row(
     if task.options.gamma_name == "tangent":
         # the tangent estimate: only a state grown far beyond its start counts
         return state_outgrew_its_start_per_row(task.atol, task.rtol, states, y_sizes)
-    # Gamma's growth understates the rounding's on a chaotic orbit, so every
-    # exponential reading is measured; a slower growth is a regular orbit's,
-    # read noisily, whose amplification is the length's
-    # (hamrkq.solve.auto.witness_rerun_needed says where this was measured).
+    # Gamma's growth understates the rounding's on a chaotic orbit:
+    # Henon-Heiles at E = 1/6 with auto at 1e-8 read 53-fold, the law
+    # (needs_witness_after_run) put the amplified rounding at 0.03 of the
+    # tolerance, and the quencher was 0.92 of it off (0.008 in
+    # double-double): nodes of 1.53 delta.  So every exponential reading is
+    # measured (tests/test_family.py).  A slower growth is a regular
+    # orbit's, read noisily (28-fold on prentice2011's periodic orbit): its
+    # amplification is the length's (prentice2011 at 1e-9 to t = 4000 with
+    # t_eval read 5.6-fold, and would have run again for nothing).
     exponential = np.asarray(factors) > EXPONENTIAL_GROWTH
     regular = needs_witness_after_run_per_row(
         task.atol, task.rtol, states, steps, y_sizes, step_ranges
