@@ -69,6 +69,32 @@ def test_a_good_file_loads(tmp_path):
     assert other.q0 == pytest.approx([np.sqrt(2) / 2]) and problem.q0[0] != other.q0[0]
 
 
+def test_a_parameter_is_the_double_nearest_its_value_a_decimal_in_h_is_exact(tmp_path):
+    """What docs/catalogue.md says of [parameters] (QA: two files with
+    Arenstorf's mu = 0.012277471, one as a parameter and one written into H,
+    differ by 1e4 tolerances at atol 1e-12 over three periods)."""
+    from fractions import Fraction
+
+    import sympy as sp
+
+    decimal = Fraction("0.012277471")
+    as_parameter = hamrkq.load_problem("arenstorf")
+    mu = as_parameter.parameters["mu"]
+    assert mu == 0.012277471 and Fraction(mu) != decimal
+    assert float(Fraction(mu) - decimal) == pytest.approx(-1.2948e-19, rel=1e-4)
+    # an exact expression as the value is rounded alike
+    expression = good(tmp_path, transform=lambda s: s.replace('k = "8*1"', 'k = "12277471/10**9"'))
+    assert hamrkq.load_problem(expression).parameters["k"] == mu
+
+    # written into H, the decimal stays an exact rational, folded exactly
+    def into_h(text):  # without the invariant and exact solution in k
+        return text.split("[invariants]")[0].replace("k*x**2/2", "0.012277471*x**2/2")
+
+    inline = good(tmp_path, name="inline", transform=into_h)
+    H = hamrkq.load_problem(inline).hamiltonian.H
+    assert sp.Rational(12277471, 2 * 10**9) in H.atoms(sp.Rational)
+
+
 def test_unknown_name_lists_the_catalogue():
     with pytest.raises(ProblemNotFoundError, match="no problem named 'nope'"):
         hamrkq.load_problem("nope")
