@@ -914,3 +914,28 @@ def test_options_auto_builds_for_a_rerun_are_checked_as_the_callers():
             {"method": "auto", "quencher_precision": "double-double"},
             {"global_error_estimate": "tangent"},
         )
+
+
+def test_a_burst_at_the_end_of_a_run_is_not_read_as_exponential_growth_twice():
+    """QA (2026-11-27): Kepler at e = 0.999 from its pericentre over five
+    periods at rtol 1e-8 (atol 1e-10) with a pericentre event and q2 = 0:
+    the run stopped at the first pericentre read a 329-fold growth, the one
+    stopped at the second (t = 4 pi) a 1.34e3-fold growth, its estimate flat
+    in between; auto took the two readings for an unstable orbit and gave up
+    at t = 4 pi.  A second reading now needs the growth before the run's
+    last tenth too (``auto.INTERIOR_GROWTH``): eight quencher steps in
+    double-double reach the end, nodes within 0.995 of the tolerance of
+    Kepler's exact solution and event states within 0.037."""
+    problem = hamrkq.load_problem("kepler", e=0.999)
+    events = [{"expression": "q1*p1+q2*p2", "direction": 1}, {"expression": "q2", "direction": 0}]
+    sol = hamrkq.solve(problem, t_span=(0.0, 10 * np.pi), atol=1e-10, rtol=1e-8, events=events)
+    assert sol.status is Status.SUCCESS, sol.message
+
+    def worst(t, y):
+        truth = problem.exact(t)
+        return np.max(np.abs(y - truth) / np.maximum(1e-10, 1e-8 * np.abs(truth)))
+
+    assert worst(sol.t, sol.y) <= 1.05
+    assert [te.size for te in sol.t_events] == [5, 10]
+    for te, ye in zip(sol.t_events, sol.y_events, strict=True):
+        assert worst(te, ye) <= 1.05
