@@ -25,6 +25,7 @@ does not count its starting point.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -401,14 +402,25 @@ def _crossings(spec: EventSpec, g: np.ndarray) -> np.ndarray:
     return up | down
 
 
-def terminal_watch(specs: list[EventSpec]) -> Callable[[np.ndarray, np.ndarray], bool] | None:
-    """``stop(t, y)`` for the driver: True once a terminal event has occurred
-    as often as it ends the run (it sees the nodes chunk by chunk, in order).
-    None when no event is terminal.  The event itself is located afterwards
-    by :func:`apply`, on the nodes the run kept."""
+def terminal_watch(
+    specs: list[EventSpec],
+) -> Callable[[], Callable[[np.ndarray, np.ndarray], bool]] | None:
+    """A maker of ``stop(t, y)`` for the driver, one for each run: ``stop``
+    is True once a terminal event has occurred as often as it ends the run
+    (it sees the nodes chunk by chunk, in order).  None when no event is
+    terminal.  The event itself is located afterwards by :func:`apply`, on
+    the nodes the run kept.  A new ``stop`` for each run because it counts:
+    one shared by ``method="auto"``'s runs counted the crossings its
+    discarded runs had seen (Kepler at e = 0.9 with a terminal event at
+    t = 626.4 stopped with TERMINAL_EVENT at t = 12.6 and no event; QA)."""
     terminal = [spec for spec in specs if spec.terminal]
     if not terminal:
         return None
+    return functools.partial(_terminal_stop, terminal)
+
+
+def _terminal_stop(terminal: list[EventSpec]) -> Callable[[np.ndarray, np.ndarray], bool]:
+    """:func:`terminal_watch`'s ``stop`` for one run, its counts at zero."""
     counts = [0] * len(terminal)
     last: list[tuple[np.ndarray, np.ndarray]] = []
 

@@ -939,3 +939,39 @@ def test_a_burst_at_the_end_of_a_run_is_not_read_as_exponential_growth_twice():
     assert [te.size for te in sol.t_events] == [5, 10]
     for te, ye in zip(sol.t_events, sol.y_events, strict=True):
         assert worst(te, ye) <= 1.05
+
+
+def test_a_terminal_event_counts_only_the_crossings_of_the_run_returned():
+    """QA (2026-11-27): the terminal watch was made once per call, so auto's
+    runs shared its count: Henon-Heiles' catalogue orbit at atol = rtol =
+    1e-4 over [0, 1000] with ``q1`` terminal at its 40th crossing stopped
+    after 35 (the run abandoned at t = 23.4 had counted 5), and Kepler with
+    a terminal event at t = 626.4 stopped with TERMINAL_EVENT at t = 12.6
+    and no event.  Each run now counts its own: the 40th crossing, where
+    auto's member with its quencher steps, named, stops too."""
+    problem = hamrkq.load_problem("henon_heiles")
+
+    def q1(t, y):
+        return y[0]
+
+    q1.terminal = 40
+    options = {"t_span": (0.0, 1000.0), "atol": 1e-4, "rtol": 1e-4, "events": [q1]}
+    sol = hamrkq.solve(problem, **options)
+    assert sol.stats["discarded_evaluations"] > 0  # auto ran again
+    named = hamrkq.solve(
+        problem, method=sol.options["method"], z_substeps=sol.options["z_substeps"], **options
+    )
+    assert sol.status is Status.TERMINAL_EVENT and named.status is Status.TERMINAL_EVENT
+    assert sol.t_events[0].size == named.t_events[0].size == 40
+    assert sol.t[-1] == named.t[-1]
+
+    kepler = hamrkq.load_problem("kepler", e=0.9)
+    period = 2 * np.pi
+
+    def late(t, y):
+        return t - 99.7 * period
+
+    late.terminal = True
+    sol = hamrkq.solve(kepler, t_span=(0.0, 100 * period), atol=1e-6, rtol=1e-3, events=[late])
+    assert sol.status is Status.TERMINAL_EVENT
+    assert sol.t_events[0] == pytest.approx([99.7 * period], rel=1e-12)

@@ -79,7 +79,9 @@ class Task:
     options: SolveOptions
     t_eval: np.ndarray | None
     progress: Callable[[float, float], None] | None
-    stop: Callable[[np.ndarray, np.ndarray], bool] | None = None
+    #: Makes the terminal events' ``stop(t, y)`` for a run
+    #: (:func:`hamrkq.events.terminal_watch`), or None.
+    stop: Callable[[], Callable[[np.ndarray, np.ndarray], bool]] | None = None
     #: On the "numba" backend, the helper compiling the code meanwhile
     #: (:mod:`hamrkq.backends.background`): the run starts interpreted.
     compiling: BackgroundCompile | None = None
@@ -302,8 +304,10 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     # Loading the functions, or compiling them (f in double-double on its
     # first use), is the run's compiling, not its integration.
     building_s = time.perf_counter() - started
+    # A new terminal watch for each run: it counts the crossings it sees.
+    stop = task.stop() if task.stop is not None else None
     # With a terminal event, shorter chunks: the run stops soon after the event.
-    out = run.run(task.progress, budget=TERMINAL_BUDGET if task.stop else BUDGET, stop=task.stop)
+    out = run.run(task.progress, budget=TERMINAL_BUDGET if stop else BUDGET, stop=stop)
     out.stats["integrate_s"] = run.integrate_s
     out.stats["compile_wait_s"] = building_s + run.upgrade_s
     if task.compiling is not None:
