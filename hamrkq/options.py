@@ -245,8 +245,24 @@ def _with_member(options: SolveOptions, name: str, substeps: int) -> SolveOption
     """``options`` of ``method="auto"`` running the member ``name``, with
     ``substeps`` quencher steps unless given (:meth:`SolveOptions.with_auto`),
     memoised: the options are immutable, and a copy of them costs microseconds
-    of every call."""
-    return replace(options, method=name, z_substeps=options.z_substeps or substeps)
+    of every call.  Gamma from the tangent flow where the caller caps the
+    steps (a finite ``max_step``) and chose no estimate nor the quencher in
+    double-double (whose Gamma is the shadow's): the cap takes away the
+    shadow's long steps, whose saturation shows where its premise fails (on
+    a very eccentric orbit at a loose tolerance, the pair's long steps
+    through the pericentre): Kepler at e = 0.9, ``rtol`` 1e-3, ``atol``
+    1e-6 over 300 periods with ``max_step=0.143`` returned SUCCESS with its
+    last node 22.1 tolerances off (QA; docs/algorithm.md)."""
+    estimate = options.global_error_estimate
+    capped = options.max_step < math.inf and options.quencher_precision != "double-double"
+    if estimate is None and capped:
+        estimate = "tangent"
+    return replace(
+        options,
+        method=name,
+        z_substeps=options.z_substeps or substeps,
+        global_error_estimate=estimate,
+    )
 
 
 def _check_z_method_applies(method: str, z_method: str) -> None:

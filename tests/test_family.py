@@ -975,3 +975,26 @@ def test_a_terminal_event_counts_only_the_crossings_of_the_run_returned():
     sol = hamrkq.solve(kepler, t_span=(0.0, 100 * period), atol=1e-6, rtol=1e-3, events=[late])
     assert sol.status is Status.TERMINAL_EVENT
     assert sol.t_events[0] == pytest.approx([99.7 * period], rel=1e-12)
+
+
+def test_auto_with_a_max_step_given_by_the_caller_uses_the_tangent_estimate():
+    """QA (2026-11-27): Kepler at e = 0.9, rtol 1e-3, atol 1e-6 over 300
+    periods with ``max_step=0.143``: auto's shadow estimate, its long steps
+    taken away by the cap, returned SUCCESS with the last node 22.1
+    tolerances off (the mechanism of
+    test_a_shorter_max_step_does_not_make_a_saturated_shadow_honest).  With
+    a cap and no estimate chosen auto now uses the tangent estimate: it
+    stops at the last pericentre, every node within the tolerance of
+    Kepler's exact solution (0.95)."""
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    span = (0.0, 600 * np.pi)
+    sol = hamrkq.solve(problem, t_span=span, atol=1e-6, rtol=1e-3, max_step=0.143)
+    assert sol.options["global_error_estimate"] == "tangent"
+    truth = problem.exact(sol.t)
+    assert np.max(np.abs(sol.y - truth) / np.maximum(1e-6, 1e-3 * np.abs(truth))) <= 1.05
+    # a caller's choice stands: the shadow, or the quencher in double-double
+    chosen = hamrkq.solve(
+        problem, t_span=(0.0, 2 * np.pi), atol=1e-6, rtol=1e-3, max_step=0.143,
+        global_error_estimate="shadow",
+    )  # fmt: skip
+    assert chosen.options["global_error_estimate"] == "shadow"

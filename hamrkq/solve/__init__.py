@@ -201,12 +201,13 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Initial step size; by default Hairer-Norsett-Wanner's heuristic for
         order 3 (as SciPy's ``select_initial_step``).
     max_step : float, default inf
-        Largest step size.  Known limit: on a very eccentric orbit at a
-        loose tolerance, a ``max_step`` well below the pair's steps away
-        from the pericentre can leave the shadow estimate of Gamma blind
-        (SUCCESS with nodes several tolerances off; docs/algorithm.md,
-        "A max_step given by the caller");
-        ``global_error_estimate="tangent"`` holds there.
+        Largest step size.  With ``method="auto"`` and no estimate chosen,
+        a finite ``max_step`` selects the tangent estimate of Gamma: on a
+        very eccentric orbit at a loose tolerance a cap well below the
+        pair's steps away from the pericentre leaves the shadow estimate
+        blind (SUCCESS with nodes several tolerances off; docs/algorithm.md,
+        "A max_step given by the caller").  A named member keeps its
+        estimate: pass ``global_error_estimate="tangent"`` with it there.
     step : float
         The step size h of a fixed-step method (required there, and an error
         for any other method).  The last step is shortened to land on
