@@ -65,6 +65,7 @@ __all__ = [
     "reruns_with_witness",
     "retry_substeps",
     "returned_run",
+    "tangent_follows_saturation",
     "witness_rerun_needed",
 ]
 
@@ -348,41 +349,45 @@ def _growth_over_every_node(out: Any, task: Task) -> float:
     reads a smaller maximum there, so a growth at least as large: the
     Henon-Heiles chaotic orbit asked for t = 150 and 300 only read no growth
     from its two rows and returned SUCCESS 94 times the tolerance off."""
+    to_middle = _checkpoint_until(out, task, 0.5)
+    if to_middle is None:
+        return 1.0
+    return folded_growth(task, to_middle, out.gamma_max, largest_state(out))
+
+
+def _checkpoint_until(out: Any, task: Task, fraction: float) -> np.ndarray | None:
+    """The kernel's largest ``|Gamma_k|`` up to its last checkpoint at or
+    before ``fraction`` of the interval a run reached (None: no such
+    checkpoint).  A checkpoint before that point reads a smaller maximum."""
     span = task.t_end - task.t0
     reached = (out.t_last - task.t0) / span if span else 1.0
     fractions = checkpoint_fractions()
-    passed = (fractions <= 0.5 * reached) & np.isfinite(out.gamma_checkpoints[:, 0])
+    passed = (fractions <= fraction * reached) & np.isfinite(out.gamma_checkpoints[:, 0])
     if not passed.any():
-        return 1.0
-    to_middle = out.gamma_checkpoints[np.flatnonzero(passed)[-1]]
-    return folded_growth(task, to_middle, out.gamma_max, largest_state(out))
+        return None
+    return out.gamma_checkpoints[np.flatnonzero(passed)[-1]]
 
 
 def growth_between(out: Any, task: Task, low: float, high: float) -> float:
     """The growth of a run's estimate from the fraction ``low`` of the
     interval it reached to ``high`` (:func:`folded_growth` of the largest
     ``|Gamma_k|`` up to each); from the kernel's checkpoints where the
-    returned rows are thinned (the last at or before each fraction), and
-    ``inf`` where no node or checkpoint lies at or before ``low`` (no
-    evidence against a growth)."""
+    returned rows are thinned (:func:`_checkpoint_until`), and ``inf`` where
+    no node or checkpoint lies at or before ``low`` (no evidence against a
+    growth)."""
     if out.gamma is None:
         return math.inf
-    reached = out.t_last - task.t0
     if out.thinned and out.gamma_checkpoints is not None:
-        span = task.t_end - task.t0
-        fractions = checkpoint_fractions() * (span / reached if reached else 1.0)
-        finite = np.isfinite(out.gamma_checkpoints[:, 0])
-        rows = [np.flatnonzero((fractions <= f) & finite) for f in (low, high)]
-        if not rows[0].size:
-            return math.inf
-        to_low, to_high = (out.gamma_checkpoints[r[-1]] for r in rows)
+        to_low = _checkpoint_until(out, task, low)
+        to_high = _checkpoint_until(out, task, high)
     else:
+        reached = out.t_last - task.t0
         where = (out.t - task.t0) / reached if reached else np.zeros(out.t.shape)
         gamma = np.abs(out.gamma)
-        if not (where <= low).any():
-            return math.inf
-        to_low = gamma[where <= low].max(axis=0)
+        to_low = gamma[where <= low].max(axis=0) if (where <= low).any() else None
         to_high = gamma[where <= high].max(axis=0)
+    if to_low is None:
+        return math.inf
     return folded_growth(task, to_low, to_high, largest_state(out))
 
 
@@ -485,6 +490,21 @@ def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
     return None if task is None else replace(task, project=projects(requested, task))
 
 
+def tangent_follows_saturation(task: Task) -> bool:
+    """Whether ``method="auto"`` runs a run of ``task`` cut where its shadow
+    saturated again with the tangent estimate (:func:`_with_tangent`): auto's
+    shadow estimate, not one the caller chose (``task.options`` keeps the
+    caller's), not the quencher in double-double.  What auto runs and what
+    the saturated run's message leaves out of its remedies."""
+    options = task.options
+    return (
+        task.auto
+        and options.global_error_estimate is None
+        and options.gamma_name == "shadow"
+        and not options.double_double
+    )
+
+
 def _with_tangent(requested: SolveOptions, task: Task) -> Task | None:
     """``method="auto"``'s next run after its shadow track saturated: the
     same member and quencher steps, Gamma from the tangent flow (each
@@ -502,9 +522,7 @@ def _with_tangent(requested: SolveOptions, task: Task) -> Task | None:
     (QA; ``benchmarks/kepler_saturation.py``).  None for a named member, an
     estimate the caller chose, or the quencher in double-double (whose
     Gamma is the shadow's)."""
-    if requested.method != "auto" or requested.global_error_estimate is not None:
-        return None
-    if task.options.double_double or task.options.gamma_name != "shadow":
+    if not tangent_follows_saturation(task):
         return None
     task = replace(task, options=replace(task.options, global_error_estimate="tangent"))
     return replace(task, project=projects(requested, task))

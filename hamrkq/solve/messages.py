@@ -20,7 +20,13 @@ from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.rkq.witness_rules import close_approach_factor
-from hamrkq.solve.auto import double_double_can_help, growth, reruns_for_rounding, retry_substeps
+from hamrkq.solve.auto import (
+    double_double_can_help,
+    growth,
+    reruns_for_rounding,
+    retry_substeps,
+    tangent_follows_saturation,
+)
 from hamrkq.solve.dispatch import (
     Task,
     largest_state,
@@ -251,9 +257,9 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
             "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
             "is what works."
         )
-    if task.auto and task.options.global_error_estimate is None and not task.options.double_double:
-        # auto ran the tangent estimate after this run (auto.rerun), which
-        # stopped earlier: auto returns the run that reached furthest
+    if tangent_follows_saturation(task):
+        # auto ran the tangent estimate after this run, which stopped
+        # earlier: auto returns the run that reached furthest
         return text + " What helps: a looser tolerance or a shorter interval."
     # Not a smaller max_step: it keeps the shadow within its limit without
     # making Gamma honest again (hamrkq.solve.auto._with_tangent).
