@@ -197,7 +197,19 @@ class SolveOptions:
         quencher steps (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
-        return _with_member(self, *auto_member(dim, tolerance))
+        estimate = self.global_error_estimate
+        if estimate is None and self.max_step < math.inf and not self.double_double:
+            # Gamma from the tangent flow where the caller caps the steps
+            # and chose no estimate nor the quencher in double-double (whose
+            # Gamma is the shadow's): the cap takes away the shadow's long
+            # steps, whose saturation shows where its premise fails (on a
+            # very eccentric orbit at a loose tolerance, the pair's long
+            # steps through the pericentre): Kepler at e = 0.9, rtol 1e-3,
+            # atol 1e-6 over 300 periods with max_step=0.143 returned
+            # SUCCESS with its last node 22.1 tolerances off (QA;
+            # docs/algorithm.md).
+            estimate = "tangent"
+        return _with_member(self, *auto_member(dim, tolerance), estimate)
 
     @functools.cached_property  # (immutable options; a solve asks it a dozen times)
     def gamma_name(self) -> str:
@@ -241,22 +253,13 @@ def _resolved(settings: tuple, given: tuple) -> SolveOptions:
 
 
 @functools.lru_cache(maxsize=128)
-def _with_member(options: SolveOptions, name: str, substeps: int) -> SolveOptions:
+def _with_member(
+    options: SolveOptions, name: str, substeps: int, estimate: str | None
+) -> SolveOptions:
     """``options`` of ``method="auto"`` running the member ``name``, with
-    ``substeps`` quencher steps unless given (:meth:`SolveOptions.with_auto`),
-    memoised: the options are immutable, and a copy of them costs microseconds
-    of every call.  Gamma from the tangent flow where the caller caps the
-    steps (a finite ``max_step``) and chose no estimate nor the quencher in
-    double-double (whose Gamma is the shadow's): the cap takes away the
-    shadow's long steps, whose saturation shows where its premise fails (on
-    a very eccentric orbit at a loose tolerance, the pair's long steps
-    through the pericentre): Kepler at e = 0.9, ``rtol`` 1e-3, ``atol``
-    1e-6 over 300 periods with ``max_step=0.143`` returned SUCCESS with its
-    last node 22.1 tolerances off (QA; docs/algorithm.md)."""
-    estimate = options.global_error_estimate
-    capped = options.max_step < math.inf and options.quencher_precision != "double-double"
-    if estimate is None and capped:
-        estimate = "tangent"
+    ``substeps`` quencher steps unless given, and the estimate of Gamma
+    ``estimate`` (:meth:`SolveOptions.with_auto`), memoised: the options are
+    immutable, and a copy of them costs microseconds of every call."""
     return replace(
         options,
         method=name,

@@ -87,9 +87,10 @@ AUTO_FIRST_SUBSTEPS = 2
 def auto_member(dim: int, tolerance: float = 0.0) -> tuple[str, int]:
     """The member ``method="auto"`` runs for a system of ``dim`` state
     variables at the tolerance ``tolerance`` (:func:`auto_tolerance`), and
-    its first run's quencher steps per step.  Both members estimate Gamma
-    with the shadow track and start with :data:`AUTO_FIRST_SUBSTEPS`
-    (``tests/test_family.py``)."""
+    its first run's quencher steps per step.  Both members start with
+    :data:`AUTO_FIRST_SUBSTEPS` and estimate Gamma with the shadow track,
+    but where the caller caps the steps (:meth:`SolveOptions.with_auto
+    <hamrkq.options.SolveOptions.with_auto>`; ``tests/test_family.py``)."""
     name = AUTO_LARGE_MEMBER if _runs_the_large_member(dim, tolerance) else AUTO_MEMBER
     return name, AUTO_FIRST_SUBSTEPS
 

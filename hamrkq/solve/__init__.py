@@ -283,9 +283,8 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         started = time.perf_counter()
         # every run made: (its task, run, events located); method="auto"'s
         # run again (more quencher steps, the rounding witness, the quencher
-        # in double-double, shorter steps, the tangent estimate)
+        # in double-double, the tangent estimate)
         runs: list[tuple[Task, Any, Any]] = []
-        returned = -1  # which of them is returned (auto.returned_run)
         try:
             out, located = run_certified(task, spec, prepared.events, chosen)
             runs.append((task, out, located))
@@ -303,7 +302,8 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
             # first, there is nothing to keep.
             if not runs:
                 raise
-            task, out, located = runs[-1]
+            returned = len(runs) - 1
+            task, out, located = runs[returned]
             out, located = _interrupted(task, out, located, prepared.events, chosen)
         finally:
             if progress is True and isinstance(task.progress, ProgressBar):
@@ -321,7 +321,6 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         # compiling f in double-double for a rerun, counts as compiling, in
         # every run made; a run that ended before the code was ready ran in
         # Python.
-        returned %= len(runs)
         later = len(runs) - 1 - returned  # runs made after the one returned
         discarded = [(t, r) for i, (t, r, _) in enumerate(runs) if i != returned]
         out.stats["compile_s"] = prepared.compile_s + sum(

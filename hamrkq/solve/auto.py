@@ -493,8 +493,9 @@ def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
 def tangent_follows_saturation(task: Task) -> bool:
     """Whether ``method="auto"`` runs a run of ``task`` cut where its shadow
     saturated again with the tangent estimate (:func:`_with_tangent`): auto's
-    shadow estimate, not one the caller chose (``task.options`` keeps the
-    caller's), not the quencher in double-double.  What auto runs and what
+    shadow estimate (``task.options`` names none: neither the caller nor
+    :meth:`~hamrkq.options.SolveOptions.with_auto` chose one), not the
+    quencher in double-double.  What auto runs and what
     the saturated run's message leaves out of its remedies."""
     options = task.options
     return (
