@@ -140,7 +140,8 @@ def _equations(ham: Any, params: np.ndarray) -> HeyokaSystem:
     state at t = 96.86 moves 4.9e-4 for an ulp of its start, the reference
     so built (in 160-bit floats, with those long-double constants) was
     2.3e-7 off one with the parameters exact, and made hamrkq's nodes look
-    2272 tolerances off at 1e-10 (QA, 2026-11-27; they are within 0.014).
+    2272 tolerances off at 1e-10 (QA, 2026-11-27; they are within 0.992:
+    ``benchmarks/reference_constants.txt``).
     SymPy would likewise fold a sum of parameter Floats (1 - mu) to 53
     bits, and heyoka takes only dyadic rationals."""
     import heyoka as hy

@@ -24,7 +24,7 @@ from typing import Any
 
 from hamrkq._files import jsonable, write_atomic
 from hamrkq._progress import ProgressBar
-from hamrkq.analysis.summaries import COMPONENT_RATIO_LABEL, PAPER_RATIO_LABEL
+from hamrkq.analysis.summaries import ratio_rows
 from hamrkq.io.output_dir import (
     LOCK_NAME,
     MAX_DPI,
@@ -200,14 +200,14 @@ def summary_rows(
         return rows
     if diag.estimated is not None:
         rows.append(("max est. global error", _components(diag.estimated)))
-        rows += _ratio_rows(diag.estimated)
+        rows += ratio_rows(diag.estimated)
     if diag.error is not None and diag.error is not diag.estimated:
         label = f"max true error ({diag.error.source})"
         if diag.error_measured:
             # never a true error without the accuracy of what it is measured against
             accuracy = f"reference accurate to ~{_num(diag.error.reference_accuracy, '.1e')}"
             rows.append((label, f"{_components(diag.error)} ({accuracy})"))
-            rows += _ratio_rows(diag.error)
+            rows += ratio_rows(diag.error)
         else:
             rows.append((label, diag.error_note))
     if diag.energy is not None and not diag.energy_conserved:
@@ -231,18 +231,6 @@ def summary_rows(
             gamma += f"; true error {_num(diag.measured_track_error)}"
         rows.append((f"max |Gamma| ({track_name(sol.method)})", gamma + ")"))
     return rows
-
-
-def _ratio_rows(summary: Any) -> list[tuple[str, str]]:
-    """hamrkq's promise per component, then the paper's Euclidean ratio."""
-    where = f"{summary.component_ratio_name}, t = {_num(summary.t_component_ratio, 'g')}"
-    component = _num(summary.component_ratio, ".4f")
-    if component != "n/a":
-        component += f" ({where})"
-    return [
-        (f"  {COMPONENT_RATIO_LABEL}", component),
-        (f"  {PAPER_RATIO_LABEL}", _num(summary.bound_ratio, ".4f")),
-    ]
 
 
 #: How many event times the summary shows per event function (all are in
