@@ -134,7 +134,7 @@ def _runs_again_alone_member_by_member(batch, task, request):
         reruns_with_witness,
         witness_rerun_needed,
     )
-    from hamrkq.solve.dispatch import shadow_departures
+    from hamrkq.solve.shadow import shadow_departures
 
     m = batch.status.shape[0]
     saturated, rerun = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)

@@ -46,10 +46,10 @@ from hamrkq.solve.dispatch import (
     integration,
     member_of,
     run_rk,
-    shadow_departures,
     time_scale,
 )
 from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
+from hamrkq.solve.shadow import shadow_departures
 from hamrkq.symbolic.assumptions import declares_checked
 from hamrkq.symbolic.kinks import kinks
 
@@ -247,7 +247,7 @@ def _batch(request: Request, prepared: Any) -> ChunkResult:
 def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
     """Per member, whether it succeeded in the batch loop where ``solve``
     alone would not return that run: its shadow track left the linear
-    regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`), or its
+    regime (:func:`hamrkq.solve.shadow.within_linear_shadow`), or its
     estimate of Gamma grew so that ``solve`` runs it again with the rounding
     witness (:func:`hamrkq.solve.auto.witness_rerun_needed`); from the maxima
     the batch loop folded (members that succeeded keep nodes over the

@@ -184,7 +184,7 @@ class RunOutput:
         for none; over every node of the run where the returned rows are
         thinned), read-only: the size the rules after a run measure
         against, computed once (a call of :func:`hamrkq.solve` asked it
-        twice or more; :func:`hamrkq.solve.dispatch.largest_state`)."""
+        twice or more; :func:`hamrkq.solve.shadow.largest_state`)."""
         return largest_over_nodes(self)
 
     @property

@@ -13,7 +13,7 @@ state grown beyond its start or by close approaches, could reach the tolerance
 (:func:`witness_rerun_needed`, for every member with the shadow estimate,
 and for ``rk34q8``'s tangent estimate where its state outgrew its start);
 two exponential runs in a row allow no more quencher steps.  A run cut where
-its shadow track saturated (:func:`hamrkq.solve.dispatch.within_linear_shadow`)
+its shadow track saturated (:func:`hamrkq.solve.shadow.within_linear_shadow`)
 runs again with the tangent estimate (:func:`_with_tangent`).
 """
 
@@ -41,7 +41,6 @@ from hamrkq.solve.dispatch import (
     METHODS,
     Task,
     can_witness,
-    largest_state,
     member_of,
     run_rk,
     time_rounding_limits,
@@ -50,6 +49,7 @@ from hamrkq.solve.dispatch import (
 from hamrkq.solve.event_check import stored_rounding_limits
 from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
 from hamrkq.solve.output_times import output_rounding_limits
+from hamrkq.solve.shadow import largest_state
 
 __all__ = [
     "FURTHER_BY",
@@ -554,7 +554,7 @@ def returned_run(runs: list[tuple[Task, Any]]) -> int:
     witness's rule, or a time-dependent ``H`` read growing in double-double,
     :func:`_in_double_with_witness`); a run cut where its shadow saturated
     keeps only the nodes before the cut
-    (:func:`hamrkq.solve.dispatch.within_linear_shadow`).  The double
+    (:func:`hamrkq.solve.shadow.within_linear_shadow`).  The double
     pendulum over [0, 100] at ``atol`` = ``rtol`` = 1e-3, when auto ran a
     saturated shadow again with shorter steps first: the run with four
     quencher steps, ``max_step`` 0.04 and the witness reached t = 68.40 (cut

@@ -11,7 +11,6 @@ baselines of :mod:`hamrkq.fixed_step` and the SciPy baselines of
 from __future__ import annotations
 
 import functools
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -24,18 +23,17 @@ from hamrkq.baselines import PREFIX as SCIPY_PREFIX
 from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, solve_fixed
 from hamrkq.options import SolveOptions
-from hamrkq.result import Solution, Status
-from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
+from hamrkq.result import Solution
 from hamrkq.rkq.driver import (
     BUDGET,
     Integration,
     RunOutput,
     Settings,
-    largest_over_nodes,
     python_functions,
 )
 from hamrkq.rkq.family import MEMBERS
-from hamrkq.rkq.witness_rules import component_scales, needs_witness, time_rounding_matters
+from hamrkq.rkq.witness_rules import needs_witness, time_rounding_matters
+from hamrkq.solve.shadow import within_linear_shadow
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 if TYPE_CHECKING:
@@ -49,16 +47,13 @@ __all__ = [
     "can_witness",
     "dense_tolerance",
     "integration",
-    "largest_state",
     "member_of",
     "resolve_backend",
     "run_rk",
-    "shadow_departures",
     "start_background",
     "time_rounding_limits",
     "time_scale",
     "uses_witness",
-    "within_linear_shadow",
 ]
 
 #: Step attempts between checks for a terminal event.
@@ -313,73 +308,6 @@ def run_rk(task: Task, backend: str) -> RunOutput:
     if task.compiling is not None:
         out.stats["interpreted_steps"] = run.steps_before_upgrade
     return within_linear_shadow(task, out)
-
-
-def shadow_departures(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> np.ndarray | None:
-    """:func:`~hamrkq.rkq.auto_rules.shadow_departure` of the rows of
-    ``gamma`` for a run of ``task`` whose largest ``|y_k|`` are ``y_size``;
-    None where no limit applies: another estimate than the shadow's, or
-    ``gamma_limit=inf`` (the certificate turned off).  The ensemble's batch
-    loop asks it with each member's folded maxima."""
-    if task.options.gamma_name != "shadow" or not task.options.gamma_limit < math.inf:
-        return None
-    scale = component_scales(task.atol, y_size)
-    return shadow_departure(gamma, scale, member_of(task).shadow_scale)
-
-
-def largest_state(out: RunOutput) -> np.ndarray:
-    """Each component's largest ``|y_k|`` over a run's nodes (zeros for none;
-    over every node of the run where the returned rows are thinned): the
-    size the rules after a run measure against (read-only; computed once
-    per run, :attr:`~hamrkq.rkq.driver.RunOutput.largest_state`, for a
-    RunOutput, and here for anything else with its fields)."""
-    if type(out) is RunOutput:
-        return out.largest_state
-    return largest_over_nodes(out)
-
-
-def within_linear_shadow(task: Task, out: RunOutput) -> RunOutput:
-    """``out``, or its nodes before the first where the shadow track had
-    moved more than :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION` of the
-    orbit's size from the quencher (:func:`~hamrkq.rkq.auto_rules.shadow_departure`),
-    where Gamma can no longer certify the tolerance: status
-    TOLERANCE_UNATTAINABLE, ``saturated`` the departure found.  Not with
-    ``gamma_limit=inf``, which turns the certificate off."""
-    if out.gamma is None or out.t.shape[0] == 0:
-        return out
-    if _far_within_linear_shadow(task, out.gamma, largest_state(out)):
-        return out
-    departure = shadow_departures(task, out.gamma, largest_state(out))
-    if departure is None:
-        return out
-    beyond = np.flatnonzero(departure > SHADOW_SATURATION)
-    if beyond.size == 0:
-        return out
-    # Where the first returned row is beyond already (output times far
-    # apart: Henon-Heiles' chaotic orbit with t_eval = [150, 300] returned
-    # SUCCESS 94 times the tolerance off at 1e-6), nothing is certified.
-    kept = int(beyond[0])
-    return replace(
-        out.rows(slice(kept)),
-        status=Status.TOLERANCE_UNATTAINABLE.code,
-        t_last=float(out.t[kept - 1]) if kept else task.t0,
-        saturated=float(departure[kept]),
-    )
-
-
-def _far_within_linear_shadow(task: Task, gamma: np.ndarray, y_size: np.ndarray) -> bool:
-    """Whether the shadow departures of the rows ``gamma`` (:func:`shadow_departures`)
-    are surely at most half of :data:`~hamrkq.rkq.auto_rules.SHADOW_SATURATION`:
-    each component's scale is at least its largest ``|y_k|`` (``y_size``), so
-    ``m^z - 1`` times each column's largest ``|Gamma_k|`` over ``y_size_k``
-    bounds them.  A shadow estimate only (where the departures are read); a
-    bound that does not say so (NaN, a component at zero) leaves it to the
-    departures themselves, which cost 18 us of a tiny problem's call."""
-    if task.options.gamma_name != "shadow":
-        return False
-    largest = np.abs(gamma).max(axis=0).tolist()
-    limit = 0.5 * SHADOW_SATURATION / member_of(task).shadow_scale
-    return all(g <= limit * s for g, s in zip(largest, y_size.tolist(), strict=True))
 
 
 def _inplace(fun: Callable, matrix: bool) -> Callable:

@@ -29,7 +29,6 @@ from hamrkq.solve.auto import (
 )
 from hamrkq.solve.dispatch import (
     Task,
-    largest_state,
     member_of,
     time_rounding_limits,
     time_scale,
@@ -41,6 +40,7 @@ from hamrkq.solve.output_times import (
     output_rounding,
     output_rounding_limits,
 )
+from hamrkq.solve.shadow import largest_state
 
 __all__ = ["message", "rerun_note"]
 
@@ -238,7 +238,7 @@ def _event_failed(out: RunOutput, task: Task) -> str:
 
 def _shadow_saturated(out: RunOutput, task: Task) -> str:
     """The message for a run ended where its shadow track left the linear
-    regime (:func:`hamrkq.solve.dispatch.within_linear_shadow`)."""
+    regime (:func:`hamrkq.solve.shadow.within_linear_shadow`)."""
     member = member_of(task)
     # With no node kept, the first output time was beyond already.
     when = f"After t = {float(out.t_last)!r}" if out.t.shape[0] else "By the first output time"

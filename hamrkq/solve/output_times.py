@@ -33,7 +33,8 @@ from hamrkq._floats import EPS
 from hamrkq.result import Solution, Status
 from hamrkq.rkq.dense import DenseOutput, attainability
 from hamrkq.rkq.driver import RunOutput
-from hamrkq.solve.dispatch import Task, dense_tolerance, largest_state
+from hamrkq.solve.dispatch import Task, dense_tolerance
+from hamrkq.solve.shadow import largest_state
 
 __all__ = [
     "OutputFailure",
