@@ -13,9 +13,9 @@ import pytest
 import sympy as sp
 
 import hamrkq
+from hamrkq.analysis.adequacy import accuracy_ratios, reference_is_close
 from hamrkq.analysis.diagnostics import diagnose
 from hamrkq.analysis.reference import Accuracy, Reference, hamiltonian_reference
-from hamrkq.analysis.summaries import accuracy_ratios, reference_is_close
 from hamrkq.result import Solution, Status
 
 #: Two uncoupled oscillators of amplitude 30 and 1e-9, each with an absolute
@@ -122,7 +122,7 @@ def test_outer_solar_system_true_error_is_measured():
     """QA's case: over [0, 20000] the reference's max-norm accuracy (2.4e-10)
     is far above the smallest tolerance (1.1e-19, Pluto's momentum), but in
     each component it is below a hundredth of that component's tolerance."""
-    from hamrkq.analysis.summaries import tolerance_scale
+    from hamrkq.analysis.adequacy import tolerance_scale
 
     problem = hamrkq.load_problem("outer_solar_system")
     sol = hamrkq.solve(problem, t_span=(0, 20000))

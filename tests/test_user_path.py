@@ -284,8 +284,8 @@ def test_a_relative_tolerance_run_has_its_true_error_measured():
     tiny atol is atol where a component crosses zero: ``hamrkq run harmonic
     --rtol 1e-8 --atol 1e-20`` said "not measured: ... not below the
     tolerance 1.0e-20" against its exact solution (accurate to 1e-15)."""
+    from hamrkq.analysis.adequacy import tolerance_scale
     from hamrkq.analysis.diagnostics import diagnose
-    from hamrkq.analysis.summaries import tolerance_scale
 
     sol = hamrkq.solve(OSC, q0=[1.0], p0=[0.0], t_span=(0, 10), rtol=1e-8, atol=1e-20)
     exact = np.column_stack([np.cos(2 * sol.t), -2 * np.sin(2 * sol.t)])

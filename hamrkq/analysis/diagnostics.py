@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from hamrkq._floats import EPS
+from hamrkq.analysis.adequacy import reference_is_close
 from hamrkq.analysis.bounds import (
     bound_ratio,
     component_ratio,
@@ -32,7 +33,6 @@ from hamrkq.analysis.summaries import (
     ErrorSummary,
     drift_summary,
     error_summary,
-    reference_is_close,
 )
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.catalogue.exact import builtin_exact_of, exact_accuracy
@@ -501,7 +501,7 @@ def diagnose_for_report(
     ``extend`` (``--reference auto``), where the independent reference is not
     accurate enough to measure the true error (the Pleiades at 1e-8: 2.1e-8)
     or not far below the tolerance (within
-    :data:`~hamrkq.analysis.summaries.CLOSE_REFERENCE` of it: fpu, arenstorf),
+    :data:`~hamrkq.analysis.adequacy.CLOSE_REFERENCE` of it: fpu, arenstorf),
     and the extended one can be had (heyoka) and is more accurate, the run is
     measured against that instead, and a note says so; and where the exact
     solution cannot be had (a run from another initial time), the independent
