@@ -76,10 +76,7 @@ def bound_ratio(observed: np.ndarray, bound: np.ndarray, t: np.ndarray) -> tuple
     a fixed-step run has no tolerance) there is no ratio (NaN; the table read
     "max inf", found by QA).
     """
-    observed, bound = np.abs(observed), np.asarray(bound, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        unbounded = np.where((bound == 0) & (observed > 0), np.inf, np.nan)
-        ratio = np.where(bound > 0, observed / bound, unbounded)
+    ratio = _ratio(np.abs(observed), np.asarray(bound, dtype=float))
     if np.all(np.isnan(ratio)):
         return float("nan"), float("nan")
     i = int(np.nanargmax(ratio))
@@ -110,11 +107,17 @@ def component_ratio(
         is an infinite ratio, as in :func:`bound_ratio`.
     """
     error = np.abs(np.atleast_2d(np.asarray(error, dtype=float)))
-    delta = np.broadcast_to(np.asarray(delta, dtype=float), error.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        unbounded = np.where((delta == 0) & (error > 0), np.inf, np.nan)
-        ratio = np.where(delta > 0, error / delta, unbounded)
+    ratio = _ratio(error, np.broadcast_to(np.asarray(delta, dtype=float), error.shape))
     if ratio.size == 0 or np.all(np.isnan(ratio)):
         return float("nan"), float("nan"), -1
     node, component = np.unravel_index(int(np.nanargmax(ratio)), ratio.shape)
     return float(ratio[node, component]), float(np.asarray(t)[node]), int(component)
+
+
+def _ratio(observed: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """``observed / bound`` elementwise (``observed`` non-negative), where
+    both ratios above read it: nan where both are zero (the initial node) or
+    the bound is NaN (no tolerance), inf for an error where the bound is zero."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unbounded = np.where((bound == 0) & (observed > 0), np.inf, np.nan)
+        return np.where(bound > 0, observed / bound, unbounded)
