@@ -197,27 +197,38 @@ class SolveOptions:
         quencher steps (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
-        estimate = self.global_error_estimate
-        if estimate is None and self.max_step < math.inf and not self.double_double:
-            # Gamma from the tangent flow where the caller caps the steps
-            # and chose no estimate nor the quencher in double-double (whose
-            # Gamma is the shadow's): the cap takes away the shadow's long
-            # steps, whose saturation shows where its premise fails (on a
-            # very eccentric orbit at a loose tolerance, the pair's long
-            # steps through the pericentre): Kepler at e = 0.9, rtol 1e-3,
-            # atol 1e-6 over 300 periods with max_step=0.143 returned
-            # SUCCESS with its last node 22.1 tolerances off (QA;
-            # docs/algorithm.md).
-            estimate = "tangent"
+        # Explicit for auto's runs: a rerun in double-double (whose Gamma is
+        # the shadow's) must not bring the shadow back under the cap.
+        estimate = "tangent" if self.capped_default else self.global_error_estimate
         return _with_member(self, *auto_member(dim, tolerance), estimate)
+
+    @property
+    def capped_default(self) -> bool:
+        """Whether the default estimate of Gamma is the tangent one because the
+        caller caps the steps: a ``max_step`` given, no estimate chosen, the
+        quencher in double.  The cap takes away the shadow's long steps,
+        whose saturation shows where its premise fails (on a very eccentric
+        orbit at a loose tolerance, the pair's long steps through the
+        pericentre): Kepler at e = 0.9, rtol 1e-3, atol 1e-6 over 300
+        periods with max_step=0.143 returned SUCCESS with its last node 22.1
+        tolerances off with ``method="auto"``, ``rk78q12`` at e = 0.85 5.8
+        off (QA; docs/algorithm.md, "A max_step given by the caller")."""
+        return (
+            self.global_error_estimate is None
+            and self.max_step < math.inf
+            and not self.double_double
+        )
 
     @functools.cached_property  # (immutable options; a solve asks it a dozen times)
     def gamma_name(self) -> str:
-        """The Gamma estimate: the option, or the method's default."""
+        """The Gamma estimate: the option, or the method's default (the tangent
+        one for a shadow member under a cap, :attr:`capped_default`)."""
         if self.global_error_estimate is not None:
             return self.global_error_estimate
         member = MEMBERS.get(AUTO_MEMBER if self.method == "auto" else self.method)
-        return member.gamma if member is not None else "tangent"
+        if member is None or (member.gamma == "shadow" and self.capped_default):
+            return "tangent"
+        return member.gamma
 
     @property
     def is_fixed_step(self) -> bool:

@@ -697,13 +697,25 @@ def test_a_shorter_max_step_does_not_make_a_saturated_shadow_honest():
     assert np.max(np.abs(sol.y - truth) / delta) <= 1.05
     shorter = hamrkq.solve(
         problem, t_span=span, atol=1e-7, rtol=1e-4, method="rk78q12", z_substeps=5,
-        max_step=0.1665,
+        max_step=0.1665, global_error_estimate="shadow",
     )  # fmt: skip
     assert shorter.status is Status.SUCCESS
     truth, delta = truth_and_delta(shorter)
     assert np.max(np.abs(shorter.y - truth) / delta) > 5.0  # the silent failure
     z_error = np.abs(shorter.z - truth).max()
     assert np.abs(shorter.gamma).max() < z_error / 100
+    # That run without the estimate named: a cap makes the tangent one the
+    # member's default too, and the run stops at the last pericentre
+    # (t = 628.289 of 628.319), every node within the tolerance (0.977).
+    capped = hamrkq.solve(
+        problem, t_span=span, atol=1e-7, rtol=1e-4, method="rk78q12", z_substeps=5,
+        max_step=0.1665,
+    )  # fmt: skip
+    assert capped.options["global_error_estimate"] == "tangent"
+    assert capped.status is Status.TOLERANCE_UNATTAINABLE
+    assert capped.t[-1] > span[1] - 0.1
+    truth, delta = truth_and_delta(capped)
+    assert np.max(np.abs(capped.y - truth) / delta) <= 1.05
 
 
 def _component_scales_by_halves(atol, y0):
