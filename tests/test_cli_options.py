@@ -1,6 +1,7 @@
 """`hamrkq run` options users reach for (issue 16): --t-start, --max-step,
---first-step, --keep-every, --atol NAME=VALUE, --csv, --json, --quiet, --method
-passed through; a file with named initial values gives the positional numbers."""
+--first-step, --keep-every, --atol NAME=VALUE, --csv, --json, --quiet, --method,
+--z-substeps, --global-error-estimate, --quencher-precision passed through; a
+file with named initial values gives the positional numbers."""
 
 from __future__ import annotations
 
@@ -85,6 +86,27 @@ def test_step_and_span_options_reach_solve(files, tmp_path):
     assert cli.atol.tolist() == [1e-9, 1e-9, 1e-9, 1e-11]
 
 
+def test_quencher_options_reach_solve(files, tmp_path):
+    """--z-substeps, --global-error-estimate and --quencher-precision are
+    solve's keywords: a run of QA's case from the command line."""
+    _, named, _ = files
+    argv = ["--method", "rk78q12", "--z-substeps", 5, "--global-error-estimate", "tangent"]
+    status, _, _ = run("run", named, *argv, "--no-plots", "--quiet", "--out", tmp_path / "a")
+    assert status == 0
+    cli = hamrkq.Solution.load(tmp_path / "a" / "solution.npz")
+    problem = hamrkq.load_problem(named)
+    lib = hamrkq.solve(problem, method="rk78q12", z_substeps=5, global_error_estimate="tangent")
+    np.testing.assert_array_equal(cli.y, lib.y)
+    np.testing.assert_array_equal(cli.gamma, lib.gamma)
+    argv = ["--method", "rk67q9", "--quencher-precision", "double-double", "--json"]
+    status, stdout, _ = run("run", named, *argv, "--no-plots", "--out", tmp_path / "b")
+    assert status == 0
+    used = json.loads(stdout)["settings"]["solve"]
+    assert used["quencher_precision"] == "double-double" and used["z_method"] == "vern98"
+    status, _, err = run("run", named, "--global-error-estimate", "exact", "--out", tmp_path / "c")
+    assert status == 2 and "invalid choice: 'exact'" in err
+
+
 def test_named_atol_alone_keeps_the_problems_atol(files, tmp_path):
     _, named, _ = files
     run("run", named, "--atol", "x=1e-10", "--no-plots", "--quiet", "--out", tmp_path)
@@ -100,6 +122,8 @@ def test_named_atol_alone_keeps_the_problems_atol(files, tmp_path):
         (["--atol", "1e-8", "--atol", "1e-9"], "a plain --atol was already given"),
         (["--atol", "x=1e-9", "--atol", "x=1e-8"], "x was already given"),
         (["--method", "nope"], "method='nope' is not valid; valid values: "),
+        (["--method", "rk67q9", "--z-substeps", "0"], "z_substeps"),
+        (["--method", "rk34q8", "--quencher-precision", "double-double"], "double-double"),
     ],
 )
 def test_bad_options_exit_2_with_the_culprit(files, tmp_path, argv, fragment):

@@ -48,7 +48,7 @@ from hamrkq.io.report import (
     summary_dict,
     summary_rows,
 )
-from hamrkq.options import METHOD_NAMES
+from hamrkq.options import GAMMA_MODES, METHOD_NAMES, QUENCHER_PRECISIONS
 from hamrkq.solve import BACKENDS, METHODS, solve
 
 __all__ = ["REFERENCE_CHOICES", "check_keep_every", "check_step", "register", "run_command"]
@@ -114,6 +114,20 @@ def register(subparsers: Any) -> None:
         help="override a parameter of the problem (a number; repeatable)",
     )  # fmt: skip
     p.add_argument("--max-steps", type=int, metavar="N", help="limit on step attempts")
+    p.add_argument(
+        "--z-substeps", type=int, metavar="M", help="quencher steps per step of the pair "
+        "(family members); default: the member's, or learned by auto"
+    )  # fmt: skip
+    p.add_argument(
+        "--global-error-estimate", choices=tuple(GAMMA_MODES), metavar="E",
+        help=f"how the quencher's global error Gamma is estimated ({', '.join(GAMMA_MODES)}); "
+        "default: the method's",
+    )  # fmt: skip
+    p.add_argument(
+        "--quencher-precision", choices=QUENCHER_PRECISIONS, metavar="P",
+        help=f"the quencher's arithmetic ({', '.join(QUENCHER_PRECISIONS)}); default: "
+        "double, which auto may raise",
+    )  # fmt: skip
     p.add_argument(
         "--backend", metavar="B", help=f"where the step loop runs ({', '.join(BACKENDS)}); "
         "default: solve's default"
@@ -264,7 +278,10 @@ def solve_arguments(args: argparse.Namespace, problem: Any) -> dict[str, Any]:
     """Keywords for :func:`hamrkq.solve`: only what the command line set, so that
     everything else keeps the problem's (or solve's) default."""
     kwargs: dict[str, Any] = {}
-    names = ("method", "rtol", "step", "max_steps", "backend", "max_step", "first_step")
+    names = (
+        "method", "rtol", "step", "max_steps", "backend", "max_step", "first_step",
+        "z_substeps", "global_error_estimate", "quencher_precision",
+    )  # fmt: skip
     for name in (*names, "keep_every"):
         value = getattr(args, name)
         if value is not None:
