@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from hamrkq.analysis.poincare import section_expression, split_section
+from hamrkq.analysis.poincare import split_section
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError
 from hamrkq.symbolic.expressions import parse_expression
@@ -74,8 +74,7 @@ def energy_orbits(
     k = names[key]
     other = 1 - k
     params = ham.parameter_values(parameters)
-    guess = float(sp.N(constant))
-    value = _on_section(ham, section, k, guess, params)
+    value = _on_section(ham, section, k, constant, params)
     name = ham.q[other].name
     H = numeric_of(ham).energy
 
@@ -133,17 +132,24 @@ def _section_constant(ham: Hamiltonian, section: str, coordinate: str, rhs: str)
     return constant
 
 
-def _on_section(ham: Hamiltonian, section: str, k: int, guess: float, params: np.ndarray) -> float:
-    """The float ``q_k`` at which the event function of ``"q_k = c"`` is 0.
+def _on_section(
+    ham: Hamiltonian, section: str, k: int, constant: sp.Expr, params: np.ndarray
+) -> float:
+    """The float ``q_k`` at which the event function of ``"q_k = c"`` is 0
+    (``constant``, :func:`_section_constant`).
 
     The event evaluates ``q_k - c`` with NumPy (lambdified like
     :mod:`hamrkq.events`' expression events), whose rounding of ``c`` may
-    differ from SymPy's ``guess`` by an ulp (``sqrt(2)/10``): the start would
-    then sit 3e-17 off the section and count as a crossing at t ~ 1e-16.
+    differ from SymPy's by an ulp (``sqrt(2)/10``): the start would then sit
+    3e-17 off the section and count as a crossing at t ~ 1e-16.
     ``dg/dq_k = 1``, so ``q_k -= g(q_k)`` lands on NumPy's ``c``.
     """
-    expr = section_expression(ham, section)
+    # The event's expression, section_expression's ``lhs - rhs``, from the
+    # constant already parsed rather than parsing the section again: its lhs
+    # is the symbol q_k itself, so this is the same SymPy expression.
+    expr = ham.q[k] - constant
     g = sp.lambdify((ham.t, ham.state, ham.parameters), expr, modules="numpy")
+    guess = float(sp.N(constant))
 
     def g_at(x: float) -> float:
         # The event's call: columns of the state rows, t as an array.
