@@ -482,18 +482,19 @@ class Diagnostics:
             rows.append(
                 (
                     f"{track_name(self.method)} |Gamma|",
-                    f"max {self.gamma_max:.3e}{self._track_error_text()}",
+                    f"max {self.gamma_max:.3e}{self.track_error_text()}",
                 )
             )
         rows += [("note", note) for note in self.notes]
         width = max(len(label) for label, _ in rows)
         return "\n".join(f"{label:<{width}}  {text}" for label, text in rows)
 
-    def _track_error_text(self) -> str:
-        """What follows max |Gamma| in the table: that it is an estimate, and
-        the quencher track's true error where it is measured (Kepler e = 0.85
-        over 100 periods: |Gamma| 4.7e-09 read as the track's accuracy, its
-        true error 5.8e-07; found by QA)."""
+    def track_error_text(self) -> str:
+        """What follows max |Gamma| in the table and in the ``run`` command's
+        summary (:func:`hamrkq.io.report.summary_rows`): that it is an
+        estimate, and the quencher track's true error where it is measured
+        (Kepler e = 0.85 over 100 periods: |Gamma| 4.7e-09 read as the track's
+        accuracy, its true error 5.8e-07; found by QA)."""
         true = self.measured_track_error
         if not np.isfinite(true):
             return " (an estimate)"

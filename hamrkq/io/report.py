@@ -224,12 +224,8 @@ def summary_rows(
     for inv in diag.invariants:
         rows.append((f"max |{inv.name} - {inv.name}(0)|", _num(inv.max_abs)))
     if math.isfinite(diag.gamma_max):
-        gamma = f"{_num(diag.gamma_max)} (an estimate"
-        if math.isfinite(diag.measured_track_error):
-            # Gamma is no accuracy where the track's true error can be had:
-            # 4.7e-09 on Kepler e = 0.85 with the track 5.8e-07 off (QA)
-            gamma += f"; true error {_num(diag.measured_track_error)}"
-        rows.append((f"max |Gamma| ({track_name(sol.method)})", gamma + ")"))
+        gamma = f"{_num(diag.gamma_max)}{diag.track_error_text()}"
+        rows.append((f"max |Gamma| ({track_name(sol.method)})", gamma))
     return rows
 
 
