@@ -453,7 +453,8 @@ def morse():
     sol, truth = run(600, method="rk67q9")
     largest = over_tolerance(sol.y, truth, 1e-6)
     yield f"rk67q9, 600 periods: {sol.status.name}, largest node {largest:.3f} delta"
-    sol, truth = run(200, method="rk67q9", max_step=period / 20)
+    # the shadow named: a max_step makes the tangent estimate the default
+    sol, truth = run(200, method="rk67q9", max_step=period / 20, global_error_estimate="shadow")
     median = np.median(gamma_over_error(sol, truth, signed=True))
     yield f"rk67q9, max_step T/20, 200 periods: Gamma over the quencher's error {median:.2f}"
     sol, truth = run(600, method="auto")
@@ -503,7 +504,11 @@ def polar_kepler():
     exact, e, period = kepler_polar_exact(1.3, 0.4, 0.95)
     yield f"e = {e:.4f}, period T = {period:.4f}"
     span = (0.0, 30 * period)
-    for rtol, extra in ((1e-6, {}), (1e-6, {"max_step": 1e-3, "keep_every": 97}), (1e-9, {})):
+    capped = {"max_step": 1e-3, "keep_every": 97}
+    # A max_step alone makes auto's estimate the tangent one, whose quencher
+    # is in double: the quencher in double-double named keeps the shadow.
+    extended = {**capped, "quencher_precision": "double-double"}
+    for rtol, extra in ((1e-6, {}), (1e-6, capped), (1e-6, extended), (1e-9, {})):
         sol = hamrkq.solve(ham, q0=[0.4, 0.0], p0=[0.0, 0.95], t_span=span, method="auto",
                            atol=1e-14, rtol=rtol, **extra)  # fmt: skip
         truth = exact(sol.t)
@@ -511,8 +516,10 @@ def polar_kepler():
         at = int(np.argmax((np.abs(sol.y - truth) / delta).max(axis=1)))
         largest_step = 1e-3 if extra else np.diff(sol.t).max()
         label = f"rtol {rtol:g}, atol 1e-14" + (", max_step 1e-3" if extra else "")
+        label += ", quencher_precision='double-double'" if "quencher_precision" in extra else ""
         yield (
-            f"auto at {label}: {sol.status.name} ({sol.options['quencher_precision']} "
+            f"auto at {label}: {sol.status.name} at t = {sol.t[-1]:.5g} "
+            f"({sol.options['quencher_precision']} "
             f"quencher), largest step {largest_step:.2g}, largest node "
             f"{over_tolerance(sol.y, truth, 1e-14, rtol):.3g} delta (at t = {sol.t[at]:.4g}, "
             f"p_r = {truth[at, 2]:.1e} there), the quencher's largest error "
