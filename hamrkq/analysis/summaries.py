@@ -39,6 +39,7 @@ __all__ = [
     "Diagnostics",
     "DriftSummary",
     "ErrorSummary",
+    "component_ratio_text",
     "drift_summary",
     "error_summary",
     "ratio_rows",
@@ -521,11 +522,21 @@ def ratio_rows(summary: ErrorSummary, indent: str = "  ") -> list[tuple[str, str
     without a tolerance (a fixed-step run) has no row (its row read
     "max inf", found by QA)."""
     rows = []
-    ratio = summary.component_ratio
-    if np.isfinite(ratio) or ratio == np.inf:
-        where = f"{summary.component_ratio_name}, t={summary.t_component_ratio:g}"
-        rows.append((indent + COMPONENT_RATIO_LABEL, f"max {ratio:.4f} ({where})"))
+    promise = component_ratio_text(summary)
+    if promise is not None:
+        rows.append((indent + COMPONENT_RATIO_LABEL, promise))
     ratio = summary.bound_ratio
     if np.isfinite(ratio) or ratio == np.inf:
         rows.append((indent + PAPER_RATIO_LABEL, f"max {ratio:.4f} (t={summary.t_bound_ratio:g})"))
     return rows
+
+
+def component_ratio_text(summary: ErrorSummary) -> str | None:
+    """:attr:`ErrorSummary.component_ratio`, hamrkq's promise, as the reports
+    show it ("max 0.9996 (q, t=143.2)"); None without a tolerance (a
+    fixed-step run).  An infinite ratio, an error where the tolerance is
+    zero, is a broken promise and is shown ("max inf")."""
+    ratio = summary.component_ratio
+    if not (np.isfinite(ratio) or ratio == np.inf):
+        return None
+    return f"max {ratio:.4f} ({summary.component_ratio_name}, t={summary.t_component_ratio:g})"

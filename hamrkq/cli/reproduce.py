@@ -31,6 +31,7 @@ import numpy as np
 
 from hamrkq.analysis.diagnostics import diagnose, error_summary, tolerance
 from hamrkq.analysis.reference import hamiltonian_reference
+from hamrkq.analysis.summaries import component_ratio_text
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.errors import InputError
 from hamrkq.io.report import OutputDir, ProgressBar, check_dpi, format_table, summary_dict
@@ -248,15 +249,16 @@ def _paper(expected: Mapping[str, Any], key: str, prefix: str = "") -> str:
 def promise_line(diag: Any) -> str:
     """RK34Q8's largest error over its tolerance, component by component
     (hamrkq's promise, which the paper's Euclidean trajectory bound does not
-    measure), against its RK8 track and against the reference."""
+    measure), against its RK8 track and against the reference, as the run
+    reports show it (:func:`~hamrkq.analysis.summaries.component_ratio_text`:
+    an infinite ratio, a broken promise, is shown, not "n/a")."""
 
     def ratio(summary: Any) -> str:
-        if summary is None or not np.isfinite(summary.component_ratio):
-            return "n/a"
-        return f"{summary.component_ratio:.4f} ({summary.component_ratio_name})"
+        text = None if summary is None else component_ratio_text(summary)
+        return "n/a" if text is None else text
 
     return (
-        "RK34Q8 max error / tolerance (worst component, hamrkq's promise; not in the "
+        "RK34Q8 error / tolerance (worst component, hamrkq's promise; not in the "
         f"paper): {ratio(diag.estimated)} against its RK8 track, {ratio(diag.error)} true"
     )
 
