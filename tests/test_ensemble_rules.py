@@ -54,8 +54,149 @@ def _mixed(decisions: np.ndarray) -> np.ndarray:
     return decisions
 
 
+#: The rules after a run by hand, on states of four components (q1, q2, p1,
+#: p2; the scales are measured per half): (y0, the run's largest |y_k|,
+#: atol, rtol, steps, step range), whether the witness is needed after the
+#: run (``needs_witness_after_run``) and whether the state outgrew its start
+#: (``state_outgrew_its_start``, at the reference steps and a range of 1).
+#: The threshold is WITNESS_BELOW = 3e-10 times each half's largest size,
+#: times length_factor(N) = max(sqrt(N / 1e4), (N / 15 000)^2) (1 at 10 000
+#: steps) and close_approach_factor(r) = max(1, r / 2).
+ONES = [1.0, 1.0, 1.0, 1.0]
+AFTER_A_RUN = [
+    # 3e-10 against atol 1e-9: neither
+    ((ONES, ONES, 1e-9, 0.0, 10_000, 1.0), False, False),
+    # (40 000 / 15 000)^2 = 7.1: 2.1e-9 above 1e-9
+    ((ONES, ONES, 1e-9, 0.0, 40_000, 1.0), True, False),
+    # a step range of 8: 4 times, 1.2e-9; of 6: 3 times, 9e-10
+    ((ONES, ONES, 1e-9, 0.0, 10_000, 8.0), True, False),
+    ((ONES, ONES, 1e-9, 0.0, 10_000, 6.0), False, False),
+    # q1 reached 5: 1.5e-9; grew 5-fold, not more than 10
+    ((ONES, [5.0, 1.0, 1.0, 1.0], 1e-9, 0.0, 10_000, 1.0), True, False),
+    # q1 reached 11: 3.3e-9, where the start's 3e-10 was above 1e-9
+    ((ONES, [11.0, 1.0, 1.0, 1.0], 1e-9, 0.0, 10_000, 1.0), True, True),
+    # exactly 10-fold is not more
+    ((ONES, [10.0, 1.0, 1.0, 1.0], 1e-9, 0.0, 10_000, 1.0), True, False),
+    # 11-fold, but 3.3e-9 is below atol 1e-8
+    ((ONES, [11.0, 1.0, 1.0, 1.0], 1e-8, 0.0, 10_000, 1.0), False, False),
+    # 100-fold at 1e-11: the rule at the start (3e-10) called for it already
+    ((ONES, [100.0, 1.0, 1.0, 1.0], 1e-11, 0.0, 10_000, 1.0), True, False),
+    # both q zero at the start: measured by the whole state (2); q1 reached
+    # 30, 15-fold: 9e-9 against 6e-10 at the start
+    (([0.0, 0.0, 2.0, 2.0], [30.0, 0.0, 2.0, 2.0], 1e-9, 0.0, 10_000, 1.0), True, True),
+    # rtol: q2 = 0 has atol alone, 1e-12, below 3e-10 of 2
+    (([2.0, 0.0, 1.0, 1.0], [2.0, 0.0, 1.0, 1.0], 1e-12, 1e-9, 10_000, 1.0), True, False),
+    # rtol 1e-9 and atol 1e-9: 2e-9 and 1e-9 against 6e-10 and 3e-10
+    (([2.0, 0.0, 1.0, 1.0], [2.0, 0.0, 1.0, 1.0], 1e-9, 1e-9, 10_000, 1.0), False, False),
+    # per-component floors share out the half: q2's scale is 1e-10 / 1e-8 of
+    # q1's 1, 0.01, at the start; it reached 0.5 (50-fold), where 1.5e-10 is
+    # above its atol 1e-10 (3e-12 at the start)
+    (
+        (
+            [1.0, 0.001, 1.0, 1.0],
+            [1.0, 0.5, 1.0, 1.0],
+            [1e-8, 1e-10, 1e-8, 1e-8],
+            0.0,
+            10_000,
+            1.0,
+        ),
+        True,
+        True,
+    ),
+    # a size that is NaN did not grow, and has no threshold
+    ((ONES, [np.nan, 1.0, 1.0, 1.0], 1e-9, 0.0, 10_000, 1.0), False, False),
+]
+
+
+def _after_a_run_rows():
+    """:data:`AFTER_A_RUN` as the per-row rules take it: atol and rtol per
+    component, one row per case."""
+    columns = list(zip(*(case for case, _, _ in AFTER_A_RUN), strict=True))
+    y0, sizes, steps, ranges = (np.array(columns[k], dtype=float) for k in (0, 1, 4, 5))
+    atol, rtol = (np.array([np.broadcast_to(v, (D,)) for v in columns[k]]) for k in (2, 3))
+    after = np.array([expected for _, expected, _ in AFTER_A_RUN])
+    outgrew = np.array([expected for _, _, expected in AFTER_A_RUN])
+    return y0, sizes, atol, rtol, steps.astype(np.int64), ranges, after, outgrew
+
+
+def test_the_rules_after_a_run_per_row_give_the_hand_computed_decisions():
+    y0, sizes, atol, rtol, steps, ranges, after, outgrew = _after_a_run_rows()
+    for k in range(len(AFTER_A_RUN)):  # (each case's own atol and rtol)
+        rows = y0[k : k + 1], steps[k : k + 1], sizes[k : k + 1], ranges[k : k + 1]
+        decided = wr.needs_witness_after_run_per_row(atol[k], rtol[k], *rows)
+        assert decided.tolist() == [after[k]], AFTER_A_RUN[k]
+        if steps[k] == wr.WITNESS_REFERENCE_STEPS and ranges[k] == 1.0:
+            grown = wr.state_outgrew_its_start_per_row(
+                atol[k], rtol[k], y0[k : k + 1], sizes[k : k + 1]
+            )
+            assert grown.tolist() == [outgrew[k]], AFTER_A_RUN[k]
+    # one atol and rtol for every row: the first seven cases at once
+    rows = slice(0, 7)
+    assert (atol[rows] == 1e-9).all() and (rtol[rows] == 0.0).all()
+    decided = wr.needs_witness_after_run_per_row(
+        atol[0], rtol[0], y0[rows], steps[rows], sizes[rows], ranges[rows]
+    )
+    np.testing.assert_array_equal(decided, after[rows])
+
+
+@pytest.mark.parametrize("substeps", [1, 4, 5])
+def test_the_witness_rules_at_the_start_per_row_give_the_hand_computed_decisions(substeps):
+    """Below 3e-10 of the state's size (3e-8 with four quencher steps, every
+    tolerance with five); with a time scale, below 1000 eps |t| (2.2e-9 at
+    |t| = 1e4)."""
+    states = np.array([ONES, [2.0, 0.0, 0.5, 0.5], [0.0, 0.0, 0.0, 0.0]])
+    by_atol = {
+        # atol: (tolerance below the rule's threshold at each state)
+        1e-10: [True, True, True],  # 1e-10 < 3e-10 (of 1, of 2 and 0.5, of 1)
+        5e-10: [False, True, False],  # 5e-10 < 6e-10 (q of size 2) only
+        1e-8: [False, False, False],
+    }
+    for atol, below in by_atol.items():
+        rows = wr.needs_witness_per_row(np.full(D, atol), np.zeros(D), states, substeps=substeps)
+        if substeps >= wr.WITNESS_SUBSTEPS:
+            expected = [True] * 3
+        elif substeps >= wr.WITNESS_SUBSTEPS_NEAR_FLOOR:  # 3e-8: every atol here
+            expected = [True] * 3
+        else:
+            expected = below
+        assert rows.tolist() == expected, atol
+    for atol, expected in ((1e-9, [True, True, True]), (1e-8, [False, False, False])):
+        rows = wr.time_rounding_matters_per_row(np.full(D, atol), np.zeros(D), states, 1e4)
+        assert rows.tolist() == expected
+    assert not wr.time_rounding_matters_per_row(np.full(D, 1e-15), np.zeros(D), states, 0.0).any()
+    assert wr.needs_witness_per_row(1e-3, 0.0, states, stage_rounding=True).all()
+
+
+def test_the_scales_and_auto_s_tolerance_per_row_are_the_hand_computed_values():
+    states = np.array(
+        [[1.0, 0.001, 1.0, 1.0], [0.0, 0.0, 2.0, 3.0], [0.0] * 4, [3.0, -4.0, 0.0, 0.0]]
+    )
+    np.testing.assert_array_equal(
+        wr.component_scales(1e-8, states),
+        [[1.0, 1.0, 1.0, 1.0], [3.0, 3.0, 3.0, 3.0], [1.0] * 4, [4.0, 4.0, 4.0, 4.0]],
+    )
+    # floors share out each half: q2's 1e-10 is 0.01 of q1's 1e-8
+    np.testing.assert_array_equal(
+        wr.component_scales([1e-8, 1e-10, 1e-8, 1e-8], states[:1]), [[1.0, 0.01, 1.0, 1.0]]
+    )
+    # min_k max(atol, rtol |y_k|) over max(1, max_k |y_k|)
+    states = np.array([[2.0, 0.0, 0.5, 0.0], [25.0, 0.0, 0.0, 0.0], [0.0] * 4])
+    tolerances = ar.auto_tolerance_per_row(1e-9, 1e-6, states)
+    np.testing.assert_allclose(tolerances, [1e-9 / 2, 1e-9 / 25, 1e-9], rtol=1e-15)
+    tolerances = ar.auto_tolerance_per_row(np.full(D, 1e-7), np.zeros(D), states)
+    np.testing.assert_allclose(tolerances, [1e-7 / 2, 1e-7 / 25, 1e-7], rtol=1e-15)
+    # rk67q9 at 1e-7 or looser, or from 12 state variables on
+    assert ar.auto_member_per_row(D, tolerances).tolist() == ["rk78q12", "rk78q12", "rk67q9"]
+    assert set(ar.auto_member_per_row(ar.AUTO_LARGE_DIM, tolerances)) == {"rk67q9"}
+
+
 @pytest.mark.parametrize("atol, rtol", TOLERANCES)
-def test_the_witness_rules_per_row_decide_as_for_each_state_alone(atol, rtol):
+def test_the_rules_on_python_floats_are_the_whole_array_rules(atol, rtol):
+    """One small state's rules are computed on Python floats
+    (``witness_rules.SMALL_STATE``), an ensemble's rows in whole-array
+    operations: two computations, the same bits, on states chosen so that
+    the decisions differ."""
+    assert D <= wr.SMALL_STATE
     states = _states(1)
     rng = np.random.default_rng(2)
     sizes = np.abs(states) * 10.0 ** rng.uniform(0, 3, (M, D))
@@ -64,19 +205,6 @@ def test_the_witness_rules_per_row_decide_as_for_each_state_alone(atol, rtol):
     np.testing.assert_array_equal(
         wr.component_scales(atol, states), [wr.component_scales(atol, y) for y in states]
     )
-    for substeps in (1, 4, 5):
-        for time_scale in (0.0, 1e4):
-            rows = wr.needs_witness_per_row(
-                atol, rtol, states, substeps=substeps, time_scale=time_scale
-            )
-            alone = [wr.needs_witness(atol, rtol, y, False, substeps, time_scale) for y in states]
-            np.testing.assert_array_equal(rows, alone)
-            if substeps < wr.WITNESS_SUBSTEPS:
-                _mixed(rows)
-        rows = wr.time_rounding_matters_per_row(atol, rtol, states, 1e4)
-        alone = [wr.time_rounding_matters(atol, rtol, y, 1e4) for y in states]
-        np.testing.assert_array_equal(_mixed(rows), alone)
-    assert wr.needs_witness_per_row(atol, rtol, states, stage_rounding=True).all()
     rows = wr.needs_witness_after_run_per_row(atol, rtol, states, steps, sizes, ranges)
     alone = [
         wr.needs_witness_after_run(atol, rtol, y, int(n), s, float(r))
@@ -88,18 +216,8 @@ def test_the_witness_rules_per_row_decide_as_for_each_state_alone(atol, rtol):
         wr.state_outgrew_its_start(atol, rtol, y, s) for y, s in zip(states, sizes, strict=True)
     ]
     np.testing.assert_array_equal(_mixed(rows), alone)
-
-
-@pytest.mark.parametrize("atol, rtol", [(np.full(D, 2e-7), np.zeros(D)), *TOLERANCES])
-def test_auto_s_member_per_row_is_the_member_of_each_state_alone(atol, rtol):
-    states = _states(3)
     tolerances = ar.auto_tolerance_per_row(atol, rtol, states)
     np.testing.assert_array_equal(tolerances, [ar.auto_tolerance(atol, rtol, y) for y in states])
-    for dim in (D, ar.AUTO_LARGE_DIM):
-        names = ar.auto_member_per_row(dim, tolerances)
-        np.testing.assert_array_equal(names, [ar.auto_member(dim, t)[0] for t in tolerances])
-    if atol[0] == 2e-7:  # loose where the state's size is at most 2
-        assert set(ar.auto_member_per_row(D, tolerances)) == {ar.AUTO_MEMBER, ar.AUTO_LARGE_MEMBER}
 
 
 def test_the_growth_of_maxima_per_row_reads_each_row_as_alone():
@@ -243,36 +361,63 @@ def test_members_whose_y0_decide_differently_group_as_each_alone_decides():
         assert sol.options["rounding_witness"] == witness[i]
 
 
-@pytest.mark.parametrize("method", ["rk78q12", "rk34q8"])
-def test_the_rules_after_a_run_per_row_decide_as_solve_s_for_each_run(method):
-    """hamrkq.solve.member_rules against hamrkq.solve.auto's per-run rules,
-    row by row and for one run alone: the shadow estimate (exponential
-    growth, the length and the state's size) and the tangent estimate (a
-    state grown beyond its start)."""
+def test_the_rules_after_a_run_per_row_give_solve_s_hand_computed_decisions():
+    """hamrkq.solve.member_rules on Henon-Heiles runs at atol 1e-8 from
+    q = p = (0.18, 0.18) (each half's scale 0.18, so 5.4e-11 at 3e-10 of
+    it): the growth of the estimate over the second half, and whether a run
+    is made again with the witness, by hand; one run alone as its row of
+    many.  The shadow estimate (rk78q12): an exponential growth (over 50),
+    or the length's law at the run's largest state; the tangent estimate
+    (rk34q8): a state grown more than 10-fold, where the rule at the start
+    would call for the witness and did not."""
     from hamrkq.solve import auto, member_rules, prepare
 
     problem = hamrkq.load_problem("henon_heiles")
-    task = prepare(problem, q0=[0.1, 0.2], p0=[0.3, 0.0], method=method, atol=1e-8).task
-    assert auto.reruns_with_witness(task)
-    rng = np.random.default_rng(5)
-    states = rng.uniform(-0.3, 0.3, (M, D))
-    states[:20, 0] = 0.0
-    sizes = np.abs(states) * 10.0 ** rng.uniform(0, 2.5, (M, D))
-    to_middle = 1e-9 * 10.0 ** rng.uniform(-4, 0, (M, D))
-    to_end = to_middle * 10.0 ** rng.uniform(0, 3, (M, D))
-    to_middle[:10] = 0.0
-    steps = (10.0 ** rng.uniform(1, 5, M)).astype(np.int64)
-    ranges = 10.0 ** rng.uniform(0, 1.5, M)
-    growth = member_rules.folded_growth_per_row(task, to_middle, to_end, sizes)
-    rerun = member_rules.witness_rerun_needed_per_row(task, states, sizes, growth, steps, ranges)
-    _mixed(growth > ar.EXPONENTIAL_GROWTH)
-    _mixed(rerun)
-    for i in range(M):
-        factor = auto.folded_growth(task, to_middle[i], to_end[i], sizes[i])
-        assert growth[i] == factor
-        assert (
-            member_rules.folded_growth_per_row(task, to_middle[i], to_end[i], sizes[i]) == factor
+    y0 = np.full(D, 0.18)
+    states = np.tile(y0, (5, 1))
+    to_middle = np.array([[1e-10, 2e-10, 0, 0], [0] * 4, [0] * 4, [3e-9] * 4, [1e-12, 0, 0, 0]])
+    to_end = np.array([[4e-9, 1e-10, 0, 0], [0] * 4, [1e-9, 0, 0, 0], [3e-9] * 4, [6e-9, 0, 0, 0]])
+    # max(to_end / 1e-8) over max(to_middle / 1e-8); none: 1; at the end only: inf
+    growths = [4e-9 / 2e-10, 1.0, math.inf, 1.0, 6e-9 / 1e-12]
+    shadow, tangent = (
+        prepare(problem, method=method, atol=1e-8, rtol=0.0).task
+        for method in ("rk78q12", "rk34q8")
+    )
+    for task in (shadow, tangent):
+        assert auto.reruns_with_witness(task)
+        growth = member_rules.folded_growth_per_row(task, to_middle, to_end, states)
+        np.testing.assert_allclose(growth, growths, rtol=1e-15)
+    # (factor, steps, step range, largest |q1|) -> rerun with the shadow estimate
+    shadow_cases = [
+        ((49.0, 10_000, 1.0, 0.18), False),  # 5.4e-11 against 1e-8
+        ((51.0, 10_000, 1.0, 0.18), True),  # exponential
+        ((49.0, 250_000, 1.0, 0.18), True),  # (250 000 / 15 000)^2 = 278: 1.5e-8
+        ((49.0, 100_000, 1.0, 0.18), False),  # 44: 2.4e-9
+        ((49.0, 10_000, 1000.0, 0.18), True),  # 500 times: 2.7e-8
+        ((49.0, 10_000, 1.0, 100.0), True),  # q1 reached 100: 3e-8
+    ]
+    # largest |q1| -> rerun with the tangent estimate (at start 5.4e-11, unneeded)
+    tangent_cases = [
+        (0.18, False),  # no growth
+        (3.0, False),  # 16.7-fold: 9e-10 is still below 1e-8
+        (40.0, True),  # 222-fold: 1.2e-8 above 1e-8
+    ]
+    for task, cases in (
+        (shadow, shadow_cases),
+        (tangent, [((0.0, 10_000, 1.0, q1), rerun) for q1, rerun in tangent_cases]),
+    ):
+        factors, steps, ranges, q1 = (
+            np.array(c) for c in zip(*(k for k, _ in cases), strict=True)
         )
-        one = (task, states[i], sizes[i], factor, int(steps[i]), float(ranges[i]))
-        assert rerun[i] == auto.witness_rerun_needed(*one)
-        assert member_rules.witness_rerun_needed_per_row(*one) == rerun[i]
+        expected = [rerun for _, rerun in cases]
+        rows = np.tile(y0, (len(cases), 1))
+        sizes = rows.copy()
+        sizes[:, 0] = q1
+        decided = member_rules.witness_rerun_needed_per_row(
+            task, rows, sizes, factors, steps.astype(np.int64), ranges
+        )
+        assert decided.tolist() == expected
+        for k, rerun in enumerate(expected):  # one run alone (Python floats)
+            one = (task, y0, sizes[k], float(factors[k]), int(steps[k]), float(ranges[k]))
+            assert member_rules.witness_rerun_needed_per_row(*one) == rerun
+            assert auto.witness_rerun_needed(*one) == rerun

@@ -90,25 +90,29 @@ def test_a_configuration_record_is_numpys_record_of_the_values():
         new_config(**values, bogus=1.0)
 
 
-def test_the_two_scales_of_a_run_are_each_scale_alone():
+def test_one_small_state_s_rules_on_floats_give_the_hand_computed_decisions():
+    """A run's rules after it, for one state, on Python floats (every solve
+    asks them: 18 us each on arrays): the hand-computed decisions of
+    ``tests/test_ensemble_rules.py``, and the same for a state too large
+    for floats (each component repeated three times: the same halves, so the
+    same decisions), which the whole-array rules decide."""
+    from test_ensemble_rules import AFTER_A_RUN
+
     from hamrkq.rkq import witness_rules as wr
 
-    rng = np.random.default_rng(7)
-    for d in (1, 2, 3, 6):
-        for atol in (np.full(d, 1e-8), rng.random(d) * 1e-9, np.float64(1e-6)):
-            y0 = rng.normal(size=d)
-            y0[0] = 0.0
-            size = np.abs(y0) * rng.uniform(0.5, 40.0, size=d)
-            start = wr.component_scales(atol, y0)
-            reached = wr.component_scales(atol, np.maximum(np.abs(y0), size))
-            grew = float(np.max(reached / start)) > wr.STATE_GROWTH
-            rtol = np.zeros(d)
-            steps = wr.WITNESS_REFERENCE_STEPS
-            expected = grew and (
-                wr.needs_witness_after_run(atol, rtol, y0, steps, size)
-                and not wr.needs_witness_after_run(atol, rtol, y0, steps)
-            )
-            assert wr.state_outgrew_its_start(atol, rtol, y0, size) == expected
+    for (y0, size, atol, rtol, steps, step_range), after, outgrew in AFTER_A_RUN:
+        for copies in (1, 3):
+            state, sizes = (np.repeat(np.array(v, dtype=float), copies) for v in (y0, size))
+            floor, relative = (np.broadcast_to(v, (4,)).repeat(copies) for v in (atol, rtol))
+            assert (state.size <= wr.SMALL_STATE) == (copies == 1)
+            decided = wr.needs_witness_after_run(floor, relative, state, steps, sizes, step_range)
+            assert decided is after, (y0, size, atol, copies)
+            if steps == wr.WITNESS_REFERENCE_STEPS and step_range == 1.0:
+                grown = wr.state_outgrew_its_start(floor, relative, state, sizes)
+                assert grown is outgrew, (y0, size, atol, copies)
+                # one state through the per-row rule: a NumPy bool, as before
+                grown = wr.state_outgrew_its_start_per_row(floor, relative, state, sizes)
+                assert type(grown) is np.bool_ and grown == outgrew
 
 
 def test_a_solutions_run_arrays_are_its_own_and_read_only():

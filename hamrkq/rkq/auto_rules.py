@@ -12,8 +12,11 @@ measurements behind the numbers are in ``benchmarks/family.md`` and
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
+
+from hamrkq.rkq.witness_rules import _small_state
 
 __all__ = [
     "AUTO_FIRST_SUBSTEPS",
@@ -115,8 +118,17 @@ def auto_tolerance(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> float:
     tolerance at ``y0``, ``min_k max(atol_k, rtol_k |y0_k|)``, over the
     state's size where that is above one (``max(1, max_k |y0_k|)``: a state
     in large units, astronomical units of 25 say, counts its tolerance
-    relative to that size)."""
-    return float(auto_tolerance_per_row(atol, rtol, y0))
+    relative to that size).  On a small state (:data:`~hamrkq.rkq.witness_rules.SMALL_STATE`
+    components) on Python floats, the whole-array rule's value
+    (:func:`auto_tolerance_per_row`) bit for bit: every call of
+    ``method="auto"`` asks it."""
+    small = _small_state(y0, atol, rtol)
+    if small is None:
+        return float(auto_tolerance_per_row(atol, rtol, y0))
+    state, floor, relative = small
+    sizes = list(map(abs, state))
+    smallest = min(map(max, floor, map(operator.mul, relative, sizes)))
+    return smallest / max(1.0, max(sizes))
 
 
 def auto_tolerance_per_row(atol: np.ndarray, rtol: np.ndarray, states: np.ndarray) -> np.ndarray:
