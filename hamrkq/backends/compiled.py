@@ -32,6 +32,7 @@ import contextlib
 import math
 import os
 import types
+import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -72,6 +73,7 @@ __all__ = [
     "loaded_system",
     "mark_compiled",
     "numba_failure",
+    "remembered_system",
     "stats",
 ]
 
@@ -260,10 +262,30 @@ def loaded_system(key: str) -> CompiledSystem | None:
     return _SYSTEMS.get(key)
 
 
+#: :func:`compile_system`'s answers by Hamiltonian object: by its id, a weak
+#: reference to it (an id is reused only once the object is gone, and the
+#: memo does not keep it alive), its key and its system.  A solve asks for
+#: the system of the same object two or three times (the kernel's
+#: functions, H at the nodes, the warm-up's check), and the key's lookup and
+#: the lock cost a microsecond and a half each time.
+_BY_OBJECT: dict[int, tuple[weakref.ref, str, CompiledSystem]] = {}
+
+
+def remembered_system(ham: Hamiltonian) -> tuple[str, CompiledSystem] | None:
+    """The code-generation key and the system of ``ham`` where
+    :func:`compile_system` made or found it for this object and the system
+    is still the one its key names (:func:`loaded_system`), else None."""
+    known = _BY_OBJECT.get(id(ham))
+    if known is None or known[0]() is not ham or _SYSTEMS.get(known[1]) is not known[2]:
+        return None
+    return known[1], known[2]
+
+
 def compile_system(ham: Hamiltonian) -> CompiledSystem:
     """Generate (or find in the cache) and compile the functions of ``ham``.
 
-    Memoised per process by the code-generation key.
+    Memoised per process by the code-generation key (and by the object:
+    :func:`remembered_system`).
 
     Raises
     ------
@@ -272,17 +294,26 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
         into scalar code, numba cannot compile them, or the cache directory
         cannot be written; the message says which.
     """
-    numba_module()
+    numba_module()  # (asked every time: HAMRKQ_DISABLE_NUMBA may be set since)
+    known = remembered_system(ham)
+    if known is not None:
+        return known[1]
     key = codegen.cache_key(ham)
     with LOCK:
         system = _SYSTEMS.get(key)
-        if system is not None:
+        if system is None:
+            with _failures_as_unavailable("the system"):
+                module = codegen.load_module(ham)
+                system = CompiledSystem(module, lambda: codegen.load_module(ham, part="tangent"))
+            _SYSTEMS[key] = system
+            mark_compiled(system.path)
+        try:
+            reference = weakref.ref(ham)
+        except TypeError:  # not weak-referenceable: looked up by key each time
             return system
-        with _failures_as_unavailable("the system"):
-            module = codegen.load_module(ham)
-            system = CompiledSystem(module, lambda: codegen.load_module(ham, part="tangent"))
-        _SYSTEMS[key] = system
-        mark_compiled(system.path)
+        if len(_BY_OBJECT) >= 256:  # Hamiltonians made on the fly: bounded
+            _BY_OBJECT.clear()
+        _BY_OBJECT[id(ham)] = (reference, key, system)
         return system
 
 
@@ -345,8 +376,12 @@ def _compiled_argument(array: np.ndarray) -> np.ndarray:
     if (
         isinstance(array, np.ndarray)
         and array.dtype == np.float64
-        and array.flags.c_contiguous
-        and array.flags.writeable
+        # both flags from one flags object (each ``array.flags`` makes one)
+        and array.flags.num & _C_WRITEABLE == _C_WRITEABLE
     ):
         return array
     return np.require(array, np.float64, ("C", "W"))
+
+
+#: NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_WRITEABLE, in ``ndarray.flags.num``.
+_C_WRITEABLE = 0x0001 | 0x0400

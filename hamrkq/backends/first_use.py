@@ -129,12 +129,14 @@ def kernel_functions(ham: Hamiltonian, gamma: str = "tangent"):
 def system_functions(system: CompiledSystem, gamma: str = "tangent"):
     """The :class:`~hamrkq.rkq.driver.KernelFunctions` of a compiled system
     with the compiled kernel (``gamma``: see :func:`kernel_functions`)."""
-    from hamrkq.rkq.driver import KernelFunctions
-
     kernel = kernel_module.kernel()
     known = _FUNCTIONS.get((id(system), gamma))
     if known is not None and known[0] is system and known[1].advance is kernel:
         return known[1]
+    # (imported here, past the functions known: an import statement costs a
+    # microsecond of every solve)
+    from hamrkq.rkq.driver import KernelFunctions
+
     functions = KernelFunctions(*system.kernel_arguments(gamma), kernel)
     _FUNCTIONS[(id(system), gamma)] = (system, functions)
     return functions
@@ -195,8 +197,13 @@ def warm_up(
     (:func:`kernel_functions`); raises BackendUnavailable with what failed.
     A first use that takes long is announced on ``stream`` (stderr; when it
     is a terminal, or ``announce``)."""
-    key = codegen.cache_key(ham)
-    system = compiled.loaded_system(key)
+    # (the object's key and system as compile_system remembers them: every
+    # solve asks this)
+    known = compiled.remembered_system(ham)
+    if known is None:
+        key = codegen.cache_key(ham)
+        known = key, compiled.loaded_system(key)
+    key, system = known
     if key in _WARM and system is not None and system.compiled_for(gamma):
         return
 
