@@ -52,6 +52,11 @@ def real(name: str, value: Any) -> float:
 
 def span(t_span: Any) -> tuple[float, float]:
     """``t_span`` as two finite floats ``(t0, t_end)``."""
+    if type(t_span) is tuple and len(t_span) == 2:
+        # two floats, the common case, without the checks below (every solve pays this)
+        t0, t_end = t_span
+        if type(t0) is float and type(t_end) is float and math.isfinite(t0 + t_end):
+            return t0, t_end
     try:
         length = None if isinstance(t_span, str | bytes) else len(t_span)
     except TypeError:  # a 0-d array has __len__ but no length

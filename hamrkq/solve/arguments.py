@@ -138,15 +138,16 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
     problem's, else 1e-6 and 0); an rtol below 100 eps is raised to it."""
     atol_given = atol if atol is not None else defaults.get("atol", 1e-6)
     rtol_given = rtol if rtol is not None else defaults.get("rtol", 0.0)
+    atol_number, rtol_number = _plain_number(atol_given), _plain_number(rtol_given)
     if (
-        type(atol_given) is float
-        and type(rtol_given) is float
-        and MIN_ATOL <= atol_given < math.inf
-        and (rtol_given == 0.0 or MIN_RTOL <= rtol_given < math.inf)
+        atol_number is not None
+        and rtol_number is not None
+        and MIN_ATOL <= atol_number < math.inf
+        and (rtol_number == 0.0 or MIN_RTOL <= rtol_number < math.inf)
     ):
         # two numbers that pass every check below, the common case, without
-        # its reductions (every solve pays this)
-        return np.full(dim, atol_given), np.full(dim, rtol_given)
+        # its reductions (every solve pays this): the same arrays
+        return np.full(dim, atol_number), np.full(dim, rtol_number)
     atol_v = _tolerance("atol", atol_given, dim, positive=True)
     rtol_v = _tolerance("rtol", rtol_given, dim, positive=False)
     # (one reduction each where nothing is wrong: every solve pays these)
@@ -159,6 +160,15 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
         warn(f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}")
         rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
     return atol_v, rtol_v
+
+
+def _plain_number(value: Any) -> float | None:
+    """``value`` as the float :func:`hamrkq._validate.tolerance` makes of one
+    number without its checks (a float, or an int it converts exactly:
+    ``rtol = 0`` in a problem file), else None."""
+    if isinstance(value, float) or (type(value) is int and abs(value) < 2**53):
+        return float(value)
+    return None
 
 
 def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
