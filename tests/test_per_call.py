@@ -90,6 +90,29 @@ def test_a_configuration_record_is_numpys_record_of_the_values():
         new_config(**values, bogus=1.0)
 
 
+@pytest.mark.parametrize("t0, t_end", [(0.0, 1.0), (-0.0, -2.5), (1e8, 1e8 + 3.0), (0.0, np.inf)])
+def test_a_runs_remembered_configuration_is_the_record_of_its_fields(t0, t_end):
+    """The kernel's configuration is made once per member and settings and
+    copied with the run's t0 and t_end: the bytes of the record made from
+    the fields, for settings met before or not, with a float in an integer
+    field (NumPy truncates it) and with a zero whose sign the key cannot
+    tell apart."""
+    from hamrkq.rkq import driver
+
+    for name in ("rk34q8", "rk78q12"):
+        member = get_member(name)
+        for settings in (
+            Settings(quench=0, rule=0, gamma=1),
+            Settings(quench=1, rule=1, gamma=2, keep_every=2.7, first_step=0.01, witness=True),
+            Settings(quench=0, rule=0, gamma=1, first_step=-0.0),
+        ):
+            expected = driver._config(member, settings, settings.gamma, 0, 1, t0, t_end, False)
+            for _ in range(2):  # made, then remembered
+                made = driver._config(member, settings, settings.gamma, 0, 1, t0, t_end)
+                assert made.tobytes() == expected.tobytes() and made.dtype == expected.dtype
+                assert made.flags.writeable and made.flags.aligned and made.flags.c_contiguous
+
+
 def test_one_small_state_s_rules_on_floats_give_the_hand_computed_decisions():
     """A run's rules after it, for one state, on Python floats (every solve
     asks them: 18 us each on arrays): the hand-computed decisions of

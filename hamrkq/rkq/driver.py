@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -24,6 +25,7 @@ from hamrkq.rkq.family import Member
 from hamrkq.rkq.layout import (
     CHECKPOINTS,
     CHK0,
+    CONFIG,
     GAMMA_OFF,
     GAMMA_PAPER,
     GAMMA_SHADOW,
@@ -240,6 +242,94 @@ def _member_config(member: Member) -> dict[str, float]:
     return fields
 
 
+#: :func:`_config`'s records made so far, as their bytes with ``t_start``
+#: and ``t_end`` zero, by the values that decide the rest (with the member,
+#: so that its id is not reused while it is kept).
+_CONFIGS: dict[tuple, tuple[Member, bytes]] = {}
+
+#: Where ``t_start`` and ``t_end`` are in a configuration record's bytes,
+#: and their format (a double in native order, as ``new_config`` packs it).
+_T_START, _T_END = CONFIG.fields["t_start"][1], CONFIG.fields["t_end"][1]
+_DOUBLE = struct.Struct("=d")
+
+
+def _config(
+    member: Member,
+    settings: Settings,
+    gamma: int,
+    use_teval: int,
+    relative: int,
+    t0: float,
+    t_end: float,
+    remember: bool = True,
+) -> np.ndarray:
+    """The kernel's configuration record of a run of ``member`` with
+    ``settings`` from ``t0`` to ``t_end`` (:func:`~hamrkq.rkq.layout.new_config`
+    of its fields).
+
+    ``remember``: made once per member and settings (every run of a solve,
+    and of an ensemble's members, has the same ones) and copied with the
+    run's ``t0`` and ``t_end``, which building and checking the record's 33
+    fields by keyword took 8 us of a tiny problem's call.  The same bytes:
+    ``t0`` and ``t_end`` are packed as ``new_config`` packs a double, and a
+    setting that is zero, whose sign a key does not tell apart, or that is
+    not hashable, is made afresh."""
+    if remember:
+        floats = (
+            settings.safety,
+            settings.theta,
+            settings.max_step,
+            settings.first_step,
+            settings.gamma_limit,
+            settings.dense_share,
+        )
+        key = (
+            id(member), gamma, use_teval, relative, settings.quench, settings.rule,
+            settings.keep_every, settings.max_steps, settings.witness, settings.project,
+            settings.double_double, *floats,
+        )  # fmt: skip
+        try:
+            known = _CONFIGS.get(key)
+        except TypeError:  # a setting that is not hashable (a 0-d array, say)
+            known, remember = None, False
+        if (known is None or known[0] is not member) and remember and 0.0 not in floats:
+            made = _config(member, settings, gamma, use_teval, relative, 0.0, 0.0, False)
+            if len(_CONFIGS) >= 256:  # settings made on the fly: bounded
+                _CONFIGS.clear()
+            known = _CONFIGS[key] = (member, made.tobytes())
+        if known is not None and known[0] is member:
+            record = bytearray(known[1])
+            _DOUBLE.pack_into(record, _T_START, t0)
+            _DOUBLE.pack_into(record, _T_END, t_end)
+            # (a writable buffer: CONFIG's alignment is 1, as new_config's own record)
+            return np.frombuffer(record, dtype=CONFIG)
+    return new_config(
+        **_member_config(member),
+        quench_mode=settings.quench,
+        rule=settings.rule,
+        gamma_mode=gamma,
+        keep_every=settings.keep_every,
+        max_steps=settings.max_steps,
+        use_t_eval=use_teval,
+        relative=relative,
+        safety=settings.safety,
+        theta=settings.theta,
+        max_step=settings.max_step,
+        first_step=0.0 if settings.first_step is None else float(settings.first_step),
+        gamma_limit=settings.gamma_limit,
+        t_end=t_end,
+        witness=int(settings.witness and gamma in (GAMMA_SHADOW, GAMMA_TANGENT)),
+        witness_scale=WITNESS_SAFETY,
+        project=int(settings.project and member.use_z),
+        t_start=t0,
+        project_from=AUTO_PROJECT_FROM,
+        project_until=AUTO_PROJECT_UNTIL,
+        project_limit=AUTO_PROJECT_SHARE * settings.gamma_limit,
+        z_double_double=int(settings.double_double and gamma == GAMMA_SHADOW),
+        dense_share=settings.dense_share,
+    )
+
+
 def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
@@ -322,30 +412,12 @@ class Integration:
         )
         self.tableaus = member.tableaus
         gamma = settings.gamma if member.use_z else GAMMA_OFF
-        self.config = new_config(
-            **_member_config(member),
-            quench_mode=settings.quench,
-            rule=settings.rule,
-            gamma_mode=gamma,
-            keep_every=settings.keep_every,
-            max_steps=settings.max_steps,
-            use_t_eval=int(use_teval),
-            relative=int(self.inputs.rtol.max(initial=0.0) > 0.0),
-            safety=settings.safety,
-            theta=settings.theta,
-            max_step=settings.max_step,
-            first_step=0.0 if settings.first_step is None else float(settings.first_step),
-            gamma_limit=settings.gamma_limit,
-            t_end=self.t_end,
-            witness=int(settings.witness and gamma in (GAMMA_SHADOW, GAMMA_TANGENT)),
-            witness_scale=WITNESS_SAFETY,
-            project=int(settings.project and member.use_z),
-            t_start=self.t0,
-            project_from=AUTO_PROJECT_FROM,
-            project_until=AUTO_PROJECT_UNTIL,
-            project_limit=AUTO_PROJECT_SHARE * settings.gamma_limit,
-            z_double_double=int(settings.double_double and gamma == GAMMA_SHADOW),
-            dense_share=settings.dense_share,
+        relative = int(self.inputs.rtol.max(initial=0.0) > 0.0)
+        #: Whether the estimate of Gamma counts roundoff steps (the
+        #: configuration's gamma_mode, known here without reading the record).
+        self._roundoff_counted = bool(member.use_z and gamma in (GAMMA_TANGENT, GAMMA_PAPER))
+        self.config = _config(
+            member, settings, gamma, int(use_teval), relative, self.t0, self.t_end
         )
         # the same record as new_state(t0), in a third of the time
         self.state = _STATE_AT_ZERO.copy().view(STATE)
@@ -463,7 +535,7 @@ class Integration:
     def _stats(self, s: tuple) -> dict[str, int]:
         """:meth:`stats` from the state record's values (``state.item(0)``)."""
         stats = {key: s[_AT[key]] for key in ("steps", "rejected", "quenches", "nfev", "njev")}
-        if self.member.use_z and self.config[0]["gamma_mode"] in (GAMMA_TANGENT, GAMMA_PAPER):
+        if self._roundoff_counted:
             stats["roundoff_steps"] = s[_AT["roundoff_steps"]]
         return stats
 
