@@ -1010,3 +1010,27 @@ def test_auto_with_a_max_step_given_by_the_caller_uses_the_tangent_estimate():
         global_error_estimate="shadow",
     )  # fmt: skip
     assert chosen.options["global_error_estimate"] == "shadow"
+
+
+def test_the_tangent_estimate_runs_the_witness_near_the_floor():
+    """QA (2026-11-27, round 3): a max_step, even one longer than the span,
+    makes the tangent estimate a member's default, and the tangent estimate
+    ran no rounding witness: ``rk34q10`` on Kepler at e = 0.9, atol 1e-12,
+    two periods, ``max_step=1e3`` returned SUCCESS with 37 nodes above 1.05
+    tolerances (1.092), where the shadow's run, with the witness, stopped
+    at the floor.  The tangent estimate follows the shadow's rule now: it
+    stops at the floor too, every node within the tolerance.  The paper's
+    method keeps its runs at the paper's tolerances without it."""
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    sol = hamrkq.solve(
+        problem, method="rk34q10", atol=1e-12, t_span=(0.0, 4 * np.pi), max_step=1e3
+    )
+    assert sol.options["global_error_estimate"] == "tangent"
+    assert sol.options["rounding_witness"]
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert "rounding" in sol.message
+    assert np.abs(sol.y - problem.exact(sol.t)).max() <= 1.05e-12
+    harmonic = hamrkq.load_problem("harmonic")
+    for atol, witness in ((1e-6, False), (1e-12, True)):
+        paper = hamrkq.solve(harmonic, method="rk34q8", atol=atol, t_span=(0.0, 1.0))
+        assert paper.options["rounding_witness"] is witness

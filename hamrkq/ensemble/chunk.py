@@ -44,9 +44,8 @@ from hamrkq.solve import prepare, solve
 from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
 from hamrkq.solve.dispatch import (
     integration,
-    member_of,
     run_rk,
-    time_scale,
+    witness_rule_arguments,
 )
 from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
 from hamrkq.solve.shadow import shadow_departures
@@ -110,8 +109,9 @@ def decided_by_y0(prepared: Any, dim: int, states: np.ndarray) -> tuple[np.ndarr
     (from the tolerance over the state's size,
     :func:`hamrkq.rkq.auto_rules.auto_tolerance`; "" for another method)
     and whether the rounding witness runs (each component's tolerance against
-    its size, :func:`hamrkq.rkq.witness_rules.needs_witness`; False without
-    the shadow estimate).  One array over the members for each, in
+    its size, :func:`hamrkq.rkq.witness_rules.needs_witness`, with
+    :func:`hamrkq.solve.dispatch.witness_rule_arguments`; False where the
+    estimate cannot run it).  One array over the members for each, in
     whole-array operations: the same decisions as those functions member by
     member (``tests/test_ensemble_rules.py``)."""
     task = prepared.task
@@ -120,16 +120,9 @@ def decided_by_y0(prepared: Any, dim: int, states: np.ndarray) -> tuple[np.ndarr
     if prepared.requested.method == "auto":
         auto = auto_member_per_row(dim, auto_tolerance_per_row(task.atol, task.rtol, states))
     witness = np.zeros(m, dtype=bool)
-    if task.options.gamma_name == "shadow":
-        member = member_of(task)
-        witness = needs_witness_per_row(
-            task.atol,
-            task.rtol,
-            states,
-            stage_rounding=member.stage_rounding_dominates,
-            substeps=member.z_substeps,
-            time_scale=time_scale(task),
-        )
+    rule = witness_rule_arguments(task)
+    if rule is not None:
+        witness = needs_witness_per_row(task.atol, task.rtol, states, **rule)
     return auto, witness
 
 

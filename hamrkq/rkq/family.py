@@ -189,6 +189,9 @@ class Member:
 
 _RK34 = merge_pair(RK4_CLASSIC, RK3_KUTTA)
 
+#: The paper's method: RK3(4) with DOP853's 8th-order formula as quencher.
+PAPER_METHOD = "rk34q8"
+
 #: The family, by name.  ``rk34q8`` is the paper's method (RK3(4) with the
 #: 8th-order formula of DOP853 as quencher); ``rk34`` is its pair alone.
 MEMBERS: dict[str, Member] = {

@@ -179,7 +179,9 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         linearisation of the quencher's step (the default of ``rk34q8``),
         the paper's ``(I + h J)``, global extrapolation from a shadow track
         on a mesh ``z_substeps`` times coarser (the default of the other
-        family members), or not at all (then ``gamma`` is None).
+        family members, unless ``max_step`` is given), or not at all (then
+        ``gamma`` is None, and nothing certifies the tolerance: the promise
+        is yours to check).
     z_method : {"dop853", "cooper_verner"}, optional
         The 8th-order quencher of ``rk34q8``, ``rk45q8`` and ``rk56q8``
         (default DOP853's); an ``OptionError`` for any other method.
@@ -201,13 +203,14 @@ def solve(  # noqa: PLR0913 - SciPy-style keyword options, one per documented se
         Initial step size; by default Hairer-Norsett-Wanner's heuristic for
         order 3 (as SciPy's ``select_initial_step``).
     max_step : float, default inf
-        Largest step size.  With ``method="auto"`` and no estimate chosen,
-        a finite ``max_step`` selects the tangent estimate of Gamma: on a
-        very eccentric orbit at a loose tolerance a cap well below the
+        Largest step size.  With no estimate chosen and the quencher in
+        double, a finite ``max_step`` selects the tangent estimate of Gamma
+        (``method="auto"`` and every member whose default is the shadow): on
+        a very eccentric orbit at a loose tolerance a cap well below the
         pair's steps away from the pericentre leaves the shadow estimate
         blind (SUCCESS with nodes several tolerances off; docs/algorithm.md,
-        "A max_step given by the caller").  A named member keeps its
-        estimate: pass ``global_error_estimate="tangent"`` with it there.
+        "A max_step given by the caller").  ``global_error_estimate="shadow"``
+        named keeps the shadow, and that limit.
     step : float
         The step size h of a fixed-step method (required there, and an error
         for any other method).  The last step is shortened to land on

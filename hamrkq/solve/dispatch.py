@@ -14,7 +14,7 @@ import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from hamrkq.rkq.driver import (
     Settings,
     python_functions,
 )
-from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.family import MEMBERS, PAPER_METHOD
 from hamrkq.rkq.witness_rules import needs_witness, time_rounding_matters
 from hamrkq.solve.shadow import within_linear_shadow
 from hamrkq.symbolic.hamiltonian import Hamiltonian
@@ -54,6 +54,7 @@ __all__ = [
     "time_rounding_limits",
     "time_scale",
     "uses_witness",
+    "witness_rule_arguments",
 ]
 
 #: Step attempts between checks for a terminal event.
@@ -174,34 +175,47 @@ def can_witness(options: SolveOptions) -> bool:
 
 def uses_witness(task: Task) -> bool:
     """Whether an RKQ-family task runs the rounding witness (remembered by
-    the task, :attr:`Task.runs_witness`): the shadow
+    the task, :attr:`Task.runs_witness`): the shadow's or the tangent's
     estimate at a tolerance near double precision's floor, or with a
-    quencher whose weights magnify its stages' rounding (:func:`needs_witness`);
+    quencher whose weights magnify its stages' rounding (:func:`needs_witness`;
+    not for the paper's method ``rk34q8`` with the tangent estimate, its
+    default, so that its runs at the paper's tolerances stay the paper's);
     or where a run is made again with it (``Task.witness``: after a run whose
-    rounding could have reached the tolerance, the shadow's or the tangent's
-    estimate, :func:`hamrkq.solve.auto.witness_rerun_needed`).  The tangent
-    estimate (``rk34q8``'s) does not run it from the start, so that the
-    paper's runs stay the paper's; the paper's own estimate never runs it."""
+    rounding could have reached the tolerance,
+    :func:`hamrkq.solve.auto.witness_rerun_needed`).  The paper's own
+    estimate never runs it."""
     return task.runs_witness
 
 
 def _witness_rule(task: Task) -> bool:
     """:func:`uses_witness`, computed."""
-    if not can_witness(task.options):
-        return False
-    if task.witness is not None:
+    if task.witness is not None and can_witness(task.options):
         return task.witness
-    if task.options.gamma_name != "shadow":
-        return False
+    rule = witness_rule_arguments(task)
+    return rule is not None and needs_witness(task.atol, task.rtol, task.y0, **rule)
+
+
+def witness_rule_arguments(task: Task) -> dict[str, Any] | None:
+    """What, besides the tolerances and the state, decides whether ``task``
+    runs the rounding witness from the start
+    (:func:`~hamrkq.rkq.witness_rules.needs_witness` and its per-row form,
+    which the ensemble's batch loop asks for each member): its keywords, or
+    None where the estimate cannot run the witness (:func:`can_witness`).
+
+    The tangent estimate follows the shadow's rule (it sees rounding no
+    better: a ``max_step``, which makes it a member's default, turned a stop
+    at the floor into SUCCESS 1.09 tolerances off, QA), except that the
+    paper's method, whose quencher is DOP853's, runs the witness only near
+    the floor: its runs at the paper's tolerances stay the paper's."""
+    if not can_witness(task.options):
+        return None
     member = member_of(task)
-    return needs_witness(
-        task.atol,
-        task.rtol,
-        task.y0,
-        member.stage_rounding_dominates,
-        member.z_substeps,
-        time_scale(task),
-    )
+    paper = task.options.gamma_name == "tangent" and member.name == PAPER_METHOD
+    return {
+        "stage_rounding": member.stage_rounding_dominates and not paper,
+        "substeps": member.z_substeps,
+        "time_scale": time_scale(task),
+    }
 
 
 def time_scale(task: Task) -> float:
