@@ -10,6 +10,7 @@ evaluation count against the documented formula.
 import numpy as np
 import pytest
 
+import hamrkq
 from hamrkq.catalogue import exact
 from hamrkq.methods.tableaus import DOP853_RK8
 from hamrkq.rkq import layout, steps
@@ -346,3 +347,18 @@ def test_stage_sums_side_by_side_keep_every_bit(compiled):
             plain(base, h, A, j, K, out)
             expected = _one_component_at_a_time(base, lo, h, A, zeros, j, K, False, False)
             assert out.tobytes() == expected.tobytes(), (d, j)
+
+
+@pytest.mark.parametrize("method", ["rk34", "rk34q8"])
+def test_safety_one_does_not_stall_a_rejected_step(method):
+    """QA (2026-11-27): with ``safety=1.0`` (the top of its range) a rejected
+    step shrank by ``err^(-1/4)``, which tends to 1 as ``err`` falls to 1:
+    the RK3(4) pair stalled at Kepler's first pericentre (e = 0.9, atol
+    1e-6: 175 steps and 19 825 rejections at t = 6.2638 when max_steps =
+    20 000 ran out).  A rejection now shrinks the step by at least 10 %."""
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    sol = hamrkq.solve(
+        problem, method=method, atol=1e-6, t_span=(0.0, 4 * np.pi), safety=1.0, max_steps=20_000
+    )
+    assert sol.status is hamrkq.Status.SUCCESS
+    assert sol.stats["rejected"] < sol.stats["steps"]
