@@ -82,6 +82,25 @@ def test_gamma_off_leaves_no_estimate_and_costs_less():
     assert sol.gamma is None and sol.z is not None
     assert sol.options["nfev_per_step"] == 17 and sol.stats["njev"] == 0
     assert np.abs(sol.y - pr.exact(sol.t)).max() <= 1.05e-6
+    assert "Nothing certified the tolerance: global_error_estimate='off'" in sol.message
+
+
+def test_a_run_nothing_certified_says_so():
+    """QA (2026-11-27): Kepler at e = 0.9, atol 1e-12 over ten periods with
+    the estimate off returned SUCCESS 13.8 tolerances off (``rk34q8``), its
+    message saying only that it reached the end.  Such a run, and one with
+    ``gamma_limit=inf``, says that nothing certified the tolerance."""
+    kepler = load_problem("kepler", e=0.9)
+    sol = solve(kepler, atol=1e-12, t_span=(0, 20 * np.pi), global_error_estimate="off")
+    assert sol.success
+    assert np.abs(sol.y - kepler.exact(sol.t)).max() > 2e-12  # what the note is for
+    assert "Nothing certified the tolerance" in sol.message
+    assert "the promise is yours to check" in sol.message
+    unchecked = solve(kepler, atol=1e-8, t_span=(0, 2 * np.pi), gamma_limit=np.inf)
+    assert "gamma_limit=inf leaves the quencher's estimated error unchecked" in unchecked.message
+    certified = solve(kepler, atol=1e-8, t_span=(0, 2 * np.pi))
+    assert "Nothing certified" not in certified.message
+    assert "Nothing certified" not in solve(kepler, method="rk34", t_span=(0, 1)).message
 
 
 @pytest.mark.slow

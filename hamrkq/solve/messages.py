@@ -480,6 +480,8 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
             # Output times (t_eval) end before where the steps reached.
             text += f" The last output time kept is t = {float(out.t[-1])!r}."
         text += kept_nodes_note(out.t.size)
+    if status.success:
+        text += _uncertified_note(task)
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps and status is not Status.TOLERANCE_UNATTAINABLE:
@@ -489,6 +491,28 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
             "measures rounding, not truncation."
         )
     return text
+
+
+def _uncertified_note(task: Task) -> str:
+    """What a run of a member with a quencher that nothing certified must
+    say: with ``global_error_estimate="off"`` or ``gamma_limit=inf`` its nodes
+    are the quencher's where quenched, and the quencher's own error is
+    unchecked (QA: Kepler at e = 0.9, atol 1e-12, ``rk34q8`` with the
+    estimate off returned SUCCESS 13.8 tolerances off, the message saying
+    only that it reached the end)."""
+    options = task.options
+    if not member_of(task).use_z:
+        return ""
+    if options.gamma_name == "off":
+        why = "global_error_estimate='off' leaves the quencher's own error unestimated"
+    elif options.gamma_limit == math.inf:
+        why = "gamma_limit=inf leaves the quencher's estimated error unchecked"
+    else:
+        return ""
+    return (
+        f" Nothing certified the tolerance: {why}, so the nodes may be further from the "
+        "solution than the tolerance; the promise is yours to check (hamrkq.diagnose)."
+    )
 
 
 def rerun_note(
