@@ -2,6 +2,9 @@
 
     python benchmarks/per_call.py --root /before/tree --root /work/main --rounds 5
 
+A checkout made with ``git archive`` has no commit to name it by: give each
+a ``--label`` (in ``--root``'s order).
+
 The issue's row "per call, cached tiny problem" (``benchmarks/startup.py``
 measures it once per checkout, among its fresh-process rows): here each
 round runs every checkout in turn, each in a fresh interpreter with its own
@@ -58,15 +61,20 @@ METHODS = ("rk34q8", "auto")
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, action="append", help="a checkout (repeatable)")
+    parser.add_argument("--label", action="append",
+                        help="each checkout's name in the table, in --root's order (default: "
+                             "its commit; a `git archive` copy has none)")  # fmt: skip
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--calls", type=int, default=300)
     parser.add_argument("--out", type=Path, default=HERE / "per_call.json")
     args = parser.parse_args(argv)
     roots = [r.resolve() for r in (args.root or [HERE.parent])]
+    labels = args.label or [_commit(r) for r in roots]
+    if len(labels) != len(roots):
+        parser.error("give one --label per --root")
     code = ROUND.format(calls=args.calls)
-    results = measure.begin_record(args.rounds, calls=args.calls,
-                                   checkouts=[{"root": str(r), "commit": _commit(r)}
-                                              for r in roots])  # fmt: skip
+    checkouts = [{"root": str(r), "commit": label} for r, label in zip(roots, labels, strict=True)]
+    results = measure.begin_record(args.rounds, calls=args.calls, checkouts=checkouts)
     rounds = measure.rounds_at_checkouts(code, roots, args.rounds, "hamrkq-per-call-")
     for entry, measured in zip(results["checkouts"], rounds, strict=True):
         for method in METHODS:
