@@ -197,10 +197,12 @@ class SolveOptions:
         quencher steps (:func:`~hamrkq.rkq.auto_rules.auto_member`)."""
         if self.method != "auto":
             return self
-        # Explicit for auto's runs: a rerun in double-double (whose Gamma is
-        # the shadow's) must not bring the shadow back under the cap.
-        estimate = "tangent" if self.capped_default else self.global_error_estimate
-        return _with_member(self, *auto_member(dim, tolerance), estimate)
+        # Under a cap (capped_default) the estimate stays None and gamma_name
+        # reads "tangent": auto never runs that in double-double by itself
+        # (hamrkq.solve.auto.double_double_can_help), and a stop's message
+        # can offer the caller the quencher in double-double, which brings
+        # the shadow back.
+        return _with_member(self, *auto_member(dim, tolerance), self.global_error_estimate)
 
     @property
     def capped_default(self) -> bool:

@@ -1034,3 +1034,24 @@ def test_the_tangent_estimate_runs_the_witness_near_the_floor():
     for atol, witness in ((1e-6, False), (1e-12, True)):
         paper = hamrkq.solve(harmonic, method="rk34q8", atol=atol, t_span=(0.0, 1.0))
         assert paper.options["rounding_witness"] is witness
+
+
+def test_a_stop_at_the_floor_under_a_cap_offers_the_quencher_in_double_double():
+    """QA (2026-11-27, round 3): with a max_step (here one longer than the
+    span) auto's estimate is the tangent one, which has no double-double
+    form: on Kepler at e = 0.9, atol 1e-12, it stops at the floor where auto
+    without the cap reaches the end in double-double, and the message named
+    only a looser tolerance.  It names quencher_precision='double-double'
+    now, which brings the shadow back: the end, every node within the
+    tolerance."""
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    options = {"atol": 1e-12, "t_span": (0.0, 4 * np.pi), "max_step": 1e3}
+    sol = hamrkq.solve(problem, **options)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.options["global_error_estimate"] == "tangent"
+    assert "What works: quencher_precision='double-double'" in sol.message
+    assert np.abs(sol.y - problem.exact(sol.t)).max() <= 1.05e-12
+    extended = hamrkq.solve(problem, quencher_precision="double-double", **options)
+    assert extended.status is Status.SUCCESS
+    assert extended.options["global_error_estimate"] == "shadow"
+    assert np.abs(extended.y - problem.exact(extended.t)).max() <= 1.05e-12

@@ -288,7 +288,7 @@ def _in_double_double(requested: SolveOptions, task: Task) -> Task | None:
     return replace(task, project=projects(requested, task))
 
 
-def double_double_can_help(task: Task) -> bool:
+def double_double_can_help(task: Task, under_cap: bool = False) -> bool:
     """Whether the quencher in double-double could carry ``task`` below
     double precision's floor: not where it runs so already, with another
     estimate than the shadow's (its only Gamma in double-double: after
@@ -300,10 +300,21 @@ def double_double_can_help(task: Task) -> bool:
     could reach the tolerance: by the time's size
     (:func:`~hamrkq.solve.dispatch.time_rounding_limits`), or amplified by
     an exponential growth where ``H`` depends on the time.  What auto runs
-    (:func:`_in_double_double`) and what a stop's message offers."""
+    (:func:`_in_double_double`) and what a stop's message offers.
+
+    ``under_cap``: the tangent estimate that a caller's ``max_step`` made
+    the default counts too (:attr:`~hamrkq.options.SolveOptions.capped_default`):
+    the caller's ``quencher_precision="double-double"`` brings the shadow
+    back there, which a stop's message offers and auto does not run by
+    itself (QA: auto and ``rk45q12`` with ``max_step=1e3`` on Kepler at
+    atol 1e-12 stopped at the floor, the message naming only a looser
+    tolerance; in double-double they reach the end within the tolerance)."""
     from hamrkq.backends import codegen
 
-    if task.options.double_double or task.options.gamma_name != "shadow":
+    options = task.options
+    if options.double_double:
+        return False
+    if options.gamma_name != "shadow" and not (under_cap and options.capped_default):
         return False
     if codegen.double_double_unsupported(task.ham) or time_rounding_limits(task):
         return False
@@ -493,9 +504,8 @@ def _with_witness(requested: SolveOptions, task: Task) -> Task | None:
 def tangent_follows_saturation(task: Task) -> bool:
     """Whether ``method="auto"`` runs a run of ``task`` cut where its shadow
     saturated again with the tangent estimate (:func:`_with_tangent`): auto's
-    shadow estimate (``task.options`` names none: neither the caller nor
-    :meth:`~hamrkq.options.SolveOptions.with_auto` chose one), not the
-    quencher in double-double.  What auto runs and what
+    shadow estimate (``task.options`` names none, and no ``max_step`` made
+    the tangent one the default), not the quencher in double-double.  What auto runs and what
     the saturated run's message leaves out of its remedies."""
     options = task.options
     return (

@@ -92,6 +92,16 @@ def _where_it_failed(out: RunOutput, task: Task) -> tuple[str, bool]:
     return text, False
 
 
+#: The remedy at the floor where a caller's ``max_step`` made the tangent
+#: estimate the default (:func:`hamrkq.solve.auto.double_double_can_help`).
+_DOUBLE_DOUBLE_UNDER_CAP = (
+    " What works: quencher_precision='double-double' (the quencher's stages and f in "
+    "double-double, 5 to 7 times the cost per evaluation, with the shadow estimate of "
+    "Gamma, its only one there, in place of the tangent one that max_step selects), a "
+    "looser tolerance or a shorter interval."
+)
+
+
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     if out.saturated:
@@ -138,6 +148,8 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "or step size in double goes below it."
             )
         text += _time_floor_note(task)
+        if double_double_can_help(task, under_cap=True) and not double_double_can_help(task):
+            return text + _DOUBLE_DOUBLE_UNDER_CAP
         if not double_double_can_help(task):
             if member.stage_rounding_dominates:
                 # rk34q8 (the tangent estimate): no double-double quencher,
@@ -171,9 +183,11 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:
+        text += " The quencher's error has reached double precision's rounding floor here"
+        if double_double_can_help(task, under_cap=True):
+            return text + "." + _DOUBLE_DOUBLE_UNDER_CAP
         return text + (
-            " The quencher's error has reached double precision's rounding floor here: a "
-            "looser tolerance, or a shorter interval (the horizon of double precision for "
+            ": a looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
     return text + " What helps: " + "; ".join(_remedies(out, task, factor)) + "."
