@@ -90,6 +90,26 @@ def test_a_configuration_record_is_numpys_record_of_the_values():
         new_config(**values, bogus=1.0)
 
 
+@pytest.mark.parametrize("method", ["rk34q8", "rk78q12", "rk34"])
+def test_a_runs_output_record_is_the_dataclass_s_own(method):
+    """A run's RunOutput is made without the frozen dataclass's __init__:
+    the same fields in the same order as ``dataclasses.replace`` (which
+    calls it) makes of it, every field given or defaulted."""
+    import dataclasses
+
+    from hamrkq.solve import prepare
+    from hamrkq.solve.dispatch import integration
+
+    task = prepare(hamrkq.load_problem("harmonic"), t_span=(0.0, 0.5), method=method).task
+    out = integration(task, "python").run()
+    again = dataclasses.replace(out)
+    assert list(vars(out)) == list(vars(again)) == [f.name for f in dataclasses.fields(out)]
+    assert all(getattr(out, name) is getattr(again, name) for name in vars(again))
+    assert not any(value is dataclasses.MISSING for value in vars(out).values())
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        out.status = 0
+
+
 @pytest.mark.parametrize("t0, t_end", [(0.0, 1.0), (-0.0, -2.5), (1e8, 1e8 + 3.0), (0.0, np.inf)])
 def test_a_runs_remembered_configuration_is_the_record_of_its_fields(t0, t_end):
     """The kernel's configuration is made once per member and settings and

@@ -14,7 +14,8 @@ import math
 import struct
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import MISSING, dataclass, replace
+from dataclasses import fields as dataclass_fields
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -209,10 +210,30 @@ def largest_over_nodes(out: Any) -> np.ndarray:
     return kept
 
 
+#: :class:`RunOutput`'s fields in their order, with their defaults
+#: (:data:`dataclasses.MISSING` for those without one; none has a factory).
+_RUN_OUTPUT_FIELDS = {f.name: f.default for f in dataclass_fields(RunOutput)}
+assert all(f.default_factory is MISSING for f in dataclass_fields(RunOutput))
+
+
+def _run_output(values: dict[str, Any]) -> RunOutput:
+    """``RunOutput(**values)`` without the frozen dataclass's ``__init__``,
+    which stores each of its 23 fields through ``object.__setattr__`` (3 us
+    of every run): the same instance dictionary, its fields in their order,
+    the defaults where ``values`` has none.  ``values`` must hold every
+    field without a default (``tests/test_per_call.py`` compares a run's
+    with ``dataclasses.replace``, which calls ``__init__``)."""
+    out = object.__new__(RunOutput)
+    object.__setattr__(out, "__dict__", {**_RUN_OUTPUT_FIELDS, **values})
+    return out
+
+
 #: A new run's state record at t = 0 (:func:`~hamrkq.rkq.layout.new_state`),
 #: as its bytes: every run copies them and views the copy as the record
-#: (NumPy copies a record array field by field, seven times slower).
-_STATE_AT_ZERO = new_state(0.0).view(np.uint8)
+#: (NumPy copies a record array field by field, seven times slower), and
+#: where its ``t`` is in them.
+_STATE_AT_ZERO = new_state(0.0).tobytes()
+_STATE_T = STATE.fields["t"][1]
 
 #: :func:`_member_config` of the members met so far, by id (with the member,
 #: so that an id is not reused while it is kept).
@@ -402,13 +423,14 @@ class Integration:
         params = _parameters(params)
         witness_params = np.empty_like(params)
         arith.nudge(params, witness_params)
+        # (by position, in Inputs' order: keywords cost twice as much)
         self.inputs = Inputs(
-            params=params,
-            atol=_floats(atol),
-            rtol=_floats(rtol),
+            params,
+            _floats(atol),
+            _floats(rtol),
             # (np.empty(0): the same empty float64 array as _floats([]))
-            t_eval=_floats(settings.t_eval) if use_teval else np.empty(0),
-            witness_params=witness_params,
+            _floats(settings.t_eval) if use_teval else np.empty(0),
+            witness_params,
         )
         self.tableaus = member.tableaus
         gamma = settings.gamma if member.use_z else GAMMA_OFF
@@ -419,9 +441,12 @@ class Integration:
         self.config = _config(
             member, settings, gamma, int(use_teval), relative, self.t0, self.t_end
         )
-        # the same record as new_state(t0), in a third of the time
-        self.state = _STATE_AT_ZERO.copy().view(STATE)
-        self.state["t"] = self.t0
+        # the same record as new_state(t0), from its bytes with t0 packed in
+        # (a record field's store costs as much again as the copy)
+        state = bytearray(_STATE_AT_ZERO)
+        _DOUBLE.pack_into(state, _STATE_T, self.t0)
+        # (a writable buffer: STATE's alignment is 1, as CONFIG's)
+        self.state = np.frombuffer(state, dtype=STATE)
         y0 = _floats(y0)
         self.work = allocate_work(y0, self.tableaus.b.shape[0], self.tableaus.bz.shape[0])
         self.integrate_s = 0.0
@@ -549,28 +574,32 @@ class Integration:
         else:
             t, y, z, gam, q, rounding = (np.concatenate([c[i] for c in chunks]) for i in range(6))
         free_steps = {"h_least": values[_AT["h_least"]], "h_most": values[_AT["h_most"]]}
-        return RunOutput(
-            t=t,
-            y=y,
-            z=z if use_z else None,
-            gamma=gam if use_z else None,
-            quenched=q.astype(bool) if use_z else None,
-            status=status,
-            t_last=values[_AT["t"]],
-            h_fail=values[_AT["failed_h"]],
-            first_step=values[_AT["first_h"]],
-            max_ratio=values[_AT["max_ratio"]],
-            floor_ratio=values[_AT["floor_ratio"]],
-            bad_component=values[_AT["bad_component"]],
-            stats=self._stats(values),
-            projected=values[_AT["projected"]],
-            y_max=self.work.V[YMAX].copy(),
-            gamma_max=self.work.V[GMAX].copy() if use_z else None,
-            gamma_checkpoints=self._checkpoints(values[_AT["checkpoint"]]) if use_z else None,
-            thinned=bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
-            rounding=rounding if use_z else None,
-            step_range=float(loop.step_range(free_steps)),
-            stored_ratio=values[_AT["stored_ratio"]],
+        return _run_output(
+            {
+                "t": t,
+                "y": y,
+                "z": z if use_z else None,
+                "gamma": gam if use_z else None,
+                "quenched": q.astype(bool) if use_z else None,
+                "status": status,
+                "t_last": values[_AT["t"]],
+                "h_fail": values[_AT["failed_h"]],
+                "first_step": values[_AT["first_h"]],
+                "max_ratio": values[_AT["max_ratio"]],
+                "floor_ratio": values[_AT["floor_ratio"]],
+                "bad_component": values[_AT["bad_component"]],
+                "stats": self._stats(values),
+                "projected": values[_AT["projected"]],
+                "y_max": self.work.V[YMAX].copy(),
+                "gamma_max": self.work.V[GMAX].copy() if use_z else None,
+                "gamma_checkpoints": (
+                    self._checkpoints(values[_AT["checkpoint"]]) if use_z else None
+                ),
+                "thinned": bool(self.settings.t_eval is not None or self.settings.keep_every > 1),
+                "rounding": rounding if use_z else None,
+                "step_range": float(loop.step_range(free_steps)),
+                "stored_ratio": values[_AT["stored_ratio"]],
+            }
         )
 
     def _checkpoints(self, passed: int) -> np.ndarray:
