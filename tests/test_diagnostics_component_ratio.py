@@ -119,6 +119,9 @@ def test_diagnose_reports_the_worst_component_of_qa_s_kepler_run(kepler_run):
     assert diag.track_error == track_error > 100 * diag.gamma_max
     assert "(an estimate; true error" in table and f"{track_error:.3e}" in table
     assert "its error estimated by max |Gamma|" in table
+    # a certified run beyond the promise says so (QA: no note, exit status 0)
+    broken = [note for note in diag.notes if note.startswith("the promise is broken")]
+    assert broken and f"{diag.error.component_ratio:.4g} tolerances off (p1" in broken[0]
     data = diag.to_dict()
     assert data["global_error"]["component_ratio"] == diag.error.component_ratio
     assert data["rk8_true_global_error_max"] == track_error
