@@ -406,3 +406,17 @@ def test_the_odesolver_finishes_near_a_large_t_bound():
         solver.step()
     assert solver.status == "finished"
     assert solver.t == 1e12 - 1.0
+
+
+def test_a_step_floor_set_by_times_far_from_zero_names_the_shift():
+    """QA (2026-11-27): Kepler at e = 0.9, atol 1e-10 from t0 = 3e12 stops
+    at its first pericentre (the floor 10 eps |t| is 6.7e-3) with no
+    remedy named; the message says the floor comes from the times' size,
+    and the same run from t = 0 reaches the end."""
+    kepler = hamrkq.load_problem("kepler", e=0.9)
+    span = 4 * np.pi
+    sol = hamrkq.solve(kepler, atol=1e-10, t_span=(3e12, 3e12 + span))
+    assert sol.status is Status.STEP_SIZE_UNDERFLOW
+    assert "comes from the times' size" in sol.message
+    assert "t_span = (0, 12.5664)" in sol.message
+    assert hamrkq.solve(kepler, atol=1e-10, t_span=(0.0, span)).status is Status.SUCCESS

@@ -452,6 +452,36 @@ def _steps_needed(out: RunOutput, task: Task) -> str:
     )
 
 
+#: A start this many spans or more from t = 0 puts the step's roundoff floor
+#: (10 eps |t|) far above what the span alone asks.
+FAR_START = 100.0
+
+
+def _far_from_zero(task: Task, t: float) -> str:
+    """The remedy for a step size below the roundoff floor where the floor
+    is set by times far from zero, not by the orbit: the span from ``t0``
+    shifted to start at 0 (an autonomous H), or H written in ``s = t - t0``
+    (QA: Kepler at e = 0.9, atol 1e-10 from t0 = 3e12, whose floor 10 eps
+    |t| is 6.7e-3, stopped at its first pericentre with no remedy named)."""
+    span = abs(task.t_end - task.t0)
+    if not abs(task.t0) > FAR_START * span:
+        return ""
+    shifted = f"a floor of at most {10.0 * EPS * span:.3g}"
+    if task.ham.equations_time_dependent:
+        shift = f"H written in s = t - t0 (t0 a parameter): a run from s = 0 has {shifted}"
+    else:
+        shift = (
+            "Hamilton's equations do not depend on t: the same run with t_span = "
+            f"(0, {task.t_end - task.t0:.6g}) gives the same states, at the times shifted by "
+            f"t0, with {shifted}"
+        )
+    return (
+        f" Here the floor, {10.0 * EPS * abs(t):.3g}, comes from the times' size, not from "
+        f"the orbit: the span, {span:.3g} long, is {abs(task.t0):.3g} from t = 0. "
+        f"What works: {shift}."
+    )
+
+
 def message(status: Status, out: RunOutput, task: Task) -> str:
     t = out.t_last
     if status is Status.SUCCESS:
@@ -460,7 +490,7 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
         text = (
             f"The step size {abs(out.h_fail):.3g} fell below the roundoff floor "
             f"(10 eps |t|) at t = {float(t)!r}."
-        )
+        ) + _far_from_zero(task, float(t))
     elif status is Status.NON_FINITE:
         text = (
             "The state or the right-hand side became non-finite (inf or nan) at "
