@@ -460,3 +460,23 @@ def test_double_double_asked_for_where_the_time_rounding_matters_is_refused():
     with pytest.raises(hamrkq.errors.OptionError, match="rounding of the time"):
         hamrkq.solve(ham, t_span=(2.45e6, 2.45e6 + 300.0), **options)
     assert hamrkq.solve(ham, t_span=(0.0, 1.0), **options).success
+
+
+def test_a_stop_at_the_floor_says_when_truncation_alone_is_above_the_limit():
+    """QA (2026-11-27, round 3): rk56q9 on Kepler at e = 0.7, rtol 1e-8,
+    atol 1e-14 stops at the floor, 26.4 x the tolerance of which 21.9
+    rounding; its message named the quencher in double-double as what
+    works, and in double-double it stopped at the same t (the truncation
+    error, 4.5 x, above the limit by itself).  The message says so now, and
+    double-double with four quencher steps reaches the end."""
+    kepler = hamrkq.load_problem("kepler", e=0.7)
+    options = {"method": "rk56q9", "rtol": 1e-8, "atol": 1e-14, "first_step": 1e-6}
+    span = (0.0, 10 * np.pi)
+    sol = hamrkq.solve(kepler, t_span=span, **options)
+    assert sol.status is hamrkq.Status.TOLERANCE_UNATTAINABLE
+    assert "is the quencher's truncation error, above the limit by itself" in sol.message
+    assert "(z_substeps)" in sol.message
+    extended = hamrkq.solve(
+        kepler, t_span=span, quencher_precision="double-double", z_substeps=4, **options
+    )
+    assert extended.status is hamrkq.Status.SUCCESS

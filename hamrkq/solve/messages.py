@@ -102,6 +102,23 @@ _DOUBLE_DOUBLE_UNDER_CAP = (
 )
 
 
+def _truncation_too(out: RunOutput, task: Task) -> str:
+    """A sentence where a stop at the floor would stop below it too: the
+    estimate less the rounding, the quencher's truncation error, is above
+    the limit by itself (QA: ``rk56q9`` on Kepler at e = 0.7, rtol 1e-8,
+    atol 1e-14, 26.4 x the tolerance of which 21.9 rounding, stopped at the
+    same t in double-double, where its message had named double-double as
+    what works)."""
+    truncation = out.max_ratio - out.floor_ratio
+    if not truncation > task.options.gamma_limit:
+        return ""
+    return (
+        f" The rest, {truncation:.3g} x the tolerance, is the quencher's truncation error, "
+        "above the limit by itself: below the floor the run stops there too unless the "
+        "quencher takes more steps (z_substeps) or the tolerance is looser."
+    )
+
+
 def _unattainable(out: RunOutput, task: Task) -> str:
     o = task.options
     if out.saturated:
@@ -147,7 +164,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 "this is double precision's floor for this orbit and interval, and no member "
                 "or step size in double goes below it."
             )
-        text += _time_floor_note(task)
+        text += _time_floor_note(task) + _truncation_too(out, task)
         if double_double_can_help(task, under_cap=True) and not double_double_can_help(task):
             return text + _DOUBLE_DOUBLE_UNDER_CAP
         if not double_double_can_help(task):
