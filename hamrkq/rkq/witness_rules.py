@@ -272,8 +272,11 @@ def needs_witness(
         return True
     if time_rounding_matters(atol, rtol, y0, time_scale):
         return True
-    # By content: a solve asks this of the same arrays several times.
-    atol, rtol, y0 = (np.asarray(a, dtype=np.float64) for a in (atol, rtol, y0))
+    # By content: a solve asks this of the same arrays several times (and
+    # every solve asks: three conversions, not a generator over them)
+    atol = np.asarray(atol, dtype=np.float64)
+    rtol = np.asarray(rtol, dtype=np.float64)
+    y0 = np.asarray(y0, dtype=np.float64)
     return _tolerance_below(
         _witness_threshold(substeps),
         atol.shape,
