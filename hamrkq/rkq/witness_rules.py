@@ -237,7 +237,9 @@ def needs_witness(
     substeps: int = 1,
     time_scale: float = 0.0,
 ) -> bool:
-    """Whether a run with the shadow estimate also runs the rounding witness.
+    """Whether a run with the shadow or the tangent estimate also runs the
+    rounding witness (the arguments besides the tolerances and the state:
+    :func:`hamrkq.solve.dispatch.witness_rule_arguments`).
 
     The quencher's rounding error, amplified along the orbit, reaches 1e-12
     to 1e-11 of the state's size over a few hundred periods (prentice2011
@@ -315,7 +317,7 @@ def needs_witness_per_row(
 
 
 def _witness_whatever_the_tolerance(stage_rounding: bool, substeps: int) -> bool:
-    """Whether a run with the shadow estimate runs the witness at every
+    """Whether a run with the shadow or tangent estimate runs the witness at every
     tolerance (:func:`needs_witness`): its quencher's weights magnify its
     stages' rounding, or it takes :data:`WITNESS_SUBSTEPS` steps a step."""
     return stage_rounding or substeps >= WITNESS_SUBSTEPS
