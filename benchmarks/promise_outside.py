@@ -134,6 +134,34 @@ def long_steps_of_a_named_member():
     yield "The same with auto: " + describe(sol, over(sol, kepler(sol.t, problem.y0), 1e-4))
 
 
+def witness_reading_low():
+    """The rounding witness, one sample of the quencher's rounding, reading
+    low near the floor (QA, 2026-11-27, round 3)."""
+    problem = hamrkq.load_problem("kepler", e=0.3)
+    atol = np.array([1e-7, 1e-7, 1e-7, 1e-12])
+    sol = hamrkq.solve(problem, t_span=(0, 20 * np.pi), method="rk45q8", atol=atol)
+    truth = kepler(sol.t, problem.y0)
+    yield "Kepler e = 0.3, 10 orbits, atol [1e-7, 1e-7, 1e-7, 1e-12], rk45q8: " + describe(
+        sol, over(sol, truth, atol)
+    )
+    yield f"  its quencher's largest true error in p2 {np.abs(sol.z - truth)[:, 3].max():.3g}"
+    for method in ("rk45q8", "auto"):
+        atol = 1e-12 if method == "rk45q8" else np.array([1e-7, 1e-7, 1e-7, 1e-12])
+        sol = hamrkq.solve(problem, t_span=(0, 20 * np.pi), method=method, atol=atol)
+        yield f"  the same with {method}, atol {atol}: " + describe(
+            sol, over(sol, kepler(sol.t, problem.y0), atol)
+        )
+    harmonic = hamrkq.load_problem("harmonic")
+    sol = hamrkq.solve(
+        harmonic, t_span=(0, 3000), method="rk34q8", atol=1e-12, max_steps=3_000_000
+    )
+    truth = harmonic.exact(sol.t)
+    yield "harmonic oscillator, [0, 3000], atol 1e-12, rk34q8: " + describe(
+        sol, over(sol, truth, 1e-12)
+    )
+    yield f"  its quencher's largest true error {np.abs(sol.z - truth).max():.3g}"
+
+
 def quench_threshold():
     """quench_threshold above 1: nodes up to theta delta."""
     problem = hamrkq.load_problem("kepler", e=0.6)
@@ -151,6 +179,7 @@ CASES = [
     ("A start less than an ulp from an unstable equilibrium", unstable_equilibrium),
     ("A named member's long steps at a loose tolerance", long_steps_of_a_named_member),
     ("quench_threshold above 1", quench_threshold),
+    ("The rounding witness reading low near the floor", witness_reading_low),
 ]
 
 

@@ -1055,3 +1055,19 @@ def test_a_stop_at_the_floor_under_a_cap_offers_the_quencher_in_double_double():
     assert extended.status is Status.SUCCESS
     assert extended.options["global_error_estimate"] == "shadow"
     assert np.abs(extended.y - problem.exact(extended.t)).max() <= 1.05e-12
+
+
+def test_a_saturated_shadow_in_double_double_points_to_the_tangent_estimate_in_double():
+    """The pendulum from the double nearest pi, its quencher in double-double:
+    the shadow saturates at t = 1.95 and the message offered the tangent
+    estimate alone, which with double-double is an OptionError; it names
+    the quencher in double with it now, and that run goes further."""
+    pendulum = hamrkq.load_problem("pendulum")
+    options = {"q0": [math.pi], "p0": [0.0], "t_span": (0.0, 25.0), "atol": 1e-8}
+    sol = hamrkq.solve(pendulum, quencher_precision="double-double", **options)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE and sol.t[-1] < 2.0
+    assert "no double-double form: with quencher_precision='double'" in sol.message
+    tangent = hamrkq.solve(
+        pendulum, quencher_precision="double", global_error_estimate="tangent", **options
+    )
+    assert tangent.t[-1] > 10.0

@@ -293,12 +293,21 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         # earlier: auto returns the run that reached furthest
         return text + " What helps: a looser tolerance or a shorter interval."
     # Not a smaller max_step: it keeps the shadow within its limit without
-    # making Gamma honest again (hamrkq.solve.auto._with_tangent).
+    # making Gamma honest again (hamrkq.solve.auto._with_tangent).  The
+    # tangent estimate has no double-double form: a run in double-double is
+    # pointed to the quencher in double with it (QA: the pendulum from the
+    # double nearest pi in double-double was offered the tangent estimate
+    # alone, an OptionError with its precision).
+    in_double = (
+        "; it has no double-double form: with quencher_precision='double'"
+        if task.options.double_double
+        else ""
+    )
     return text + (
         " What helps: global_error_estimate='tangent' (the error carried by the Jacobian, no "
-        f"shadow: more quencher steps do not change the shadow's error, the quencher's in one "
-        f"step a step, {member.z_substeps}^{member.z_order} times its own); a looser tolerance "
-        "or a shorter interval."
+        "shadow: more quencher steps do not change the shadow's error, the quencher's in one "
+        f"step a step, {member.z_substeps}^{member.z_order} times its own{in_double}); a "
+        "looser tolerance or a shorter interval."
     )
 
 
