@@ -153,11 +153,14 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 if name.startswith(pair + "q") and not other.stage_rounding_dominates
             ]
             weights = float(np.abs(member.quencher.b).sum())
+            # "may": where the floor is double precision's, not this
+            # quencher's, they stop about as soon (QA: rk34q8 on Kepler at
+            # e = 0.9, atol 1e-12 at t = 6.13, rk34q9/q10/q12 at 6.23-6.25)
             text += (
-                "this is this quencher's floor for this orbit and interval (its weights, whose "
-                f"absolute values sum to {weights:.3g}, magnify the rounding of its stages); "
-                f"the same pair with another quencher ({', '.join(map(repr, quiet))}) goes "
-                "below it."
+                "this quencher's floor for this orbit and interval (its weights, whose "
+                f"absolute values sum to {weights:.3g}, magnify the rounding of its stages) "
+                "or double precision's; the same pair with another quencher "
+                f"({', '.join(map(repr, quiet))}) goes below the first, not the second."
             )
         else:
             text += (
@@ -172,9 +175,9 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                 # rk34q8 (the tangent estimate): no double-double quencher,
                 # but another member, or auto, goes below this floor
                 return text + (
-                    " What works: one of those, method='auto' (which chooses a member and "
-                    "runs its quencher in double-double where needed), a looser tolerance "
-                    "or a shorter interval."
+                    " What works: method='auto' (which chooses a member and runs its "
+                    "quencher in double-double where needed), a looser tolerance or a "
+                    "shorter interval; one of those members may."
                 )
             return text + " A looser tolerance or a shorter interval is what works."
         return text + (
