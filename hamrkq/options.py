@@ -391,9 +391,27 @@ def _check(key: str, value: Any) -> Any:
         return positive(key, value, upper=1.0)
     if key == "quench_threshold":
         return positive(key, value)
-    if key in ("max_steps", "keep_every", "z_substeps"):
+    if key in ("max_steps", "keep_every"):
         return count(key, value)
+    if key == "z_substeps":
+        return _quencher_steps(count(key, value))
     raise OptionError(f"unknown option {key!r}")  # pragma: no cover - fields are fixed
+
+
+#: The most quencher steps a step of the pair: the quencher's error falls like
+#: ``m^-z`` (z >= 8), so 64 steps already take it 1e14 below one step's;
+#: ``z_substeps=10**12`` was accepted, and its first step never ended (QA).
+MAX_Z_SUBSTEPS = 1024
+
+
+def _quencher_steps(value: int) -> int:
+    """``z_substeps`` at most :data:`MAX_Z_SUBSTEPS`."""
+    if value > MAX_Z_SUBSTEPS:
+        raise InputError(
+            f"z_substeps must be at most {MAX_Z_SUBSTEPS} (the quencher's error falls like "
+            f"m^-z, z >= 8: 64 steps take it 1e14 below one step's), got {value}"
+        )
+    return value
 
 
 #: The fields of :class:`SolveOptions`: the keys a problem's settings or a

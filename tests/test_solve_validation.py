@@ -80,6 +80,8 @@ def call(**changes):
         ({"max_steps": 0}, InputError, "max_steps must be a positive integer, got 0"),
         ({"max_steps": 10.5}, InputError, "max_steps.*10.5"),
         ({"keep_every": 0}, InputError, "keep_every must be a positive integer"),
+        # QA: 10**12 quencher steps a step was accepted and never ended a step
+        ({"method": "rk67q9", "z_substeps": 10**12}, InputError, "z_substeps must be at most"),
         ({"first_step": -0.1}, InputError, "first_step must be a positive number"),
         ({"first_step": 2.0}, InputError, "first_step=2.0 exceeds the length of t_span"),
         # below the loop's roundoff floor (10 eps |t|): the run ended on its
