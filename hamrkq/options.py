@@ -202,7 +202,7 @@ class SolveOptions:
         # (hamrkq.solve.auto.double_double_can_help), and a stop's message
         # can offer the caller the quencher in double-double, which brings
         # the shadow back.
-        return _with_member(self, *auto_member(dim, tolerance), self.global_error_estimate)
+        return _with_member(self, *auto_member(dim, tolerance))
 
     @property
     def capped_default(self) -> bool:
@@ -266,19 +266,12 @@ def _resolved(settings: tuple, given: tuple) -> SolveOptions:
 
 
 @functools.lru_cache(maxsize=128)
-def _with_member(
-    options: SolveOptions, name: str, substeps: int, estimate: str | None
-) -> SolveOptions:
+def _with_member(options: SolveOptions, name: str, substeps: int) -> SolveOptions:
     """``options`` of ``method="auto"`` running the member ``name``, with
-    ``substeps`` quencher steps unless given, and the estimate of Gamma
-    ``estimate`` (:meth:`SolveOptions.with_auto`), memoised: the options are
-    immutable, and a copy of them costs microseconds of every call."""
-    return replace(
-        options,
-        method=name,
-        z_substeps=options.z_substeps or substeps,
-        global_error_estimate=estimate,
-    )
+    ``substeps`` quencher steps unless given (:meth:`SolveOptions.with_auto`),
+    memoised: the options are immutable, and a copy of them costs microseconds
+    of every call."""
+    return replace(options, method=name, z_substeps=options.z_substeps or substeps)
 
 
 def _check_z_method_applies(method: str, z_method: str) -> None:

@@ -60,6 +60,10 @@ __all__ = [
     "trajectory_error",
 ]
 
+#: What a true error is measured against (``diagnose``'s ``reference``, ``hamrkq
+#: run --reference``).  ``auto``: the exact solution where the catalogue has one,
+#: otherwise an independent DOP853 reference (hamrkq.analysis.reference);
+#: ``extended``: heyoka in extended precision (hamrkq.analysis.extended_reference).
 REFERENCE_KINDS = ("auto", "exact", "independent", "extended", "rk8", "none")
 #: Gamma below this many ulps of the RK8 track is rounding, not truncation.
 GAMMA_ROUNDOFF_ULPS = 100

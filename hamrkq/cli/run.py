@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.analysis.diagnostics import diagnose_for_report
+from hamrkq.analysis.diagnostics import REFERENCE_KINDS, diagnose_for_report
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.cli import EXIT_WRITE_FAILED
 from hamrkq.cli.interrupts import (
@@ -51,12 +51,8 @@ from hamrkq.io.report import (
 from hamrkq.options import GAMMA_MODES, METHOD_NAMES, QUENCHER_PRECISIONS
 from hamrkq.solve import BACKENDS, METHODS, solve
 
-__all__ = ["REFERENCE_CHOICES", "check_keep_every", "check_step", "register", "run_command"]
+__all__ = ["check_keep_every", "check_step", "register", "run_command"]
 
-#: ``--reference`` values.  ``auto``: the exact solution where the catalogue
-#: has one, otherwise an independent DOP853 reference (hamrkq.analysis.reference);
-#: ``extended``: heyoka in extended precision (hamrkq.analysis.extended_reference).
-REFERENCE_CHOICES = ("auto", "exact", "independent", "extended", "rk8", "none")
 DEFAULT_ROOT = Path("hamrkq-run")
 
 #: File names of the figures; the ``_true`` variants are against the
@@ -133,7 +129,7 @@ def register(subparsers: Any) -> None:
         "default: solve's default"
     )  # fmt: skip
     p.add_argument(
-        "--reference", choices=REFERENCE_CHOICES, default="auto",
+        "--reference", choices=REFERENCE_KINDS, default="auto",
         help="what the true error is measured against; auto: the exact solution if "
         "the problem has one, else an independent high-accuracy integration; "
         "extended: heyoka in extended precision (pip install 'hamrkq[bench]'), for "

@@ -1,4 +1,4 @@
-"""An ensemble request, validated once, and the one function that runs a chunk of it.
+"""An ensemble request, validated once (its chunks run in :mod:`hamrkq.ensemble.chunk`).
 
 :func:`build_request` turns what a user passes to :func:`hamrkq.ensemble` into
 a :class:`Request`: the Hamiltonian, one row of initial values and one row of

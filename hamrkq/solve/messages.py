@@ -94,12 +94,23 @@ def _where_it_failed(out: RunOutput, task: Task) -> tuple[str, bool]:
 
 #: The remedy at the floor where a caller's ``max_step`` made the tangent
 #: estimate the default (:func:`hamrkq.solve.auto.double_double_can_help`).
-_DOUBLE_DOUBLE_UNDER_CAP = (
-    " What works: quencher_precision='double-double' (the quencher's stages and f in "
-    "double-double, 5 to 7 times the cost per evaluation, with the shadow estimate of "
-    "Gamma, its only one there, in place of the tangent one that max_step selects), a "
-    "looser tolerance or a shorter interval."
-)
+def _double_double_remedy(under_cap: bool) -> str:
+    """The quencher in double-double as what works at the floor: auto
+    switches to it by itself, except where a caller's ``max_step`` made the
+    tangent estimate the default (``under_cap``,
+    :func:`hamrkq.solve.auto.double_double_can_help`), which naming it
+    replaces by the shadow."""
+    why = (
+        "with the shadow estimate of Gamma, its only one there, in place of the tangent one "
+        "that max_step selects"
+        if under_cap
+        else "method='auto' switches to it by itself unless quencher_precision='double' is given"
+    )
+    return (
+        " What works: quencher_precision='double-double' (the quencher's stages and f in "
+        f"double-double, 5 to 7 times the cost per evaluation; {why}), a looser tolerance "
+        "or a shorter interval."
+    )
 
 
 def _truncation_too(out: RunOutput, task: Task) -> str:
@@ -169,7 +180,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             )
         text += _time_floor_note(task) + _truncation_too(out, task)
         if double_double_can_help(task, under_cap=True) and not double_double_can_help(task):
-            return text + _DOUBLE_DOUBLE_UNDER_CAP
+            return text + _double_double_remedy(under_cap=True)
         if not double_double_can_help(task):
             if member.stage_rounding_dominates:
                 # rk34q8 (the tangent estimate): no double-double quencher,
@@ -180,12 +191,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
                     "shorter interval; one of those members may."
                 )
             return text + " A looser tolerance or a shorter interval is what works."
-        return text + (
-            " What works: quencher_precision='double-double' (the quencher's stages and f "
-            "in double-double, 5 to 7 times the cost per evaluation; method='auto' switches "
-            "to it by itself unless quencher_precision='double' is given), a looser "
-            "tolerance or a shorter interval."
-        )
+        return text + _double_double_remedy(under_cap=False)
     factor = growth(out, task)
     exponential = factor > EXPONENTIAL_GROWTH
     if exponential:
@@ -205,7 +211,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     if steps and 2 * rounded > steps:
         text += " The quencher's error has reached double precision's rounding floor here"
         if double_double_can_help(task, under_cap=True):
-            return text + "." + _DOUBLE_DOUBLE_UNDER_CAP
+            return text + "." + _double_double_remedy(under_cap=True)
         return text + (
             ": a looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
