@@ -70,11 +70,20 @@ def span(t_span: Any) -> tuple[float, float]:
     return t0, t_end
 
 
+def plain_number(value: Any) -> float | None:
+    """``value`` as a float where it is one number that converts exactly (a
+    float, or an int below 2**53: ``rtol = 0`` in a problem file), else
+    None: the common case of a tolerance, checked without arrays."""
+    if isinstance(value, float) or (type(value) is int and abs(value) < 2**53):
+        return float(value)
+    return None
+
+
 def tolerance(name: str, value: Any, dim: int, positive: bool) -> np.ndarray:
     """A tolerance as an array of ``dim`` finite values (> 0, or >= 0 if not ``positive``)."""
-    if isinstance(value, float) or (type(value) is int and abs(value) < 2**53):
+    number = plain_number(value)
+    if number is not None:
         # one number, the common case, without the arrays below (every solve pays this)
-        number = float(value)
         if math.isfinite(number) and (number > 0.0 if positive else number >= 0.0):
             return np.full(dim, number)
     if isinstance(value, str | bytes):

@@ -340,12 +340,12 @@ def probe(functions, dim: int, n_params: int):
     (:class:`~hamrkq.rkq.driver.Integration` of ``functions``, a stand-in
     state of ``dim`` components and ``n_params`` parameters)."""
     from hamrkq.rkq.driver import Integration, Settings
-    from hamrkq.rkq.family import get_member
+    from hamrkq.rkq.family import PAPER_METHOD, get_member
     from hamrkq.rkq.layout import GAMMA_OFF, QUENCH_NODE, RULE_COMPONENTWISE
 
     return Integration(
         functions,
-        get_member("rk34q8"),
+        get_member(PAPER_METHOD),
         np.zeros(n_params),
         0.0,
         np.full(dim, 0.5),

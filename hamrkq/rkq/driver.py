@@ -437,7 +437,7 @@ class Integration:
         relative = int(self.inputs.rtol.max(initial=0.0) > 0.0)
         #: Whether the estimate of Gamma counts roundoff steps (the
         #: configuration's gamma_mode, known here without reading the record).
-        self._roundoff_counted = bool(member.use_z and gamma in (GAMMA_TANGENT, GAMMA_PAPER))
+        self._roundoff_counted = gamma in (GAMMA_TANGENT, GAMMA_PAPER)
         self.config = _config(
             member, settings, gamma, int(use_teval), relative, self.t0, self.t_end
         )

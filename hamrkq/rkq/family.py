@@ -195,8 +195,8 @@ PAPER_METHOD = "rk34q8"
 #: The family, by name.  ``rk34q8`` is the paper's method (RK3(4) with the
 #: 8th-order formula of DOP853 as quencher); ``rk34`` is its pair alone.
 MEMBERS: dict[str, Member] = {
-    "rk34q8": Member(
-        "rk34q8",
+    PAPER_METHOD: Member(
+        PAPER_METHOD,
         "RKQ: RK3/RK4 local extrapolation with an RK8 quencher (Prentice)",
         _RK34,
         order=4,

@@ -54,7 +54,7 @@ from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.result import Status
 from hamrkq.rkq import dense, layout
 from hamrkq.rkq.driver import Integration, Settings, python_functions
-from hamrkq.rkq.family import Z_METHODS, get_member
+from hamrkq.rkq.family import PAPER_METHOD, Z_METHODS, get_member
 from hamrkq.rkq.layout import GAM, K1, ZHI, U
 from hamrkq.rkq.start import initial_step
 
@@ -221,7 +221,7 @@ class RK34Q8(OdeSolver):
             gamma_limit=float(gamma_limit),
         )
         jac_inplace = self._jac if self._jac is not None else _no_jacobian
-        member = get_member("rk34q8", z_method)
+        member = get_member(PAPER_METHOD, z_method)
         self._run = Integration(
             python_functions(self._rhs, jac_inplace),
             member,

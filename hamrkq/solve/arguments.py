@@ -18,6 +18,7 @@ import sympy as sp
 
 from hamrkq._floats import EPS
 from hamrkq._progress import ProgressBar
+from hamrkq._validate import plain_number
 from hamrkq._validate import real as _real
 from hamrkq._validate import show as _show
 from hamrkq._validate import tolerance as _tolerance
@@ -138,7 +139,7 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
     problem's, else 1e-6 and 0); an rtol below 100 eps is raised to it."""
     atol_given = atol if atol is not None else defaults.get("atol", 1e-6)
     rtol_given = rtol if rtol is not None else defaults.get("rtol", 0.0)
-    atol_number, rtol_number = _plain_number(atol_given), _plain_number(rtol_given)
+    atol_number, rtol_number = plain_number(atol_given), plain_number(rtol_given)
     if (
         atol_number is not None
         and rtol_number is not None
@@ -160,15 +161,6 @@ def tolerances(dim: int, defaults: Mapping[str, Any], atol: Any, rtol: Any):
         warn(f"rtol={_show(rtol_given)} is below 100 eps and is raised to {MIN_RTOL:.3g}")
         rtol_v = np.where((rtol_v > 0) & (rtol_v < MIN_RTOL), MIN_RTOL, rtol_v)
     return atol_v, rtol_v
-
-
-def _plain_number(value: Any) -> float | None:
-    """``value`` as the float :func:`hamrkq._validate.tolerance` makes of one
-    number without its checks (a float, or an int it converts exactly:
-    ``rtol = 0`` in a problem file), else None."""
-    if isinstance(value, float) or (type(value) is int and abs(value) < 2**53):
-        return float(value)
-    return None
 
 
 def system(obj: Any, q0: Any, p0: Any, t_span: Any, parameters: Any):
