@@ -47,7 +47,7 @@ from hamrkq.options import (
     Z_METHOD_NAMES,
 )
 from hamrkq.result import Solution
-from hamrkq.solve import assumptions, auto, messages, outcome, smoothness
+from hamrkq.solve import assumptions, auto, outcome, rerun_notes, smoothness
 from hamrkq.solve.dispatch import METHODS, MethodSpec, Task
 from hamrkq.solve.event_check import (
     certificate,
@@ -380,7 +380,7 @@ def _solution(
     if crossing is not None and breach is None:
         sol = sol.replace(message=smoothness.crossing_message(crossing, task.ham, out.t))
     if discarded:
-        note = messages.rerun_note(
+        note = rerun_notes.rerun_note(
             task,
             discarded,
             out.stats["discarded_evaluations"],

@@ -431,7 +431,7 @@ def reruns_for_rounding(task: Task, out: Any, factor: float) -> bool:
     runs again with the rounding witness: it finished (SUCCESS, or stopped
     on its estimate) and :func:`witness_rerun_needed` says so at its largest
     state and its steps.  :func:`rerun` makes the run; the message says why
-    (:func:`hamrkq.solve.messages.rerun_note`)."""
+    (:func:`hamrkq.solve.rerun_notes.rerun_note`)."""
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
     steps = out.stats.get("steps", 0)
     return finished and witness_rerun_needed(
