@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.analysis.diagnostics import REFERENCE_KINDS, diagnose_for_report
+from hamrkq.analysis.diagnostics import REFERENCE_KINDS
+from hamrkq.analysis.report_reference import diagnose_for_report
 from hamrkq.catalogue.problems import load_problem
 from hamrkq.cli import EXIT_WRITE_FAILED
 from hamrkq.cli.interrupts import (
