@@ -16,7 +16,7 @@ import operator
 
 import numpy as np
 
-from hamrkq.rkq.witness_rules import _small_state
+from hamrkq.rkq.witness_rules import small_state
 
 __all__ = [
     "AUTO_FIRST_SUBSTEPS",
@@ -122,7 +122,7 @@ def auto_tolerance(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> float:
     components) on Python floats, the whole-array rule's value
     (:func:`auto_tolerance_per_row`) bit for bit: every call of
     ``method="auto"`` asks it."""
-    small = _small_state(y0, atol, rtol)
+    small = small_state(y0, atol, rtol)
     if small is None:
         return float(auto_tolerance_per_row(atol, rtol, y0))
     state, floor, relative = small

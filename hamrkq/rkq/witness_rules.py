@@ -36,6 +36,7 @@ __all__ = [
     "needs_witness_after_run",
     "needs_witness_after_run_per_row",
     "needs_witness_per_row",
+    "small_state",
     "state_outgrew_its_start",
     "state_outgrew_its_start_per_row",
     "tightest_tolerance",
@@ -128,7 +129,7 @@ def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
     size = np.abs(np.asarray(y0, dtype=np.float64))
     if size.ndim == 2:
         return _scales(np.asarray(atol, dtype=np.float64), size)
-    small = _small_state(size, atol)
+    small = small_state(size, atol)
     if small is not None:
         row, floor = small
         return np.array(_row_scales(floor, row), dtype=np.float64)
@@ -171,7 +172,7 @@ def _scales(floor: np.ndarray, size: np.ndarray) -> np.ndarray:
 SMALL_STATE = 8
 
 
-def _small_state(*values) -> list[list[float]] | None:
+def small_state(*values) -> list[list[float]] | None:
     """Each of ``values`` as Python floats, one per component of a state:
     the first is the state (a 1-D float64 array of at most
     :data:`SMALL_STATE` components, not zero), each other one number or one
@@ -498,7 +499,7 @@ def needs_witness_after_run(
     y0 = np.asarray(y0, dtype=np.float64)
     small = None
     if np.isscalar(steps) and np.isscalar(step_range):
-        small = _small_state(y0, atol, rtol, y0 if size is None else size)
+        small = small_state(y0, atol, rtol, y0 if size is None else size)
     if small is None:
         return bool(_after_run_rows(atol, rtol, y0, steps, size, step_range))
     state, floor, relative, reached = small
@@ -587,7 +588,7 @@ def state_outgrew_its_start(
     tangent estimate asks it (18 us of a tiny problem's call on arrays).
     """
     y0 = np.asarray(y0, dtype=np.float64)
-    small = _small_state(y0, atol, size)
+    small = small_state(y0, atol, size)
     if small is not None:
         state, floor, reached = small
         start = list(map(abs, state))
