@@ -77,6 +77,55 @@ def _read_only(values: Sequence, convert=_to_float) -> np.ndarray:
     return array
 
 
+def _summing_to_one(values: Sequence[Coefficient]) -> np.ndarray:
+    """Weights that sum to 1 (``b``, ``b_embedded``) rounded to float64 so
+    that the doubles sum to 1 exactly, as closely as doubles allow: each
+    rounded to nearest, then, smallest first, moved by the exact excess of
+    their sum over 1 (rounded again): a change of about that excess, 1e-17,
+    to one or two of them.
+
+    Rounded to nearest alone, the weights of a method do not sum to 1
+    (DOP853's by 6.9e-17): a consistency error of the method actually run,
+    which drifts an oscillator's phase by that much per unit of time, the
+    same on every track, so that neither Gamma nor the rounding witness sees
+    it (``rk34q8`` on the harmonic oscillator at atol 1e-13 over 50 periods:
+    the quencher 0.06 of the tolerance off where its Gamma and witness read
+    under 0.05, nodes of 1.058 delta; ``benchmarks/coefficient_rounding.py``:
+    2.0e-13 over 3000 time units, 3.1e-15 with the sum exactly 1)."""
+    high = [_to_float(v) for v in values]
+    # Smallest first: a weight's ulp bounds what rounding leaves of the
+    # excess, so a small weight takes it almost exactly and the others keep
+    # their nearest doubles (moving Verner 6(5)'s weight of 176 first, whose
+    # ulp is 2.8e-14, moved the weights by up to 1.3e-14 to make up for it).
+    for i in sorted(range(len(high)), key=lambda k: abs(high[k])):
+        excess = sum(Fraction(h) for h in high) - 1
+        if excess == 0:
+            break
+        # a zero weight (a stage not in the sum) stays out; none changes sign
+        if abs(high[i]) > 4 * abs(excess):
+            high[i] = float(Fraction(high[i]) - excess)
+    array = np.ascontiguousarray(high, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+def _low_words(values: Sequence[Coefficient], high: np.ndarray) -> np.ndarray:
+    """``values - high`` rounded to float64, each exactly computed: what the
+    doubles ``high`` leave out of the coefficients (double-double's low
+    words, for weights moved off nearest by :func:`_summing_to_one`)."""
+    low = []
+    for value, h in zip(values, high, strict=True):
+        exact_high = Fraction(float(h))
+        if isinstance(value, (Fraction, Decimal, int)):
+            low.append(float(Fraction(value) - exact_high))
+        else:
+            rational = sp.Rational(exact_high.numerator, exact_high.denominator)
+            low.append(float(sp.N(_sym(value) - rational, 40)))
+    array = np.ascontiguousarray(low, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
 def _difference(x: Coefficient, y: Coefficient) -> Coefficient:
     """``x - y`` without rounding: ``Fraction`` for rationals and decimals
     (a decimal is a rational), SymPy for anything irrational."""
@@ -131,11 +180,13 @@ class ButcherTableau:
     A : ndarray, shape (s, s), float64, C-contiguous, read-only
         ``A_exact`` rounded to float64, strictly lower triangular.
     b : ndarray, shape (s,), float64, C-contiguous, read-only
-        ``b_exact`` rounded to float64.
+        ``b_exact`` rounded to float64 so that the doubles sum to exactly 1
+        (each within about an ulp of nearest; :func:`_summing_to_one`).
     c : ndarray, shape (s,), float64, C-contiguous, read-only
         ``c_exact`` rounded to float64.
     b_embedded : ndarray, shape (s,), float64, read-only, or None
-        ``b_embedded_exact`` rounded to float64 (``None`` without one).
+        ``b_embedded_exact`` rounded to float64 like ``b`` (``None``
+        without one).
     A_low, b_low : ndarray, float64, C-contiguous, read-only
         What rounding to float64 left out of ``A`` and ``b``
         (``A_exact - A``, rounded): ``A + A_low`` is the coefficient as a
@@ -211,16 +262,19 @@ class ButcherTableau:
         A.setflags(write=False)
         # Frozen dataclass: derived fields are set once, here, and never again.
         object.__setattr__(self, "A", A)
-        object.__setattr__(self, "b", _read_only(self.b_exact))
+        b = _summing_to_one(self.b_exact)
+        object.__setattr__(self, "b", b)
         A_low = np.ascontiguousarray(
             [[_low_word(a) for a in row] for row in self.A_exact], dtype=np.float64
         )
         A_low.setflags(write=False)
         object.__setattr__(self, "A_low", A_low)
-        object.__setattr__(self, "b_low", _read_only(self.b_exact, _low_word))
+        object.__setattr__(self, "b_low", _low_words(self.b_exact, b))
         object.__setattr__(self, "c", _read_only(self.c_exact))
         embedded = self.b_embedded_exact
-        object.__setattr__(self, "b_embedded", None if embedded is None else _read_only(embedded))
+        object.__setattr__(
+            self, "b_embedded", None if embedded is None else _summing_to_one(embedded)
+        )
         if embedded is None:
             b_error = None
         else:
