@@ -241,7 +241,7 @@ FIRST_USE = textwrap.dedent(
     import json, sys
     import hamrkq
     from hamrkq.backends import background, compiled
-    problem = hamrkq.load_problem(sys.argv[1])
+    problem = hamrkq.load_problem(sys.argv[1], **json.loads(sys.argv[4]))
     t0 = problem.t_span[0]
     options = json.loads(sys.argv[3])
     sol = hamrkq.solve(problem, t_span=(t0, t0 + float(sys.argv[2])), **options)
@@ -258,13 +258,21 @@ FIRST_USE = textwrap.dedent(
 )
 
 
-def _fresh(tmp_path, name, span, mode="background", **options):
+def _fresh(tmp_path, name, span, mode="background", params=None, **options):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env["HAMRKQ_CACHE_DIR"] = str(tmp_path / "hamrkq")
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")
     env[background.COMPILE_ENV] = mode
     done = subprocess.run(
-        [sys.executable, "-c", FIRST_USE, name, str(span), json.dumps(options)],
+        [
+            sys.executable,
+            "-c",
+            FIRST_USE,
+            name,
+            str(span),
+            json.dumps(options),
+            json.dumps(params or {}),
+        ],
         env=env,
         capture_output=True,
         text=True,
@@ -276,19 +284,20 @@ def _fresh(tmp_path, name, span, mode="background", **options):
 
 @pytest.mark.slow
 def test_autos_rerun_in_double_double_loads_what_the_helpers_compile(tmp_path):
-    # prentice2011 at 1e-12: auto's first run (interpreted, the helpers
-    # compiling) stops at double precision's floor near t = 38, and auto runs
-    # again with the quencher in double-double.  Before, that rerun compiled
-    # the kernel and the system again in this process, beside the helpers,
-    # and then reported the compiled rerun as interpreted (backend "python",
-    # 0 interpreted steps).
-    run = _fresh(tmp_path, "prentice2011", 50.0, method="auto", atol=1e-12)
+    # Kepler e = 0.6 at 1e-13: auto's first run (interpreted, the helpers
+    # compiling) stops at double precision's floor near t = 4.6, and auto
+    # runs again with the quencher in double-double.  Before, that rerun
+    # compiled the kernel and the system again in this process, beside the
+    # helpers, and then reported the compiled rerun as interpreted (backend
+    # "python", 0 interpreted steps).
+    kepler = dict(params={"e": 0.6}, method="auto", atol=1e-13)
+    run = _fresh(tmp_path, "kepler", 10.0, **kepler)
     assert run["options"]["quencher_precision"] == "double-double"
     assert run["stats"]["discarded_evaluations"] > 0
     assert run["backend"] == "numba" and run["stats"]["interpreted_steps"] == 0
     # compiled here: rhs_dd alone (the helpers compiled the rest)
     assert run["numba"]["compiled"] == 1
-    wait = _fresh(tmp_path / "wait", "prentice2011", 50.0, "wait", method="auto", atol=1e-12)
+    wait = _fresh(tmp_path / "wait", "kepler", 10.0, "wait", **kepler)
     assert wait["y"] == run["y"] and wait["t"] == run["t"]
 
 

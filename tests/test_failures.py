@@ -308,14 +308,15 @@ def test_a_stop_where_rtol_shrinks_a_crossing_components_tolerance_says_so():
     members and step sizes.  The nodes kept are still within the tolerance
     of the state as a whole (against the exact solution).  (With the rounding
     witness, which the tangent estimate runs near the floor since QA's round
-    3, it stops at t = 15.68, the witness's floor, where q2 passes zero;
-    before, at t = 68.7 as q1 did.)"""
+    3, it stops at t = 15.68, the witness's floor, where q2 and p1 pass zero;
+    before, at t = 68.7 as q1 did.  The component the message names there
+    is p1, closest to its limit since the weights sum to 1; q2 before.)"""
     kepler = hamrkq.load_problem("kepler")
     sol = hamrkq.solve(kepler, t_span=(0, 100), rtol=1e-8, atol=1e-20, method="rk34q8")
     assert sol.status is Status.TOLERANCE_UNATTAINABLE and sol.t[-1] < 100
-    crossing = sol.names.index("q2")
-    assert abs(sol.y[-1, crossing]) < 0.02  # q2 is crossing zero at the stop
-    assert "q2 = 0.0139, is passing close to zero" in sol.message
+    crossing = sol.names.index("p1")
+    assert abs(sol.y[-1, crossing]) < 0.02  # p1 is crossing zero at the stop
+    assert "p1 = -0.0109, is passing close to zero" in sol.message
     assert "falls to atol = 1e-20 at zero" in sol.message
     exact = np.asarray(kepler.exact(sol.t))
     per_node = np.max(np.abs(sol.y - exact), axis=1) / (1e-8 * np.max(np.abs(exact), axis=1))
