@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hamrkq._floats import writable_float64
 from hamrkq.backends import codegen
 from hamrkq.backends import kernel as kernel_module
 from hamrkq.backends.codegen import PART_FUNCTIONS
@@ -360,28 +361,10 @@ def is_compiled(ham: Hamiltonian, gamma: str = "off") -> bool:
 def energy(ham: Hamiltonian, t: np.ndarray, Y: np.ndarray, params: np.ndarray) -> np.ndarray:
     """H at the rows of ``Y`` (times ``t``), with the compiled scalar energy."""
     system = compile_system(ham)
-    Y = _compiled_argument(Y)
+    Y = writable_float64(Y)
     t = np.asarray(t, dtype=np.float64)
     if t.shape != Y.shape[:1]:
         t = np.array(np.broadcast_to(t, Y.shape[:1]))
     out = np.empty(Y.shape[0])
-    system.energy_rows(_compiled_argument(t), Y, _compiled_argument(params), out)
+    system.energy_rows(writable_float64(t), Y, writable_float64(params), out)
     return out
-
-
-def _compiled_argument(array: np.ndarray) -> np.ndarray:
-    """``array`` as the compiled signatures take it: a writable C-contiguous
-    float64 array, copied only where it is not one (every run's nodes are:
-    ``np.require`` would cost a few microseconds of every call to check)."""
-    if (
-        isinstance(array, np.ndarray)
-        and array.dtype == np.float64
-        # both flags from one flags object (each ``array.flags`` makes one)
-        and array.flags.num & _C_WRITEABLE == _C_WRITEABLE
-    ):
-        return array
-    return np.require(array, np.float64, ("C", "W"))
-
-
-#: NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_WRITEABLE, in ``ndarray.flags.num``.
-_C_WRITEABLE = 0x0001 | 0x0400

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from hamrkq._floats import writable_float64
 from hamrkq.rkq import arith, loop
 from hamrkq.rkq.auto_rules import AUTO_PROJECT_FROM, AUTO_PROJECT_SHARE, AUTO_PROJECT_UNTIL
 from hamrkq.rkq.family import Member
@@ -355,20 +356,6 @@ def _floats(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64, order="C", copy=True)
 
 
-def _parameters(params: Any) -> np.ndarray:
-    """``np.require(params, np.float64, ("C", "W"))``, with the common case
-    (a writable C-contiguous float64 array, as every solve passes) returned
-    without np.require's checks: the same array either way."""
-    if (
-        type(params) is np.ndarray
-        and params.dtype == np.float64
-        and params.flags.c_contiguous
-        and params.flags.writeable
-    ):
-        return params
-    return np.require(params, np.float64, ("C", "W"))
-
-
 #: Positions of the state record's fields in ``state.item(0)``: the fields
 #: read after a run, read at once (a record's field costs as much as the
 #: whole tuple).
@@ -420,7 +407,7 @@ class Integration:
         self.t0, self.t_end = float(t0), float(t_end)
         self.settings = settings
         use_teval = settings.t_eval is not None
-        params = _parameters(params)
+        params = writable_float64(params)
         witness_params = np.empty_like(params)
         arith.nudge(params, witness_params)
         # (by position, in Inputs' order: keywords cost twice as much)
