@@ -65,7 +65,13 @@ def _version(name: str) -> str:
 
 
 def head_commit() -> str:
-    """The checkout's short commit hash (empty outside a git checkout)."""
+    """The checkout's short commit hash; in a ``git archive`` copy (run so
+    that edits to the working tree do not reach a long benchmark), the
+    archived commit named by ``HAMRKQ_BENCH_COMMIT``, with " (an archive)";
+    empty outside both."""
+    archived = os.environ.get("HAMRKQ_BENCH_COMMIT")
+    if archived:
+        return f"{archived} (an archive)"
     return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                           text=True, cwd=ROOT, check=False).stdout.strip()  # fmt: skip
 
