@@ -147,3 +147,22 @@ def test_hamiltonian_pickles_after_its_numeric_functions_exist():
     )
     with pytest.raises(hamrkq.errors.InputError, match="no value for parameter"):
         back.parameter_values()
+
+
+def test_a_success_that_nothing_certified_says_so_saved_or_not(tmp_path):
+    """A member's message with gamma_limit=inf (or the estimate off) says,
+    as hamrkq.solve's does, that nothing certified the tolerance (it said
+    only that the member reached the end); the same after a file round trip,
+    and not for a certified run."""
+    oscillator = hamrkq.load_problem("harmonic")
+    start = dict(q0=[[1.0]], p0=[[0.0]], t_span=(0.0, 10.0), atol=1e-8, workers=1)
+    unchecked = hamrkq.ensemble(oscillator, gamma_limit=np.inf, **start)
+    single = hamrkq.solve(oscillator, [1.0], [0.0], (0.0, 10.0), atol=1e-8, gamma_limit=np.inf)
+    assert unchecked.message(0) == single.message
+    assert "Nothing certified the tolerance: gamma_limit=inf" in unchecked.message(0)
+    loaded = hamrkq.EnsembleSolution.load(unchecked.save(tmp_path / "unchecked"))
+    assert loaded.message(0) == unchecked.message(0)
+    off = hamrkq.ensemble(oscillator, method="rk45q8", global_error_estimate="off", **start)
+    assert "global_error_estimate='off' leaves" in off.message(0)
+    certified = hamrkq.ensemble(oscillator, **start)
+    assert certified.message(0) == "The integration reached the end of the interval (t = 10.0)."

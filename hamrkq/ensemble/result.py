@@ -21,6 +21,8 @@ import numpy as np
 from hamrkq._files import atomic_file, open_npz
 from hamrkq.errors import ResultFileError
 from hamrkq.result import Status, frozen_copy
+from hamrkq.rkq.family import MEMBERS
+from hamrkq.solve.messages import uncertified_note
 
 __all__ = ["FILE_FORMAT", "FILE_FORMAT_VERSION", "EnsembleSolution"]
 
@@ -169,11 +171,22 @@ class EnsembleSolution:
 
     def message(self, i: int) -> str:
         """What happened to member ``i``: a failed member's message from
-        :func:`hamrkq.solve` (it names ``t``); success messages are not stored."""
+        :func:`hamrkq.solve` (it names ``t``); success messages are not
+        stored, and are made here as :func:`hamrkq.solve` makes them (with
+        its note where nothing certified the tolerance)."""
         where = np.searchsorted(self.failed, i)
         if where < self.failed.size and self.failed[where] == i:
             return self.messages[where]
-        return f"The integration reached the end of the interval (t = {float(self.t_last[i])!r})."
+        member = MEMBERS.get(self.method)
+        note = uncertified_note(
+            self.method == "auto" or (member is not None and member.use_z),
+            self.options.get("global_error_estimate"),
+            float(self.options.get("gamma_limit") or 0.0),
+        )
+        return (
+            f"The integration reached the end of the interval (t = {float(self.t_last[i])!r})."
+            + note
+        )
 
     def __len__(self) -> int:
         return int(self.y0.shape[0])

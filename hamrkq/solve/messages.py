@@ -38,7 +38,7 @@ from hamrkq.solve.output_times import (
 )
 from hamrkq.solve.shadow import largest_state
 
-__all__ = ["message"]
+__all__ = ["message", "uncertified_note"]
 
 
 def _component(task: Task, index: int) -> str:
@@ -569,18 +569,33 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
 
 
 def _uncertified_note(task: Task) -> str:
-    """What a run of a member with a quencher that nothing certified must
-    say: with ``global_error_estimate="off"`` or ``gamma_limit=inf`` its nodes
-    are the quencher's where quenched, and the quencher's own error is
-    unchecked (QA: Kepler at e = 0.9, atol 1e-12, ``rk34q8`` with the
-    estimate off returned SUCCESS 13.8 tolerances off, the message saying
-    only that it reached the end)."""
+    """:func:`uncertified_note` of a run."""
     options = task.options
-    if not member_of(task).use_z:
+    return uncertified_note(member_of(task).use_z, options.gamma_name, options.gamma_limit)
+
+
+def uncertified_note(uses_quencher: bool, estimate: str | None, gamma_limit: float) -> str:
+    """What a successful run of a member with a quencher that nothing
+    certified must say: with ``global_error_estimate="off"`` or
+    ``gamma_limit=inf`` its nodes are the quencher's where quenched, and the
+    quencher's own error is unchecked (QA: Kepler at e = 0.9, atol 1e-12,
+    ``rk34q8`` with the estimate off returned SUCCESS 13.8 tolerances off,
+    the message saying only that it reached the end).  Empty otherwise.
+
+    Parameters
+    ----------
+    uses_quencher : bool
+        Whether the method has a quencher (an RKQ member, or ``"auto"``).
+    estimate : str or None
+        The run's ``global_error_estimate``.
+    gamma_limit : float
+        The run's ``gamma_limit``.
+    """
+    if not uses_quencher:
         return ""
-    if options.gamma_name == "off":
+    if estimate == "off":
         why = "global_error_estimate='off' leaves the quencher's own error unestimated"
-    elif options.gamma_limit == math.inf:
+    elif gamma_limit == math.inf:
         why = "gamma_limit=inf leaves the quencher's estimated error unchecked"
     else:
         return ""
