@@ -1,7 +1,8 @@
 """Integrating a chunk of an ensemble: the one place where members run.
 
 :func:`run_chunk` integrates the members of a :class:`~hamrkq.ensemble.request.Request`
-and returns a :class:`~hamrkq.ensemble.request.ChunkResult`; the local pools
+and returns a :class:`ChunkResult` (what a chunk of members gives back, as
+plain arrays that cross process boundaries cheaply); the local pools
 and the Dask path all call it on :meth:`~hamrkq.ensemble.request.Request.subset`
 slices.  It takes one of two paths, with the same numbers:
 
@@ -25,12 +26,13 @@ slices.  It takes one of two paths, with the same numbers:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from hamrkq.backends.numeric import numeric_of
-from hamrkq.ensemble.request import STATS, ChunkResult, Request
+from hamrkq.ensemble.request import Request
 from hamrkq.result import Status
 from hamrkq.rkq.auto_rules import (
     SHADOW_SATURATION,
@@ -54,12 +56,44 @@ from hamrkq.symbolic.kinks import kinks
 
 __all__ = [
     "BUFFER_ROWS",
+    "STATS",
+    "ChunkResult",
     "batch_groups",
     "decided_by_y0",
     "run_batched",
     "run_chunk",
     "solve_members",
 ]
+
+#: Per-member counters kept by an ensemble (0 where a method has no such counter).
+STATS = ("steps", "rejected", "quenches", "nfev", "njev")
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkResult:
+    """The outcome of :func:`run_chunk` for ``m`` members, as arrays.
+
+    ``y`` is (m, T, 2n), NaN at kept times a failed member never reached;
+    ``t_last`` the last time each member reached; ``status`` the
+    :class:`~hamrkq.result.Status` codes; ``messages`` the message of every
+    member that failed, by index in the chunk; ``stats`` (m, len(STATS)).
+    """
+
+    start: int
+    y: np.ndarray
+    t_last: np.ndarray
+    status: np.ndarray
+    max_global_error: np.ndarray
+    energy0: np.ndarray
+    energy_drift: np.ndarray
+    stats: np.ndarray
+    messages: dict[int, str]
+
+    @property
+    def size(self) -> int:
+        """Number of members."""
+        return int(self.status.size)
+
 
 #: Nodes buffered per member between folds when only the last state is kept.
 BUFFER_ROWS = 256

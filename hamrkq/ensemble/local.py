@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from hamrkq.ensemble.chunk import run_chunk
-from hamrkq.ensemble.request import STATS, ChunkResult, Request
+from hamrkq.ensemble.chunk import STATS, ChunkResult, run_chunk
+from hamrkq.ensemble.request import Request
 from hamrkq.ensemble.result import EnsembleSolution
 from hamrkq.errors import InputError, OptionError
 from hamrkq.result import Status

@@ -5,10 +5,6 @@ a :class:`Request`: the Hamiltonian, one row of initial values and one row of
 parameter values per member, the time span, the kept times and the options of
 :func:`hamrkq.solve`.  Every check happens here, before any member runs, and
 every message names the parameter (and the member) at fault.
-
-:class:`ChunkResult` holds what a chunk of members gives back, as plain
-arrays that cross process boundaries cheaply; :mod:`hamrkq.ensemble.chunk`
-computes it.
 """
 
 from __future__ import annotations
@@ -33,10 +29,7 @@ from hamrkq.result import freeze_in_place
 from hamrkq.solve import solve
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
-__all__ = ["STATS", "ChunkResult", "Request", "build_request"]
-
-#: Per-member counters kept by an ensemble (0 where a method has no such counter).
-STATS = ("steps", "rejected", "quenches", "nfev", "njev")
+__all__ = ["Request", "build_request"]
 
 #: Keywords of :func:`hamrkq.solve` an ensemble decides itself: it keeps only
 #: ``t_eval`` (or the last node), and draws its own progress bar over members.
@@ -154,32 +147,6 @@ class Request:
             t_eval=self.t_eval,
             **self.options,
         )
-
-
-@dataclass(frozen=True, eq=False)
-class ChunkResult:
-    """The outcome of :func:`run_chunk` for ``m`` members, as arrays.
-
-    ``y`` is (m, T, 2n), NaN at kept times a failed member never reached;
-    ``t_last`` the last time each member reached; ``status`` the
-    :class:`~hamrkq.result.Status` codes; ``messages`` the message of every
-    member that failed, by index in the chunk; ``stats`` (m, len(STATS)).
-    """
-
-    start: int
-    y: np.ndarray
-    t_last: np.ndarray
-    status: np.ndarray
-    max_global_error: np.ndarray
-    energy0: np.ndarray
-    energy_drift: np.ndarray
-    stats: np.ndarray
-    messages: dict[int, str]
-
-    @property
-    def size(self) -> int:
-        """Number of members."""
-        return int(self.status.size)
 
 
 # -- validation --------------------------------------------------------------------
