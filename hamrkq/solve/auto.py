@@ -74,9 +74,10 @@ def projects(requested: SolveOptions, task: Task) -> bool:
     """Whether ``method="auto"`` chooses the quencher's steps, and its run is
     abandoned when its projection fails (:func:`rerun`).  Not where the
     rounding witness runs: near double precision's floor more quencher steps
-    add rounding (prentice2011 at 1e-12, abandoned in two at t = 80, stopped
-    at the floor in three at t = 33, where two reach t = 91); a run that stops
-    on the quencher's truncation error there still runs again."""
+    shrink the truncation error, not the rounding (prentice2011 at 1e-12, the
+    quencher in double, stops at the floor at t = 129, 143, 59 and 60 in 2,
+    3, 4 and 6 steps a step, ``benchmarks/algorithm_facts.txt``); a run that
+    stops on the quencher's truncation error there still runs again."""
     return (
         requested.method == "auto"
         and requested.z_substeps is None
