@@ -91,7 +91,9 @@ def stored_share(work, z):
     grows to 48, failed at ``t = 9.45`` where ``p2`` crosses zero between
     nodes of size 1.1 and 1.2 (0.003 of ``atol``); the angle's largest size
     over ``atol`` (0.108) made ``auto`` give up instead of running the
-    quencher in double-double, which succeeds."""
+    quencher in double-double, which succeeds (since the weights sum to 1
+    that run succeeds in double; ``tests/test_t_eval_dense.py``'s case is
+    the same pendulum at ``rtol`` 3e-11, stopping in double at t = 7.0)."""
     V = work.V
     top = 0.0
     for i in range(z.shape[0]):
