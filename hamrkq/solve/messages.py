@@ -15,7 +15,7 @@ import numpy as np
 from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
 from hamrkq.result import Status, kept_nodes_note
-from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, middle_of
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.solve.auto import (
@@ -191,17 +191,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
     factor = growth(out, task)
     exponential = factor > EXPONENTIAL_GROWTH
     if exponential:
-        text += (
-            f" The estimate grew {factor:.3g}-fold over the second half of the "
-            "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
-            "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
-            "like exp(lambda t)"
-        )
-        text += (
-            "; more quencher steps only delay the stop."
-            if _retry_substeps(out, task, factor) is None
-            else "."
-        )
+        text += _growth_text(out, task, factor)
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:
@@ -427,6 +417,67 @@ def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
     return retry_substeps(out, task, growth=factor if factor > EXPONENTIAL_GROWTH else None)
 
 
+def _growth_text(out: RunOutput, task: Task, factor: float) -> str:
+    """What a stop after an exponential-looking growth of the estimate
+    (``factor`` over the second half) says about it: chaos and its kin, or,
+    where the state grew too (:func:`_size_growth`), the rounding that grows
+    with it."""
+    grown = _size_growth(out, task)
+    if grown is not None:
+        size, name = grown
+        text = (
+            f" The estimate grew {factor:.3g}-fold over the second half of the run, while the "
+            f"state grew too: {name} grew {size:.3g}-fold in size, its tolerance atol's, and the "
+            "rounding of the quencher's stages grows with the size of the values (a winding "
+            "angle, an escaping body), so this need not be exponential growth"
+        )
+    else:
+        text = (
+            f" The estimate grew {factor:.3g}-fold over the second half of the "
+            "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
+            "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
+            "like exp(lambda t)"
+        )
+    if _retry_substeps(out, task, factor) is None:
+        return text + "; more quencher steps only delay the stop."
+    return text + "."
+
+
+#: A component whose size grew this much over the second half of a run,
+#: its tolerance atol's (not rtol's, which grows with it), grew the rounding
+#: of the quencher's stages measured against that tolerance alike: the
+#: pendulum going over the top from q = 0, p = 3 at atol 1e-9 (rk34q8's
+#: tangent Gamma over [0, 100] reads 14 times more from q0 = 2 pi 80 than
+#: from q0 = 0), whose estimate grew 59-fold as q doubled, read as chaos.
+SIZE_GROWTH = 1.5
+
+
+def _size_growth(out: RunOutput, task: Task) -> tuple[float, str] | None:
+    """The growth in size over the second half of a run of the component
+    that grew most among those whose tolerance is atol's at their largest
+    size, and its name, where it is at least :data:`SIZE_GROWTH`; else None.
+    Measured on the returned rows up to the middle (thinned or not) against
+    the largest over every node."""
+    t = out.t
+    if t.shape[0] < 3:
+        return None
+    middle, direction = middle_of(float(t[0]), float(t[-1]))
+    before = (t - middle) * direction <= 0.0
+    if not before.any():
+        return None
+    first = np.abs(out.y[before]).max(axis=0)
+    whole = largest_state(out)
+    fixed = (
+        np.broadcast_to(task.atol, whole.shape) >= np.broadcast_to(task.rtol, whole.shape) * whole
+    )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(fixed & (first > 0.0), whole / first, 0.0)
+    k = int(np.argmax(ratio))
+    if not ratio[k] >= SIZE_GROWTH:
+        return None
+    return float(ratio[k]), task.ham.names[k]
+
+
 def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
     """What carries the quencher further when its truncation error stopped
     the run, the most specific first (``factor``: the estimate's growth; an
@@ -438,6 +489,17 @@ def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
     remedies = []
     if exponential:
         remedies.append("a looser tolerance or a shorter interval")
+        if _size_growth(out, task) is not None:
+            if double_double_can_help(task, under_cap=True):
+                remedies.append(
+                    "quencher_precision='double-double' (the quencher's stages and f in "
+                    "double-double do not round with the size of the values)"
+                )
+            elif not task.auto and not task.options.double_double:
+                remedies.append(
+                    "method='auto', which runs the quencher in double-double where its "
+                    "rounding stops a run"
+                )
     substeps = _retry_substeps(out, task, factor)
     if substeps is not None:
         how = (
