@@ -11,7 +11,8 @@ excluded).  Runs that stop early (``TOLERANCE_UNATTAINABLE``) are left out of
 the lines and counted in the table.
 
 The truth is the long-double Taylor reference of ``extended_reference.py``
-(heyoka, the ``bench`` extra): 4.7e-15 over this interval.
+(heyoka, the ``bench`` extra): 2.2e-14 from quad precision over this interval
+(``extended_reference_accuracy.txt``).
 
 Run: ``python benchmarks/work_precision.py`` (``--from-json`` redraws the
 table and figure from the last run); writes ``work_precision.json``,
