@@ -429,7 +429,7 @@ def _growth_text(out: RunOutput, task: Task, factor: float) -> str:
             f" The estimate grew {factor:.3g}-fold over the second half of the run, while the "
             f"state grew too: {name} grew {size:.3g}-fold in size, its tolerance atol's, and the "
             "rounding of the quencher's stages grows with the size of the values (a winding "
-            "angle, an escaping body), so this need not be exponential growth"
+            "angle, an escaping body, a close approach), so this need not be exponential growth"
         )
     else:
         text = (
