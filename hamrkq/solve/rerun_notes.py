@@ -74,7 +74,7 @@ def rerun_note(
             what += (
                 f"; the estimate had grown {factor:.3g}-fold over the second half of its "
                 "interval, faster than a periodic orbit's t^2: where that is exponential "
-                "growth, the rounding grows alike, which the shadow estimate does not see (the "
+                "growth, the rounding grows alike, which Gamma does not see (the "
                 "witness measures it)"
             )
         elif earlier.grew_exponentially and reruns_for_rounding(earlier, run, math.inf):
