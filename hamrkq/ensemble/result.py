@@ -21,8 +21,6 @@ import numpy as np
 from hamrkq._files import atomic_file, open_npz
 from hamrkq.errors import ResultFileError
 from hamrkq.result import Status, frozen_copy
-from hamrkq.rkq.family import MEMBERS
-from hamrkq.solve.messages import uncertified_note
 
 __all__ = ["FILE_FORMAT", "FILE_FORMAT_VERSION", "EnsembleSolution"]
 
@@ -177,6 +175,10 @@ class EnsembleSolution:
         where = np.searchsorted(self.failed, i)
         if where < self.failed.size and self.failed[where] == i:
             return self.messages[where]
+        # here, not at import: reading a saved ensemble needs no solver
+        from hamrkq.rkq.family import MEMBERS
+        from hamrkq.solve.messages import uncertified_note
+
         member = MEMBERS.get(self.method)
         note = uncertified_note(
             self.method == "auto" or (member is not None and member.use_z),
