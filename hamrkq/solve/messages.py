@@ -189,9 +189,10 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             return text + " A looser tolerance or a shorter interval is what works."
         return text + _double_double_remedy(under_cap=False)
     factor = growth(out, task)
-    exponential = factor > EXPONENTIAL_GROWTH
-    if exponential:
-        text += _growth_text(out, task, factor)
+    # the state's growth matters only after an exponential-looking reading
+    grown = _size_growth(out, task) if factor > EXPONENTIAL_GROWTH else None
+    if factor > EXPONENTIAL_GROWTH:
+        text += _growth_text(out, task, factor, grown)
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:
@@ -202,7 +203,7 @@ def _unattainable(out: RunOutput, task: Task) -> str:
             ": a looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
-    return text + " What helps: " + "; ".join(_remedies(out, task, factor)) + "."
+    return text + " What helps: " + "; ".join(_remedies(out, task, factor, grown)) + "."
 
 
 #: A component whose tolerance at the last node is below this fraction of its
@@ -417,12 +418,13 @@ def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
     return retry_substeps(out, task, growth=factor if factor > EXPONENTIAL_GROWTH else None)
 
 
-def _growth_text(out: RunOutput, task: Task, factor: float) -> str:
+def _growth_text(
+    out: RunOutput, task: Task, factor: float, grown: tuple[float, str] | None
+) -> str:
     """What a stop after an exponential-looking growth of the estimate
     (``factor`` over the second half) says about it: chaos and its kin, or,
-    where the state grew too (:func:`_size_growth`), the rounding that grows
-    with it."""
-    grown = _size_growth(out, task)
+    where the state grew too (``grown``, :func:`_size_growth`), the rounding
+    that grows with it."""
     if grown is not None:
         size, name = grown
         text = (
@@ -478,18 +480,21 @@ def _size_growth(out: RunOutput, task: Task) -> tuple[float, str] | None:
     return float(ratio[k]), task.ham.names[k]
 
 
-def _remedies(out: RunOutput, task: Task, factor: float = 1.0) -> list[str]:
+def _remedies(
+    out: RunOutput, task: Task, factor: float = 1.0, grown: tuple[float, str] | None = None
+) -> list[str]:
     """What carries the quencher further when its truncation error stopped
     the run, the most specific first (``factor``: the estimate's growth; an
     exponential one makes more quencher steps no remedy, unless the stop
-    was close to the end)."""
+    was close to the end; ``grown``: the state's growth with it,
+    :func:`_size_growth`, where the quencher in double-double helps)."""
     o = task.options
     member = member_of(task)
     exponential = factor > EXPONENTIAL_GROWTH
     remedies = []
     if exponential:
         remedies.append("a looser tolerance or a shorter interval")
-        if _size_growth(out, task) is not None:
+        if grown is not None:
             if double_double_can_help(task, under_cap=True):
                 remedies.append(
                     "quencher_precision='double-double' (the quencher's stages and f in "
