@@ -21,7 +21,7 @@ The package's modules:
   dispatch table :data:`METHODS` with each method's runner;
 - :mod:`hamrkq.solve.outcome`: the Solution of an RKQ-family run, and
   :mod:`hamrkq.solve.messages` its message, naming what ended it and what
-  helps;
+  helps (for an unattainable tolerance, :mod:`hamrkq.solve.unattainable`);
 - :mod:`hamrkq.solve.assumptions`, :mod:`hamrkq.solve.smoothness` and
   :mod:`hamrkq.solve.output_times`: the checks after a run (declared
   assumptions, kinks of H, output times sampled beside events).
