@@ -22,7 +22,7 @@ from hamrkq.baselines import SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS
 from hamrkq.rkq.auto_rules import AUTO_MEMBER, auto_member
-from hamrkq.rkq.family import MEMBERS, Z_METHODS, get_member
+from hamrkq.rkq.family import MEMBERS, Z_METHODS, get_member, has_quencher
 from hamrkq.rkq.layout import (
     GAMMA_OFF,
     GAMMA_PAPER,
@@ -332,7 +332,7 @@ def refused_options(method: str) -> tuple[tuple[str, ...], str]:
         return (*QUENCHER_OPTIONS, *STEP_LOOP_OPTIONS), (
             "SciPy's solver, with its own step control and no quencher"
         )
-    if method in MEMBERS and not MEMBERS[method].use_z:
+    if method in MEMBERS and not has_quencher(method):
         return QUENCHER_OPTIONS, "the pair alone, without a quencher"
     return (), ""
 

@@ -53,7 +53,7 @@ from hamrkq.errors import InputError, OptionError
 from hamrkq.fixed_step.symplectic import FIXED_STEP_METHODS, SPLITTING_SCHEMES, solve_fixed
 from hamrkq.result import Solution
 from hamrkq.rkq.auto_rules import AUTO_MEMBER
-from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.family import MEMBERS, has_quencher
 from hamrkq.solve import DEFAULT_MAX_STEPS, METHODS, solve
 
 __all__ = [
@@ -114,8 +114,7 @@ def _member(method: str):
 
 def _global_control(method: str) -> bool:
     """Whether the method's tolerance bounds the global error (RKQ)."""
-    member = _member(method)
-    return method in _GLOBAL_CONTROL or (member is not None and member.use_z)
+    return method in _GLOBAL_CONTROL or has_quencher(method)
 
 
 def _controlled_order(method: str) -> int:

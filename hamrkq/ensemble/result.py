@@ -176,12 +176,11 @@ class EnsembleSolution:
         if where < self.failed.size and self.failed[where] == i:
             return self.messages[where]
         # here, not at import: reading a saved ensemble needs no solver
-        from hamrkq.rkq.family import MEMBERS
+        from hamrkq.rkq.family import has_quencher
         from hamrkq.solve.messages import uncertified_note
 
-        member = MEMBERS.get(self.method)
         note = uncertified_note(
-            self.method == "auto" or (member is not None and member.use_z),
+            has_quencher(self.method),
             self.options.get("global_error_estimate"),
             float(self.options.get("gamma_limit") or 0.0),
         )

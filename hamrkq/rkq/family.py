@@ -273,6 +273,14 @@ def get_member(name: str, z_method: str | None = None, z_substeps: int | None = 
     return replace(member, **changes) if changes else member
 
 
+def has_quencher(method: str) -> bool:
+    """Whether ``method`` runs a quencher track (and so an estimate Gamma):
+    ``"auto"`` and every member but the pairs alone; False for a name outside
+    the family."""
+    member = MEMBERS.get(method)
+    return method == "auto" or (member is not None and member.use_z)
+
+
 def track_name(method: str) -> str:
     """What the paper calls the RK8 track, named by the order of the
     method's quencher: ``"RK8 track"`` for ``rk34q8``, ``"RK12 track"`` for
