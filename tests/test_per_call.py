@@ -133,6 +133,32 @@ def test_a_runs_remembered_configuration_is_the_record_of_its_fields(t0, t_end):
                 assert made.flags.writeable and made.flags.aligned and made.flags.c_contiguous
 
 
+def test_every_setting_but_the_times_is_in_a_remembered_configurations_key():
+    """Changing any one field of Settings after a run remembered its
+    configuration gives the record made afresh from the changed fields:
+    the key is every field (but ``t_eval``, passed apart), so a field added
+    to Settings cannot be left out of it."""
+    import dataclasses
+
+    from hamrkq.rkq import driver
+
+    member = get_member("rk78q12")
+    base = Settings(quench=0, rule=0, gamma=3)
+    changed = {"quench": 1, "rule": 1, "gamma": 2, "safety": 0.8, "theta": 0.5,
+               "max_step": 2.0, "max_steps": 7, "gamma_limit": 0.01, "keep_every": 3,
+               "first_step": 0.125, "witness": True, "project": True,
+               "double_double": True, "dense_share": 0.25}  # fmt: skip
+    keyed = {f.name for f in dataclasses.fields(Settings)} - {"t_eval"}
+    assert set(changed) == keyed
+    driver._config(member, base, base.gamma, 0, 1, 0.0, 1.0)
+    for name, value in changed.items():
+        settings = dataclasses.replace(base, **{name: value})
+        expected = driver._config(member, settings, base.gamma, 0, 1, 0.0, 1.0, False)
+        for _ in range(2):  # made, then remembered
+            made = driver._config(member, settings, base.gamma, 0, 1, 0.0, 1.0)
+            assert made.tobytes() == expected.tobytes(), name
+
+
 def test_one_small_state_s_rules_on_floats_give_the_hand_computed_decisions():
     """A run's rules after it, for one state, on Python floats (every solve
     asks them: 18 us each on arrays): the hand-computed decisions of

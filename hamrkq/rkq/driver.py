@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+import operator
 import struct
 import time
 from collections.abc import Callable
@@ -274,6 +275,15 @@ _CONFIGS: dict[tuple, tuple[Member, bytes]] = {}
 _T_START, _T_END = CONFIG.fields["t_start"][1], CONFIG.fields["t_end"][1]
 _DOUBLE = struct.Struct("=d")
 
+#: The settings that decide a configuration record: every field of
+#: :class:`Settings` but ``t_eval`` (the times go to the kernel apart, and an
+#: array is not hashable), read at once, so that a new field is in the key;
+#: and where the ones declared float are (a zero there is not remembered: a
+#: key does not tell 0.0 from -0.0, nor from an int 0).
+_KEYED_SETTINGS = [f for f in dataclass_fields(Settings) if f.name != "t_eval"]
+_SETTINGS_KEY = operator.attrgetter(*(f.name for f in _KEYED_SETTINGS))
+_FLOAT_SETTINGS = operator.attrgetter(*(f.name for f in _KEYED_SETTINGS if "float" in str(f.type)))
+
 
 def _config(
     member: Member,
@@ -297,24 +307,14 @@ def _config(
     setting that is zero, whose sign a key does not tell apart, or that is
     not hashable, is made afresh."""
     if remember:
-        floats = (
-            settings.safety,
-            settings.theta,
-            settings.max_step,
-            settings.first_step,
-            settings.gamma_limit,
-            settings.dense_share,
-        )
-        key = (
-            id(member), gamma, use_teval, relative, settings.quench, settings.rule,
-            settings.keep_every, settings.max_steps, settings.witness, settings.project,
-            settings.double_double, *floats,
-        )  # fmt: skip
+        values = _SETTINGS_KEY(settings)
+        key = (id(member), gamma, use_teval, relative, *values)
         try:
             known = _CONFIGS.get(key)
         except TypeError:  # a setting that is not hashable (a 0-d array, say)
             known, remember = None, False
-        if (known is None or known[0] is not member) and remember and 0.0 not in floats:
+        zero = 0.0 in _FLOAT_SETTINGS(settings)
+        if (known is None or known[0] is not member) and remember and not zero:
             made = _config(member, settings, gamma, use_teval, relative, 0.0, 0.0, False)
             if len(_CONFIGS) >= 256:  # settings made on the fly: bounded
                 _CONFIGS.clear()
