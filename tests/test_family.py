@@ -840,6 +840,28 @@ def test_a_burst_read_again_over_the_same_stretch_is_not_a_second_reading():
     assert worst(sol.t_events[0], sol.y_events[0]) <= 1.05
 
 
+def test_a_named_members_stop_on_a_first_burst_names_the_quencher_steps_that_work():
+    """QA round 4, R2: rk56q8 on Kepler at e = 0.9, atol 1e-13, max_step 0.1,
+    its quencher in double-double, read a 358-fold growth up to its stop at
+    t = 6.27, just before the pericentre, and said more quencher steps only
+    delay the stop.  One reading cannot tell a burst from chaos: the
+    message names the quencher steps that carry the run to the end if it was
+    a burst, and they do, every node within the tolerance (1.013 measured)."""
+    import re
+
+    problem = hamrkq.load_problem("kepler", e=0.9)
+    options = dict(method="rk56q8", atol=1e-13, rtol=0.0, max_step=0.1,
+                   quencher_precision="double-double")  # fmt: skip
+    stopped = hamrkq.solve(problem, **options)
+    assert stopped.status is Status.TOLERANCE_UNATTAINABLE and stopped.t[-1] < 2 * np.pi
+    assert "one reading cannot tell them apart" in stopped.message
+    assert "method='auto', which runs again" in stopped.message
+    substeps = int(re.search(r"z_substeps=(\d+) \(", stopped.message).group(1))
+    sol = hamrkq.solve(problem, **options, z_substeps=substeps)
+    assert sol.status is Status.SUCCESS and sol.t[-1] == problem.t_span[1]
+    assert np.abs(sol.y - problem.exact(sol.t)).max() <= 1.05e-13
+
+
 def test_a_saturated_shadow_gives_way_to_the_tangent_estimate():
     """QA (2026-11-27): Kepler at e = 0.5 over 10 000 periods at atol = rtol =
     1e-3 stopped at t = 54 632 of 62 832 after its runs with shorter steps,
