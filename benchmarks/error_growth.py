@@ -115,6 +115,7 @@ def growth_rows() -> list[dict]:
     """Part 1: the growth factor of every run auto abandons or stops."""
     import hamrkq
     from hamrkq.solve import auto
+    from hamrkq.solve.growth import growth
 
     seen: list[dict] = []
     plain = auto.rerun
@@ -122,7 +123,7 @@ def growth_rows() -> list[dict]:
     def spy(requested, task, out):
         if not isinstance(out, hamrkq.Solution) and out.gamma is not None:
             seen.append({"z_substeps": task.options.z_substeps, "t_last": float(out.t_last),
-                         "status": int(out.status), "growth": auto.growth(out, task),
+                         "status": int(out.status), "growth": growth(out, task),
                          "witness": auto.uses_witness(task),
                          "double_double": task.options.double_double})  # fmt: skip
         return plain(requested, task, out)

@@ -246,12 +246,8 @@ def _runs_again_alone_member_by_member(batch, task, request):
     decided over members at once: the per-member rules of hamrkq.solve, one
     member at a time (with why: saturated, and rerun with the witness)."""
     from hamrkq.rkq.auto_rules import SHADOW_SATURATION
-    from hamrkq.solve.auto import (
-        MIN_GROWTH_STEPS,
-        folded_growth,
-        reruns_with_witness,
-        witness_rerun_needed,
-    )
+    from hamrkq.solve.auto import reruns_with_witness, witness_rerun_needed
+    from hamrkq.solve.growth import MIN_GROWTH_STEPS, folded_growth
     from hamrkq.solve.shadow import shadow_departures
 
     m = batch.status.shape[0]

@@ -43,12 +43,13 @@ from hamrkq.rkq.batch import allocate_batch, run_members
 from hamrkq.rkq.layout import allocate_output
 from hamrkq.rkq.witness_rules import needs_witness_per_row
 from hamrkq.solve import prepare, solve
-from hamrkq.solve.auto import MIN_GROWTH_STEPS, reruns_with_witness
+from hamrkq.solve.auto import reruns_with_witness
 from hamrkq.solve.dispatch import (
     integration,
     run_rk,
     witness_rule_arguments,
 )
+from hamrkq.solve.growth import MIN_GROWTH_STEPS
 from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
 from hamrkq.solve.shadow import shadow_departures
 from hamrkq.symbolic.assumptions import declares_checked
@@ -295,7 +296,7 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
     if reruns_with_witness(task):
         steps = batch.stats[ok, 0]
         nodes = request.times.size if task.t_eval is not None else steps + 1
-        # as solve.auto.growth: no reading of the growth from a short run
+        # as solve.growth.growth: no reading of the growth from a short run
         enough = (steps >= MIN_GROWTH_STEPS) & (nodes >= 3)
         growth = folded_growth_per_row(
             task, batch.gamma_to_middle[ok], batch.gamma_to_end[ok], y_size

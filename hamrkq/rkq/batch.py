@@ -183,7 +183,7 @@ def fold_every_node(c, s, work, batch, m):
     not: with ``t_eval`` the rows are only the output times) into its
     largest ``|y|`` and ``|Gamma|``, up to the middle by the last checkpoint
     at or before it (a smaller maximum there: a growth at least as large;
-    :func:`hamrkq.solve.auto.growth` reads a single run's alike)."""
+    :func:`hamrkq.solve.growth.growth` reads a single run's alike)."""
     V = work.V
     span = c["t_end"] - c["t_start"]
     middle = (batch.middle[0] - c["t_start"]) / span if span != 0.0 else 1.0

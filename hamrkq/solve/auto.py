@@ -14,7 +14,8 @@ state grown beyond its start or by close approaches, could reach the tolerance
 and for ``rk34q8``'s tangent estimate where its state outgrew its start);
 two exponential runs in a row allow no more quencher steps.  A run cut where
 its shadow track saturated (:func:`hamrkq.solve.shadow.within_linear_shadow`)
-runs again with the tangent estimate (:func:`_with_tangent`).
+runs again with the tangent estimate (:func:`_with_tangent`).  How a run's
+estimate grew is read in :mod:`hamrkq.solve.growth`.
 """
 
 from __future__ import annotations
@@ -34,9 +35,8 @@ from hamrkq.rkq.auto_rules import (
     EXPONENTIAL_GROWTH,
     auto_abandon_substeps,
     auto_retry_substeps,
-    middle_of,
 )
-from hamrkq.rkq.layout import ST_ABANDONED, checkpoint_fractions
+from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.solve.dispatch import (
     METHODS,
     Task,
@@ -47,17 +47,14 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
-from hamrkq.solve.member_rules import folded_growth_per_row, witness_rerun_needed_per_row
+from hamrkq.solve.growth import growth, growth_between
+from hamrkq.solve.member_rules import witness_rerun_needed_per_row
 from hamrkq.solve.output_times import output_rounding_limits
 from hamrkq.solve.shadow import largest_state
 
 __all__ = [
     "FURTHER_BY",
-    "MIN_GROWTH_STEPS",
     "double_double_can_help",
-    "folded_growth",
-    "growth",
-    "growth_between",
     "projects",
     "reading_with_the_run_before",
     "rerun",
@@ -330,87 +327,6 @@ def double_double_can_help(task: Task, under_cap: bool = False) -> bool:
         task.stage_times_amplified
         or (task.grew_exponentially and task.ham.equations_time_dependent)
     )
-
-
-#: Fewer accepted steps than this say nothing about how the estimate grows
-#: (a run of a dozen steps starts from an estimate of nearly nothing).
-MIN_GROWTH_STEPS = 50
-
-
-def growth(out: Any, task: Task) -> float:
-    """:func:`hamrkq.rkq.auto_rules.error_growth` of a run's estimate of Gamma
-    over the second half of its interval (1 without one, or for a run of
-    fewer than :data:`MIN_GROWTH_STEPS` steps)."""
-    if out.gamma is None or out.stats.get("steps", 0) < MIN_GROWTH_STEPS:
-        return 1.0
-    if out.thinned and out.gamma_checkpoints is not None:
-        return _growth_over_every_node(out, task)
-    if out.t.shape[0] < 3:
-        return 1.0
-    middle, direction = middle_of(out.t[0], out.t[-1])
-    gamma = np.abs(out.gamma)
-    before = gamma[(out.t - middle) * direction <= 0.0]
-    return folded_growth(task, before.max(axis=0), gamma.max(axis=0), largest_state(out))
-
-
-def _growth_over_every_node(out: Any, task: Task) -> float:
-    """:func:`growth` of a run whose returned rows are thinned (``t_eval``,
-    ``keep_every``), from the kernel's maxima over every node: the largest
-    ``|Gamma|`` up to the last checkpoint at or before the middle of the
-    interval reached, and over the whole run.  A checkpoint before the middle
-    reads a smaller maximum there, so a growth at least as large: the
-    Henon-Heiles chaotic orbit asked for t = 150 and 300 only read no growth
-    from its two rows and returned SUCCESS 94 times the tolerance off."""
-    to_middle = _checkpoint_until(out, task, 0.5)
-    if to_middle is None:
-        return 1.0
-    return folded_growth(task, to_middle, out.gamma_max, largest_state(out))
-
-
-def _checkpoint_until(out: Any, task: Task, fraction: float) -> np.ndarray | None:
-    """The kernel's largest ``|Gamma_k|`` up to its last checkpoint at or
-    before ``fraction`` of the interval a run reached (None: no such
-    checkpoint).  A checkpoint before that point reads a smaller maximum."""
-    span = task.t_end - task.t0
-    reached = (out.t_last - task.t0) / span if span else 1.0
-    fractions = checkpoint_fractions()
-    passed = (fractions <= fraction * reached) & np.isfinite(out.gamma_checkpoints[:, 0])
-    if not passed.any():
-        return None
-    return out.gamma_checkpoints[np.flatnonzero(passed)[-1]]
-
-
-def growth_between(out: Any, task: Task, low: float, high: float) -> float:
-    """The growth of a run's estimate from the fraction ``low`` of the
-    interval it reached to ``high`` (:func:`folded_growth` of the largest
-    ``|Gamma_k|`` up to each); from the kernel's checkpoints where the
-    returned rows are thinned (:func:`_checkpoint_until`), and ``inf`` where
-    no node or checkpoint lies at or before ``low`` (no evidence against a
-    growth)."""
-    if out.gamma is None:
-        return math.inf
-    if out.thinned and out.gamma_checkpoints is not None:
-        to_low = _checkpoint_until(out, task, low)
-        to_high = _checkpoint_until(out, task, high)
-    else:
-        reached = out.t_last - task.t0
-        where = (out.t - task.t0) / reached if reached else np.zeros(out.t.shape)
-        gamma = np.abs(out.gamma)
-        to_low = gamma[where <= low].max(axis=0) if (where <= low).any() else None
-        to_high = gamma[where <= high].max(axis=0)
-    if to_low is None:
-        return math.inf
-    return folded_growth(task, to_low, to_high, largest_state(out))
-
-
-def folded_growth(
-    task: Task, to_middle: np.ndarray, to_end: np.ndarray, y_size: np.ndarray
-) -> float:
-    """:func:`growth` from each component's largest ``|Gamma_k|`` over the
-    nodes up to the middle and over all of them, and its largest ``|y_k|``
-    (what the ensemble's batch loop folds): the rule's one home is
-    :func:`hamrkq.solve.member_rules.folded_growth_per_row`."""
-    return float(folded_growth_per_row(task, to_middle, to_end, y_size))
 
 
 def reading_with_the_run_before(task: Task, factor: float) -> float:

@@ -5,7 +5,7 @@ with the same options and folds, for each, what ``solve`` alone would read
 after the run: the largest ``|Gamma_k|`` up to the middle of the interval
 and to its end, the largest ``|y_k|``, its steps and its step range.  These
 functions decide for every member at once, in whole-array operations, what
-:func:`hamrkq.solve.auto.folded_growth` and
+:func:`hamrkq.solve.growth.folded_growth` and
 :func:`hamrkq.solve.auto.witness_rerun_needed` decide for one run: the same
 decisions, member by member (``tests/test_ensemble_rules.py``).  Given
 one run's (1-D rows, numbers), they decide for it alone.
@@ -29,7 +29,7 @@ __all__ = ["folded_growth_per_row", "witness_rerun_needed_per_row"]
 def folded_growth_per_row(
     task: Task, to_middle: np.ndarray, to_end: np.ndarray, y_sizes: np.ndarray
 ) -> np.ndarray:
-    """:func:`hamrkq.solve.auto.folded_growth` of each row: the runs of
+    """:func:`hamrkq.solve.growth.folded_growth` of each row: the runs of
     ``task`` whose largest ``|Gamma_k|`` up to the middle and to the end are
     the rows of ``to_middle`` and ``to_end``, and whose largest ``|y_k|``
     are the rows of ``y_sizes`` (all of shape ``(m, d)``).

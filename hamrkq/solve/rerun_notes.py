@@ -13,8 +13,9 @@ from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.layout import ST_ABANDONED
 from hamrkq.rkq.witness_rules import close_approach_factor
-from hamrkq.solve.auto import growth, reruns_for_rounding
+from hamrkq.solve.auto import reruns_for_rounding
 from hamrkq.solve.dispatch import Task, member_of, uses_witness
+from hamrkq.solve.growth import growth
 
 __all__ = ["rerun_note"]
 

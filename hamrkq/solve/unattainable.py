@@ -21,7 +21,6 @@ from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.solve.auto import (
     double_double_can_help,
-    growth,
     retry_substeps,
     tangent_follows_saturation,
 )
@@ -32,6 +31,7 @@ from hamrkq.solve.dispatch import (
     time_scale,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
+from hamrkq.solve.growth import growth
 from hamrkq.solve.output_times import (
     atol_above_output_rounding,
     output_rounding,

@@ -1,0 +1,107 @@
+"""How a run's estimate of Gamma grew: the readings auto's reruns, a stop's
+message and the notes of a rerun judge a run by.
+
+:func:`growth` is the growth over the second half of the interval a run
+reached (:func:`hamrkq.rkq.auto_rules.error_growth` of it says whether it
+was exponential), :func:`growth_between` the growth between two fractions
+of it; both from the returned rows, or from the kernel's checkpoints where
+the rows are thinned.  :func:`folded_growth` is the one rule over each
+component's maxima (its home for many runs at once is
+:func:`hamrkq.solve.member_rules.folded_growth_per_row`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from hamrkq.rkq.auto_rules import middle_of
+from hamrkq.rkq.layout import checkpoint_fractions
+from hamrkq.solve.dispatch import Task
+from hamrkq.solve.member_rules import folded_growth_per_row
+from hamrkq.solve.shadow import largest_state
+
+__all__ = ["MIN_GROWTH_STEPS", "folded_growth", "growth", "growth_between"]
+
+
+#: Fewer accepted steps than this say nothing about how the estimate grows
+#: (a run of a dozen steps starts from an estimate of nearly nothing).
+MIN_GROWTH_STEPS = 50
+
+
+def growth(out: Any, task: Task) -> float:
+    """:func:`hamrkq.rkq.auto_rules.error_growth` of a run's estimate of Gamma
+    over the second half of its interval (1 without one, or for a run of
+    fewer than :data:`MIN_GROWTH_STEPS` steps)."""
+    if out.gamma is None or out.stats.get("steps", 0) < MIN_GROWTH_STEPS:
+        return 1.0
+    if out.thinned and out.gamma_checkpoints is not None:
+        return _growth_over_every_node(out, task)
+    if out.t.shape[0] < 3:
+        return 1.0
+    middle, direction = middle_of(out.t[0], out.t[-1])
+    gamma = np.abs(out.gamma)
+    before = gamma[(out.t - middle) * direction <= 0.0]
+    return folded_growth(task, before.max(axis=0), gamma.max(axis=0), largest_state(out))
+
+
+def _growth_over_every_node(out: Any, task: Task) -> float:
+    """:func:`growth` of a run whose returned rows are thinned (``t_eval``,
+    ``keep_every``), from the kernel's maxima over every node: the largest
+    ``|Gamma|`` up to the last checkpoint at or before the middle of the
+    interval reached, and over the whole run.  A checkpoint before the middle
+    reads a smaller maximum there, so a growth at least as large: the
+    Henon-Heiles chaotic orbit asked for t = 150 and 300 only read no growth
+    from its two rows and returned SUCCESS 94 times the tolerance off."""
+    to_middle = _checkpoint_until(out, task, 0.5)
+    if to_middle is None:
+        return 1.0
+    return folded_growth(task, to_middle, out.gamma_max, largest_state(out))
+
+
+def _checkpoint_until(out: Any, task: Task, fraction: float) -> np.ndarray | None:
+    """The kernel's largest ``|Gamma_k|`` up to its last checkpoint at or
+    before ``fraction`` of the interval a run reached (None: no such
+    checkpoint).  A checkpoint before that point reads a smaller maximum."""
+    span = task.t_end - task.t0
+    reached = (out.t_last - task.t0) / span if span else 1.0
+    fractions = checkpoint_fractions()
+    passed = (fractions <= fraction * reached) & np.isfinite(out.gamma_checkpoints[:, 0])
+    if not passed.any():
+        return None
+    return out.gamma_checkpoints[np.flatnonzero(passed)[-1]]
+
+
+def growth_between(out: Any, task: Task, low: float, high: float) -> float:
+    """The growth of a run's estimate from the fraction ``low`` of the
+    interval it reached to ``high`` (:func:`folded_growth` of the largest
+    ``|Gamma_k|`` up to each); from the kernel's checkpoints where the
+    returned rows are thinned (:func:`_checkpoint_until`), and ``inf`` where
+    no node or checkpoint lies at or before ``low`` (no evidence against a
+    growth)."""
+    if out.gamma is None:
+        return math.inf
+    if out.thinned and out.gamma_checkpoints is not None:
+        to_low = _checkpoint_until(out, task, low)
+        to_high = _checkpoint_until(out, task, high)
+    else:
+        reached = out.t_last - task.t0
+        where = (out.t - task.t0) / reached if reached else np.zeros(out.t.shape)
+        gamma = np.abs(out.gamma)
+        to_low = gamma[where <= low].max(axis=0) if (where <= low).any() else None
+        to_high = gamma[where <= high].max(axis=0)
+    if to_low is None:
+        return math.inf
+    return folded_growth(task, to_low, to_high, largest_state(out))
+
+
+def folded_growth(
+    task: Task, to_middle: np.ndarray, to_end: np.ndarray, y_size: np.ndarray
+) -> float:
+    """:func:`growth` from each component's largest ``|Gamma_k|`` over the
+    nodes up to the middle and over all of them, and its largest ``|y_k|``
+    (what the ensemble's batch loop folds): the rule's one home is
+    :func:`hamrkq.solve.member_rules.folded_growth_per_row`."""
+    return float(folded_growth_per_row(task, to_middle, to_end, y_size))
