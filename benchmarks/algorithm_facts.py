@@ -553,7 +553,8 @@ def pendulum_over_the_top():
 
 @fact('"The rules after a run": how far the outer solar system\'s component sizes grow, auto')
 def state_growth():
-    from hamrkq.rkq.witness_rules import STATE_GROWTH, component_scales
+    from hamrkq.rkq.scales import component_scales
+    from hamrkq.rkq.witness_rules import STATE_GROWTH
 
     solar = hamrkq.load_problem("outer_solar_system")
     sol = hamrkq.solve(solar)  # the file's tolerances
@@ -572,7 +573,7 @@ def catalogue_departure():
     """(m^z - 1) |Gamma_k| / size_k (``auto_rules.shadow_departure``) at
     every node, auto on every catalogue problem over its own interval at
     atol 1e-4, 1e-6, 1e-8 and 1e-10 (rtol 0)."""
-    from hamrkq.rkq.witness_rules import component_scales
+    from hamrkq.rkq.scales import component_scales
 
     largest = []
     for name in hamrkq.list_problems():

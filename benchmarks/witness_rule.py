@@ -6,7 +6,7 @@ The rounding witness (docs/algorithm.md) is one more quencher track, run
 where the tolerance nears double precision's floor.  The rule used to compare
 the tightest component tolerance with 3e-10 times the largest ``|y0|`` of the
 whole state; it now compares each component's tolerance with 3e-10 times its
-own size (``hamrkq.rkq.witness_rules.component_scales``).  This script:
+own size (``hamrkq.rkq.scales.component_scales``).  This script:
 
 1. decides both rules on every catalogue problem at the tolerances of
    ``benchmarks/promise.py`` (``atol`` 1e-4 ... 1e-12; ``rtol`` 1e-6 ... 1e-10

@@ -21,6 +21,7 @@ from test_ensemble import _assert_member_equals_solve
 
 import hamrkq
 from hamrkq.rkq import auto_rules as ar
+from hamrkq.rkq import scales
 from hamrkq.rkq import witness_rules as wr
 
 M, D = 600, 4
@@ -172,12 +173,12 @@ def test_the_scales_and_auto_s_tolerance_per_row_are_the_hand_computed_values():
         [[1.0, 0.001, 1.0, 1.0], [0.0, 0.0, 2.0, 3.0], [0.0] * 4, [3.0, -4.0, 0.0, 0.0]]
     )
     np.testing.assert_array_equal(
-        wr.component_scales(1e-8, states),
+        scales.component_scales(1e-8, states),
         [[1.0, 1.0, 1.0, 1.0], [3.0, 3.0, 3.0, 3.0], [1.0] * 4, [4.0, 4.0, 4.0, 4.0]],
     )
     # floors share out each half: q2's 1e-10 is 0.01 of q1's 1e-8
     np.testing.assert_array_equal(
-        wr.component_scales([1e-8, 1e-10, 1e-8, 1e-8], states[:1]), [[1.0, 0.01, 1.0, 1.0]]
+        scales.component_scales([1e-8, 1e-10, 1e-8, 1e-8], states[:1]), [[1.0, 0.01, 1.0, 1.0]]
     )
     # min_k max(atol, rtol |y_k|) over max(1, max_k |y_k|)
     states = np.array([[2.0, 0.0, 0.5, 0.0], [25.0, 0.0, 0.0, 0.0], [0.0] * 4])
@@ -193,17 +194,17 @@ def test_the_scales_and_auto_s_tolerance_per_row_are_the_hand_computed_values():
 @pytest.mark.parametrize("atol, rtol", TOLERANCES)
 def test_the_rules_on_python_floats_are_the_whole_array_rules(atol, rtol):
     """One small state's rules are computed on Python floats
-    (``witness_rules.SMALL_STATE``), an ensemble's rows in whole-array
+    (``scales.SMALL_STATE``), an ensemble's rows in whole-array
     operations: two computations, the same bits, on states chosen so that
     the decisions differ."""
-    assert D <= wr.SMALL_STATE
+    assert D <= scales.SMALL_STATE
     states = _states(1)
     rng = np.random.default_rng(2)
     sizes = np.abs(states) * 10.0 ** rng.uniform(0, 3, (M, D))
     steps = (10.0 ** rng.uniform(1, 4.5, M)).astype(np.int64)
     ranges = 10.0 ** rng.uniform(0, 1.5, M)
     np.testing.assert_array_equal(
-        wr.component_scales(atol, states), [wr.component_scales(atol, y) for y in states]
+        scales.component_scales(atol, states), [scales.component_scales(atol, y) for y in states]
     )
     rows = wr.needs_witness_after_run_per_row(atol, rtol, states, steps, sizes, ranges)
     alone = [

@@ -737,7 +737,7 @@ def test_component_scales_whole_array_form_is_the_half_by_half_rule():
     """The whole-array component_scales (every solve pays it) gives the
     half-by-half rule's values exactly: states with zeros, odd lengths,
     zero and per-component floors, one atol for all."""
-    from hamrkq.rkq.witness_rules import component_scales
+    from hamrkq.rkq.scales import component_scales
 
     rng = np.random.default_rng(7)
     for _ in range(3000):

@@ -167,13 +167,14 @@ def test_one_small_state_s_rules_on_floats_give_the_hand_computed_decisions():
     same decisions), which the whole-array rules decide."""
     from test_ensemble_rules import AFTER_A_RUN
 
+    from hamrkq.rkq import scales
     from hamrkq.rkq import witness_rules as wr
 
     for (y0, size, atol, rtol, steps, step_range), after, outgrew in AFTER_A_RUN:
         for copies in (1, 3):
             state, sizes = (np.repeat(np.array(v, dtype=float), copies) for v in (y0, size))
             floor, relative = (np.broadcast_to(v, (4,)).repeat(copies) for v in (atol, rtol))
-            assert (state.size <= wr.SMALL_STATE) == (copies == 1)
+            assert (state.size <= scales.SMALL_STATE) == (copies == 1)
             decided = wr.needs_witness_after_run(floor, relative, state, steps, sizes, step_range)
             assert decided is after, (y0, size, atol, copies)
             if steps == wr.WITNESS_REFERENCE_STEPS and step_range == 1.0:

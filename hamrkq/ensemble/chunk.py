@@ -289,7 +289,7 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
         return again
     y_size = batch.y_size[ok]
     # one row of gamma per member, each with its own row of y_size (the
-    # component scales of each row: hamrkq.rkq.witness_rules.component_scales)
+    # component scales of each row: hamrkq.rkq.scales.component_scales)
     departure = shadow_departures(task, batch.gamma_to_end[ok], y_size)
     if departure is not None:
         again[ok] = departure > SHADOW_SATURATION

@@ -16,7 +16,7 @@ import operator
 
 import numpy as np
 
-from hamrkq.rkq.witness_rules import small_state
+from hamrkq.rkq.scales import small_state
 
 __all__ = [
     "AUTO_FIRST_SUBSTEPS",
@@ -118,7 +118,7 @@ def auto_tolerance(atol: np.ndarray, rtol: np.ndarray, y0: np.ndarray) -> float:
     tolerance at ``y0``, ``min_k max(atol_k, rtol_k |y0_k|)``, over the
     state's size where that is above one (``max(1, max_k |y0_k|)``: a state
     in large units, astronomical units of 25 say, counts its tolerance
-    relative to that size).  On a small state (:data:`~hamrkq.rkq.witness_rules.SMALL_STATE`
+    relative to that size).  On a small state (:data:`~hamrkq.rkq.scales.SMALL_STATE`
     components) on Python floats, the whole-array rule's value
     (:func:`auto_tolerance_per_row`) bit for bit: every call of
     ``method="auto"`` asks it."""
@@ -394,7 +394,7 @@ def shadow_departure(gamma: np.ndarray, scale: np.ndarray, amplification: float)
     """Per node, the shadow track's distance from the quencher over the
     orbit's size: ``amplification max_k |Gamma_k| / scale_k`` with
     ``amplification = m^z - 1`` (``Member.shadow_scale``) and ``scale`` each
-    component's size (:func:`hamrkq.rkq.witness_rules.component_scales` of the
+    component's size (:func:`hamrkq.rkq.scales.component_scales` of the
     run's largest ``|y|``).  The shadow's own error does not depend on the
     quencher steps ``m``: only a shorter step lowers it."""
     with np.errstate(invalid="ignore", divide="ignore"):

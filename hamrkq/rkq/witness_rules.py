@@ -16,6 +16,7 @@ import numpy as np
 
 from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
+from hamrkq.rkq.scales import component_scales, scales_on_floats, scales_per_row, small_state
 
 __all__ = [
     "CLOSE_APPROACH_RANGE",
@@ -30,13 +31,11 @@ __all__ = [
     "WITNESS_SUBSTEPS_BELOW",
     "WITNESS_SUBSTEPS_NEAR_FLOOR",
     "close_approach_factor",
-    "component_scales",
     "length_factor",
     "needs_witness",
     "needs_witness_after_run",
     "needs_witness_after_run_per_row",
     "needs_witness_per_row",
-    "small_state",
     "state_outgrew_its_start",
     "state_outgrew_its_start_per_row",
     "tightest_tolerance",
@@ -108,126 +107,6 @@ WITNESS_SUBSTEPS_NEAR_FLOOR = 4
 #: :data:`WITNESS_SUBSTEPS_NEAR_FLOOR` steps a step runs the witness: 19 times
 #: above the QA case's (5e-9 of pi).
 WITNESS_SUBSTEPS_BELOW = 3e-8
-
-
-def component_scales(atol: np.ndarray, y0: np.ndarray) -> np.ndarray:
-    """The size each component's rounding error is measured against: the
-    largest ``|y0_j|`` of its half of the state (the coordinates or the
-    momenta of a Hamiltonian state ``(q, p)``; the whole state when its
-    length is odd), scaled by ``atol_i`` over the largest ``atol_j`` of the
-    half, and at least ``|y0_i|``.
-
-    With one ``atol`` for every component, each half is measured by its
-    largest component.  Per-component floors declare the components'
-    relative sizes: the outer solar system's file gives the momenta
-    ``atol_i`` near ``m_i 1e-11``, from the Sun's 1e-11 to Pluto's 8e-20,
-    because its momenta run from Jupiter's 5e-6 to Pluto's 2e-11.
-
-    ``y0`` is one state, or several as the rows of a 2-D array (an
-    ensemble's members), whose scales are then the rows of the result.
-    """
-    size = np.abs(np.asarray(y0, dtype=np.float64))
-    if size.ndim == 2:
-        return _scales(np.asarray(atol, dtype=np.float64), size)
-    small = small_state(size, atol)
-    if small is not None:
-        row, floor = small
-        return np.array(_row_scales(floor, row), dtype=np.float64)
-    return _scales(np.asarray(atol, dtype=np.float64), size.reshape(1, -1))[0]
-
-
-def _scales(floor: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """:func:`component_scales` of each row of ``size`` (the ``|y0|`` of
-    several states, shape ``(k, d)``), in whole-array operations: an
-    ensemble's members at once (:func:`state_outgrew_its_start_per_row`);
-    one small state has :func:`_row_scales`."""
-    k, d = size.shape
-    # One row per half of each state
-    halves = 2 if d % 2 == 0 and d > 0 else 1
-    size_rows = size.reshape(k, halves, -1)
-    top = size_rows.max(axis=2, initial=0.0)
-    if not top.all():
-        # a half that is all zeros is measured by the whole state (or 1)
-        whole = size.max(axis=1, initial=0.0)
-        whole[whole == 0.0] = 1.0
-        top = np.where(top == 0.0, whole[:, None], top)
-    if floor.ndim == 0 or not d or floor.min() == floor.max():
-        # One atol for every component: each share is 1, and no |y0_i|
-        # exceeds its half's largest (10 us less of every call).
-        return top.repeat(d // halves, axis=1)
-    floor_rows = np.broadcast_to(floor, (d,)).reshape(halves, -1)
-    largest = floor_rows.max(axis=1, keepdims=True, initial=0.0)
-    share = np.divide(floor_rows, largest, out=np.ones_like(floor_rows), where=largest > 0.0)
-    return np.maximum(size_rows, top[:, :, None] * share).reshape(k, d)
-
-
-#: The most components of a state whose rules after a run
-#: (:func:`state_outgrew_its_start`, :func:`needs_witness_after_run`) and
-#: scales (:func:`component_scales`) are computed on Python floats: NumPy's
-#: whole-array operations cost about a microsecond each whatever the size,
-#: a dozen of them a rule, in a tiny problem's call of 0.3 ms (issue #13).
-#: Measured side by side (one process, a loaded machine): on 2 components
-#: 6 against 19 us (``state_outgrew_its_start``) and 8 against 19
-#: (``needs_witness_after_run``); on 16, 11 against 14 and 14 against 12.
-SMALL_STATE = 8
-
-
-def small_state(*values) -> list[list[float]] | None:
-    """Each of ``values`` as Python floats, one per component of a state:
-    the first is the state (a 1-D float64 array of at most
-    :data:`SMALL_STATE` components, not zero), each other one number or one
-    per component (a tolerance, a size), as NumPy broadcasts them.  None
-    where the whole-array rules decide: a longer or empty state, other
-    shapes, or a value that is not finite (NaN and the infinities are
-    NumPy's to propagate, as they always were)."""
-    first = values[0]
-    if (
-        type(first) is not np.ndarray
-        or first.dtype != np.float64
-        or first.ndim != 1
-        or not 0 < first.shape[0] <= SMALL_STATE
-    ):
-        return None
-    d = first.shape[0]
-    lists = [first.tolist()]
-    for value in values[1:]:
-        array = np.asarray(value, dtype=np.float64)
-        if array.ndim == 0:
-            lists.append([float(array)] * d)
-        elif array.shape == (d,):
-            lists.append(array.tolist())
-        else:
-            return None
-    # a sum is finite only where every term is (an overflow of the sum
-    # merely leaves the decision to the whole-array rules)
-    if not math.isfinite(sum(map(sum, lists))):
-        return None
-    return lists
-
-
-def _row_scales(floor: list[float], size: list[float]) -> list[float]:
-    """:func:`component_scales` of one state's ``|y0|`` (``size``,
-    non-negative finite Python floats) with the floors ``floor`` (one a
-    component), on Python floats: the same values as :func:`_scales` bit
-    for bit (maxima, one product and one quotient a component, as there)."""
-    d = len(size)
-    h = d // 2 if d % 2 == 0 else d  # the length of a half (of the whole when odd)
-    tops = [max(size[:h]), max(size[h:])] if h < d else [max(size)]
-    if 0.0 in tops:
-        # a half that is all zeros is measured by the whole state (or 1)
-        whole = max(size) or 1.0
-        tops = [top or whole for top in tops]
-    if min(floor) == max(floor):
-        # one atol for every component: each share is 1 (as _scales)
-        return [tops[0]] * h + [tops[-1]] * (d - h)
-    scales = []
-    for k, top in enumerate(tops):
-        half = floor[k * h : (k + 1) * h]
-        largest = max(max(half), 0.0)
-        for size_i, floor_i in zip(size[k * h : (k + 1) * h], half, strict=True):
-            share = floor_i / largest if largest > 0.0 else 1.0
-            scales.append(max(size_i, top * share))
-    return scales
 
 
 def needs_witness(
@@ -491,7 +370,7 @@ def needs_witness_after_run(
     chaotic Henon-Heiles orbit (53-fold) put the rounding at 0.03 of the
     tolerance where it was 0.92.
 
-    On a small state (:data:`SMALL_STATE` components) the rule is
+    On a small state (:data:`~hamrkq.rkq.scales.SMALL_STATE` components) the rule is
     computed on Python floats, the values of the whole-array rule's
     (:func:`needs_witness_after_run_per_row`) bit for bit: every run with
     the shadow estimate asks it.
@@ -505,7 +384,7 @@ def needs_witness_after_run(
     state, floor, relative, reached = small
     threshold = WITNESS_BELOW * (length_factor(steps) * close_approach_factor(step_range))
     # the rounding at the run's largest state (it grows with |y|)
-    scales = _row_scales(floor, list(map(max, map(abs, state), reached)))
+    scales = scales_on_floats(floor, list(map(max, map(abs, state), reached)))
     # the tolerance at y0, as the rule at the start
     return any(
         max(a, q * abs(v)) < threshold * scale
@@ -582,7 +461,7 @@ def state_outgrew_its_start(
     t = 800 (q = 2080): its quencher's rounding grows with ``|q|``, and the
     tangent Gamma does not see rounding.
 
-    On a small state (:data:`SMALL_STATE` components) the rule is computed
+    On a small state (:data:`~hamrkq.rkq.scales.SMALL_STATE` components) the rule is computed
     on Python floats, the values of the whole-array rule's
     (:func:`state_outgrew_its_start_per_row`) bit for bit: every run of the
     tangent estimate asks it (18 us of a tiny problem's call on arrays).
@@ -592,8 +471,8 @@ def state_outgrew_its_start(
     if small is not None:
         state, floor, reached = small
         start = list(map(abs, state))
-        before = _row_scales(floor, start)
-        after = _row_scales(floor, list(map(max, start, reached)))
+        before = scales_on_floats(floor, start)
+        after = scales_on_floats(floor, list(map(max, start, reached)))
         if 0.0 not in before:  # (a quotient by zero is NumPy's: inf or NaN)
             grew = max(map(operator.truediv, after, before))
             if not grew > STATE_GROWTH:
@@ -622,7 +501,7 @@ def state_outgrew_its_start_per_row(
     both = np.empty((2 * m, states.shape[1]))
     np.abs(states, out=both[:m])
     np.maximum(both[:m], sizes, out=both[m:])
-    scales = _scales(np.asarray(atol, dtype=np.float64), both)
+    scales = scales_per_row(np.asarray(atol, dtype=np.float64), both)
     grew = np.max(scales[m:] / scales[:m], axis=1)
     # the common case, decided without the rules (every call pays); NaN did not grow
     outgrew = grew > STATE_GROWTH

@@ -29,7 +29,7 @@ import numpy as np
 from hamrkq.result import Status
 from hamrkq.rkq.auto_rules import SHADOW_SATURATION, shadow_departure
 from hamrkq.rkq.driver import RunOutput, largest_over_nodes
-from hamrkq.rkq.witness_rules import component_scales
+from hamrkq.rkq.scales import component_scales
 
 if TYPE_CHECKING:
     from hamrkq.solve.dispatch import Task
