@@ -263,23 +263,24 @@ def loaded_system(key: str) -> CompiledSystem | None:
     return _SYSTEMS.get(key)
 
 
-#: :func:`compile_system`'s answers by Hamiltonian object: by its id, a weak
-#: reference to it (an id is reused only once the object is gone, and the
-#: memo does not keep it alive), its key and its system.  A solve asks for
-#: the system of the same object two or three times (the kernel's
-#: functions, H at the nodes, the warm-up's check), and the key's lookup and
-#: the lock cost a microsecond and a half each time.
-_BY_OBJECT: dict[int, tuple[weakref.ref, str, CompiledSystem]] = {}
+#: :func:`compile_system`'s answers by Hamiltonian object, dropped with it
+#: (as :mod:`hamrkq.backends.codegen`'s keys and
+#: :func:`hamrkq.backends.numeric.numeric_of`'s functions): its key and its
+#: system.  A solve asks for the system of the same object two or three
+#: times (the kernel's functions, H at the nodes, the warm-up's check), and
+#: the key's lookup and the lock cost a microsecond and a half each time
+#: (a lookup here: 0.15 us, the object's hash computed once).
+_BY_OBJECT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def remembered_system(ham: Hamiltonian) -> tuple[str, CompiledSystem] | None:
     """The code-generation key and the system of ``ham`` where
     :func:`compile_system` made or found it for this object and the system
     is still the one its key names (:func:`loaded_system`), else None."""
-    known = _BY_OBJECT.get(id(ham))
-    if known is None or known[0]() is not ham or _SYSTEMS.get(known[1]) is not known[2]:
+    known = _BY_OBJECT.get(ham)
+    if known is None or _SYSTEMS.get(known[0]) is not known[1]:
         return None
-    return known[1], known[2]
+    return known
 
 
 def compile_system(ham: Hamiltonian) -> CompiledSystem:
@@ -308,13 +309,7 @@ def compile_system(ham: Hamiltonian) -> CompiledSystem:
                 system = CompiledSystem(module, lambda: codegen.load_module(ham, part="tangent"))
             _SYSTEMS[key] = system
             mark_compiled(system.path)
-        try:
-            reference = weakref.ref(ham)
-        except TypeError:  # not weak-referenceable: looked up by key each time
-            return system
-        if len(_BY_OBJECT) >= 256:  # Hamiltonians made on the fly: bounded
-            _BY_OBJECT.clear()
-        _BY_OBJECT[id(ham)] = (reference, key, system)
+        _BY_OBJECT[ham] = (key, system)
         return system
 
 
