@@ -17,7 +17,7 @@ loses the low bits of ``mu`` the same way at every evaluation in a binade of
 ``q1``: the centre ``1 - mu`` sits displaced by up to half an ulp of 1, a
 systematic force error that cancellation near the centre magnifies (on the
 Arenstorf orbit the quencher ended about 1e-10 from the exact solution,
-whatever the mesh; about 5e-12 with the offsets,
+whatever the mesh; 2e-12 to 1e-11 with the offsets,
 ``benchmarks/constant_offsets.txt``) and
 that the rounding witness cannot see, since it shares it.
 """
