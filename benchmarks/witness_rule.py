@@ -89,7 +89,7 @@ def runs() -> list[str]:
     try:
         for rtol in (1e-6, 1e-8, 1e-10):
             for witness in (True, False):
-                dispatch.needs_witness = lambda a, r, y, on=witness: on
+                dispatch.needs_witness = lambda a, r, y, on=witness, **rule: on
                 kw = dict(method="auto", atol=atol, rtol=rtol, t_eval=grid)
                 sol = hamrkq.solve(problem, **kw)
                 times = []
