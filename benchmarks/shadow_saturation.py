@@ -8,7 +8,7 @@ tolerance, where auto takes many quencher steps, it leaves the linear regime
 within the tolerance.  auto runs again with Gamma from the tangent flow,
 which has no shadow (whose stop stands: the quencher in double-double has
 the shadow's Gamma only); until 2026-11-27 it first ran again with shorter
-steps (two runs), as in ``shadow_saturation.txt`` as committed, which kept
+steps (two runs), as in ``shadow_saturation.txt`` at 701e72c, which kept
 the shadow within its limit without making it honest
 (``kepler_saturation.py``).  Each case is run twice in one process, the
 fallback off (the saturated run's stop) and on, and checked against
