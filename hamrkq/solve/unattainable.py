@@ -280,7 +280,8 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     if growth(out, task) > EXPONENTIAL_GROWTH:
         text += (
             " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
-            "an unstable equilibrium or a separatrix: a looser tolerance or a shorter interval "
+            "an unstable equilibrium or a separatrix, or in a burst at a close approach (Kepler "
+            "at e = 0.95 reads so at its pericentres): a looser tolerance or a shorter interval "
             "is what works."
         )
     if tangent_follows_saturation(task):
