@@ -1,5 +1,4 @@
 """Copy the tables of the latest benchmark runs into ``docs/performance.md``.
-from hamrkq.backends.numeric import numeric_of
 
     python benchmarks/update_docs.py
 
