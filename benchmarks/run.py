@@ -298,6 +298,7 @@ DERIVE_SCRIPT = """
 import json, time
 import hamrkq
 from hamrkq.backends import codegen
+from hamrkq.backends.numeric import numeric_of
 t0 = time.perf_counter()
 problem = hamrkq.load_problem("outer_solar_system")
 t1 = time.perf_counter()
@@ -315,7 +316,6 @@ print(json.dumps({"parse": t1 - t0, "derive": t2 - t1, "numeric": t3 - t2,
 MEMORY_SCRIPT = """
 import numpy as np
 import hamrkq
-from hamrkq.backends.numeric import numeric_of
 problem = hamrkq.load_problem("prentice2011")
 hamrkq.solve(problem, t_span=(0.0, 1.0), backend="numba")  # load the compiled code
 t_end, thin, keep = {t_end!r}, {thin!r}, {keep!r}
