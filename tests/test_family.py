@@ -30,7 +30,7 @@ from hamrkq.rkq.auto_rules import (
     auto_member,
     auto_tolerance,
 )
-from hamrkq.rkq.family import MEMBERS
+from hamrkq.rkq.family import MEMBERS, has_quencher
 from hamrkq.rkq.witness_rules import WITNESS_SUBSTEPS
 
 KEPLER = hamrkq.load_problem("kepler", e=0.6)
@@ -53,6 +53,16 @@ def test_members_keep_every_node_within_the_tolerance(method, tol):
     assert sol.t[-1] == TEN_ORBITS[1]
     assert true_error(sol) <= 1.05 * tol
     assert np.abs(sol.global_error).max() <= tol
+
+
+def test_which_methods_have_a_quencher():
+    """The one rule the ensemble's messages, the options refused and the
+    comparison's global control read: auto and every member but a pair
+    alone run a quencher; no name outside the family does."""
+    assert has_quencher("auto") and has_quencher("rk34q8") and has_quencher("rk78q12")
+    assert not has_quencher("rk34")
+    assert not any(map(has_quencher, ("verlet", "gauss6", "scipy:DOP853", "scipy:RK34Q8")))
+    assert {name for name in MEMBERS if not has_quencher(name)} == {"rk34"}
 
 
 def test_auto_reports_its_member_and_starts_with_two_quencher_steps():
