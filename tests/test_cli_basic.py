@@ -77,18 +77,3 @@ def test_the_version_has_one_home_that_the_installed_metadata_agrees_with(capsys
     assert version("hamrkq") == hamrkq.__version__
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"hamrkq {hamrkq.__version__}"
-
-
-@pytest.mark.parametrize("enabled", [True, False])
-def test_the_garbage_collector_is_as_the_caller_left_it(capsys, enabled):
-    """main pauses the cyclic collector while it imports the subcommands
-    (hamrkq.cli._imports_without_collections) and leaves it as it found it."""
-    import gc
-
-    was = gc.isenabled()
-    (gc.enable if enabled else gc.disable)()
-    try:
-        assert main(["list"]) == 0
-        assert gc.isenabled() is enabled
-    finally:
-        (gc.enable if was else gc.disable)()

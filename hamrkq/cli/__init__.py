@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import atexit
 import contextlib
-import gc
 import importlib
 import os
 import sys
@@ -54,24 +53,6 @@ EXIT_WRITE_FAILED = 3
 #: Standard output was closed by its reader (``hamrkq run ... | head``): the
 #: shell's status for a process ended by SIGPIPE (128 + 13).
 EXIT_BROKEN_PIPE = 141
-
-
-@contextlib.contextmanager
-def _imports_without_collections() -> Iterator[None]:
-    """The cyclic garbage collector paused while the subcommands' modules
-    (SymPy and numba among them) are imported: the objects they create set
-    off generation-2 collections, each scanning everything imported so far,
-    none of which frees anything.  Building the parser in a fresh process
-    took 0.66 s with the collector on and 0.55 s with it paused (medians of
-    12 alternating processes, 2026-11-27; a warm ``hamrkq run`` takes about
-    1.5 s on that machine).  Restored after, as it was."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 @contextlib.contextmanager
@@ -175,8 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     with sigterm_as_interrupt(), interrupts_in_callbacks_delivered(), _warnings_as_messages():
         try:
-            with _imports_without_collections():
-                parser = build_parser()
+            parser = build_parser()
             try:
                 args = parser.parse_args(argv)
             except SystemExit as exc:
