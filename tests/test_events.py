@@ -149,8 +149,11 @@ def test_a_problem_files_events_do_not_stop_other_methods(tmp_path, capsys):
     assert sol.success and sol.t_events is None
     exact = problem.exact(sol.t)
     assert np.abs(sol.y - exact).max() < 1e-8  # it really ran, to the end
-    with pytest.raises(InputError, match=r"run rk34q8, auto or another family member"):
+    with pytest.raises(InputError, match=r"run auto, rk34q8 or another family member"):
         hamrkq.solve(problem, method="gauss4", step=0.01, t_span=(0, 1), events=["q"])
+    # a family member with nodes left out is told to keep them, under the name given
+    with pytest.raises(InputError, match=r"\(method='auto', keep_every=2\).*keep every node"):
+        hamrkq.solve(problem, t_span=(0, 1), keep_every=2, dense_output=True)
     # RKQ with every node kept still finds them: q = sin t vanishes at pi
     assert hamrkq.solve(problem, t_span=(0, 4), atol=1e-12).t_events[0] == pytest.approx(
         [math.pi], abs=1e-11

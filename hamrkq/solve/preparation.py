@@ -124,12 +124,18 @@ def prepare_by_name(  # noqa: PLR0913 - solve's arguments, by name
     files_located = located and (t_eval_v is None or events is not None)
     event_list, events_note = _event_list(events, system_or_problem, ham, params, files_located)
     if (dense_output or event_list) and not located:
+        # the caller's method (auto, not the member it chose), and the remedy
+        # that applies: a family member only needs every node kept
+        remedy = (
+            "keep every node (keep_every=1)"
+            if spec.run is run_rk
+            else "run auto, rk34q8 or another family member"
+        )
         raise InputError(
             "dense_output and events need an RKQ-family method with every node kept "
-            f"(method={options.method!r}, keep_every={options.keep_every!r}): they are "
-            "found on the dense output between consecutive nodes; run rk34q8, auto "
-            "or another family member, and thin the nodes afterwards (sol.t[::k], or "
-            "t_eval)"
+            f"(method={requested.method!r}, keep_every={options.keep_every!r}): they are "
+            f"found on the dense output between consecutive nodes; {remedy}, and thin "
+            "the nodes afterwards (sol.t[::k], or t_eval)"
         )
     output_times = None
     kinked = smoothness.checks_kinks(ham, options.gamma_limit, spec.run is run_rk and spec.rk8)
