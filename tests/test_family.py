@@ -898,12 +898,32 @@ def test_after_the_tangent_estimate_the_quencher_stays_in_double():
     double precision's floor; auto then ran the quencher in double-double,
     whose Gamma is the shadow's only, with the tangent estimate still
     chosen: nodes 1.52 delta off.  Now the tangent run's stop stands (t =
-    377 of 628), every node within the tolerance of Kepler's exact solution
-    (0.996)."""
+    227 of 628; 377 before the weights summed to 1), every node within the
+    tolerance of Kepler's exact solution (0.996)."""
     problem = hamrkq.load_problem("kepler", e=0.95)
     sol = hamrkq.solve(problem, t_span=(0.0, 200 * np.pi), atol=1e-8, rtol=1e-5)
     assert sol.options["global_error_estimate"] == "tangent"
     assert sol.options["quencher_precision"] != "double-double"
+    truth = problem.exact(sol.t)
+    assert np.max(np.abs(sol.y - truth) / np.maximum(1e-8, 1e-5 * np.abs(truth))) <= 1.05
+
+
+def test_a_saturated_shadow_in_double_double_does_not_offer_a_floor_already_met():
+    """Kepler at e = 0.95 over 100 periods at rtol 1e-5 (atol 1e-8) on 2001
+    output times: auto's run in double stops at double precision's floor at
+    t = 107, and in double-double its shadow saturates at t = 219.6
+    (benchmarks/shadow_saturation.txt).  The message offered the tangent
+    estimate with the quencher in double, which stops at that floor sooner;
+    it now says so and offers what is left.  Every node within the tolerance
+    (0.357 measured)."""
+    problem = hamrkq.load_problem("kepler", e=0.95)
+    span = (0.0, 200 * np.pi)
+    sol = hamrkq.solve(problem, t_span=span, atol=1e-8, rtol=1e-5, t_eval=np.linspace(*span, 2001))
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert sol.options["quencher_precision"] == "double-double"
+    floor = re.search(r"stopped at double precision's floor at t = ([0-9.]+)\.", sol.message)
+    assert floor is not None and float(floor.group(1)) < sol.t[-1]  # 106.8 against 219.6
+    assert "global_error_estimate='tangent'" not in sol.message
     truth = problem.exact(sol.t)
     assert np.max(np.abs(sol.y - truth) / np.maximum(1e-8, 1e-5 * np.abs(truth))) <= 1.05
 

@@ -246,7 +246,9 @@ def _after_a_stop(
         # stopped there in double-double without trying more quencher steps,
         # which carry it to the end (QA; tests/test_family.py).
         dd = _in_double_double(requested, task)
-        return None if dd is None else replace(dd, exponential_until=reading_before)
+        if dd is None:
+            return None
+        return replace(dd, exponential_until=reading_before, double_floor_at=out.t_last)
     # After two exponential readings more quencher steps only push the stop
     # a little later, and the shadow's error, m^z times the quencher's,
     # leaves the linear regime (the estimate saturates at the orbit's size

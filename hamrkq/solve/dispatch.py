@@ -100,6 +100,11 @@ class Task:
     #: amplified, is not measured there, so auto keeps the quencher in
     #: double with the witness from then on (:func:`hamrkq.solve.auto.rerun`).
     stage_times_amplified: bool = False
+    #: Where auto's run in double before this one stopped at double
+    #: precision's floor, after which the quencher runs in double-double
+    #: (:func:`hamrkq.solve.auto.rerun`); else None.  What a stop's message
+    #: offers in double must reach further than that.
+    double_floor_at: float | None = None
     #: Run for ``method="auto"`` (``options.method`` is the member it chose).
     auto: bool = False
     #: The caller's ``t_eval`` where events or dense output need every node:

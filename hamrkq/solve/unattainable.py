@@ -277,7 +277,11 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         "saturates), so Gamma can no longer certify the tolerance; the run ends at the last "
         "node where it held."
     )
-    if growth(out, task) > EXPONENTIAL_GROWTH:
+    grew = growth(out, task) > EXPONENTIAL_GROWTH
+    # (after the growth's sentence, which names them, the two remedies left
+    # are not named again)
+    looser = "" if grew else " What helps: a looser tolerance or a shorter interval."
+    if grew:
         text += (
             " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
             "an unstable equilibrium or a separatrix, or in a burst at a close approach (Kepler "
@@ -287,7 +291,19 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     if tangent_follows_saturation(task):
         # auto ran the tangent estimate after this run, which stopped
         # earlier: auto returns the run that reached furthest
-        return text + " What helps: a looser tolerance or a shorter interval."
+        return text + looser
+    if task.options.double_double and task.double_floor_at is not None:
+        # The tangent estimate has no double-double form, and in double auto's
+        # run before this one stopped at the floor: Kepler at e = 0.95, rtol
+        # 1e-5, over 100 periods on 2001 output times stopped at t = 107 in
+        # double and its shadow saturated at t = 219.6 in double-double
+        # (benchmarks/shadow_saturation.txt); the tangent estimate in double
+        # would stop at the floor as soon.
+        return text + (
+            " The tangent estimate, which has no shadow, has no double-double form, and in "
+            f"double the run before this one stopped at double precision's floor at "
+            f"t = {task.double_floor_at!r}." + looser
+        )
     # Not a smaller max_step: it keeps the shadow within its limit without
     # making Gamma honest again (hamrkq.solve.auto._with_tangent).  The
     # tangent estimate has no double-double form: a run in double-double is
