@@ -5,7 +5,7 @@ is the run's error only where the reference's own error is smaller: a
 reference *accurate enough to measure an error of delta* is one whose
 accuracy, in each component, is below that component's tolerance
 (:func:`accuracy_ratios` below 1).  A component's tolerance here is its
-largest along the run (:func:`component_scales`; the smallest of those is
+largest along the run (:func:`largest_tolerances`; the smallest of those is
 :func:`tolerance_scale`), not its smallest at any node: with ``rtol`` a
 component crossing zero has only ``atol`` there, which no reference beats.
 The reference's accuracy is per component where it states one
@@ -32,7 +32,7 @@ __all__ = [
     "DOUBLE_ROUNDING",
     "accuracy_ratios",
     "component_accuracy",
-    "component_scales",
+    "largest_tolerances",
     "reference_is_close",
     "tolerance_scale",
     "unmeasured_error",
@@ -49,7 +49,7 @@ CLOSE_REFERENCE = 0.01
 DOUBLE_ROUNDING = float(np.finfo(np.float64).eps) / 2
 
 
-def component_scales(delta: Any) -> np.ndarray:
+def largest_tolerances(delta: Any) -> np.ndarray:
     """Each component's largest tolerance over the run (nan for a component,
     or a run, without one): the scale its reference must beat
     (:func:`tolerance_scale` is the smallest of them)."""
@@ -74,7 +74,7 @@ def component_accuracy(accuracy: Any, width: int, components: Any = None) -> np.
 
 def accuracy_ratios(accuracy: Any, delta: Any, components: Any = None) -> np.ndarray:
     """Each component's reference accuracy over that component's tolerance
-    (:func:`component_scales`): below 1 the reference measures the
+    (:func:`largest_tolerances`): below 1 the reference measures the
     component's true error.  nan for a component without a tolerance.
 
     Per component, not the max-norm accuracy over the smallest tolerance:
@@ -83,7 +83,7 @@ def accuracy_ratios(accuracy: Any, delta: Any, components: Any = None) -> np.nda
     atol 8e-20), so its true error was never measured, though each
     component's reference error is below 5e-4 of that component's tolerance
     (found by QA)."""
-    scales = component_scales(delta)
+    scales = largest_tolerances(delta)
     with np.errstate(divide="ignore", invalid="ignore"):
         return component_accuracy(accuracy, scales.size, components) / scales
 
@@ -111,7 +111,7 @@ def reference_is_close(accuracy: float, delta: Any, components: Any = None) -> b
     :data:`CLOSE_REFERENCE` times that component's tolerance
     (:func:`accuracy_ratios`; never, for a run without one)."""
     ratios = accuracy_ratios(accuracy, delta, components)
-    return bool(np.any(ratios[np.isfinite(component_scales(delta))] > CLOSE_REFERENCE))
+    return bool(np.any(ratios[np.isfinite(largest_tolerances(delta))] > CLOSE_REFERENCE))
 
 
 def unmeasured_error(

@@ -19,7 +19,7 @@ import numpy as np
 
 from hamrkq.analysis.adequacy import (
     accuracy_ratios,
-    component_scales,
+    largest_tolerances,
     reference_is_close,
     tolerance_scale,
     unmeasured_error,
@@ -341,7 +341,7 @@ class Diagnostics:
         accuracy = self.error.reference_accuracy
         if not np.isfinite(accuracy):
             return (*self._error_scale(), None)
-        scales = component_scales(self.series["delta"])
+        scales = largest_tolerances(self.series["delta"])
         if not np.all(np.isfinite(scales)):
             scale, what = self._error_scale()
             return None if accuracy < scale else (scale, what, None)
