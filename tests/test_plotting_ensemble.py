@@ -56,6 +56,21 @@ def test_member_map_draws_the_values_on_the_grid():
     np.testing.assert_array_equal(line.get_ydata(), values[:3])
 
 
+def test_a_log_map_says_which_cells_it_cannot_show():
+    """A member at an equilibrium drifts by exactly 0, which a log scale
+    cannot show: its cell is grey, and the colour bar's label says so."""
+    x, y = np.array([0.0, 1.0]), np.array([10.0, 20.0])
+    fig = plots.member_map(np.array([1e-9, 0.0, 2e-9, 3e-9]), [("a", x), ("b", y)],
+                           label="drift", log=True)  # fmt: skip
+    assert fig.axes[1].get_ylabel() == "drift (grey: 0)"
+    mesh = fig.axes[0].collections[0]
+    assert np.ma.getmaskarray(mesh.get_array()).sum() == 1
+    fig = plots.member_map(np.array([1.0, np.nan, 2.0, 3.0]), [("a", x), ("b", y)], label="v")
+    assert fig.axes[1].get_ylabel() == "v (grey: not finite)"
+    fig = plots.member_map(np.arange(4.0) + 1, [("a", x), ("b", y)], label="v", log=True)
+    assert fig.axes[1].get_ylabel() == "v"
+
+
 def test_bad_figure_requests_name_the_problem(rotating):
     with pytest.raises(InputError, match="two or more times"):
         plots.orbits(hamrkq.ensemble(hamrkq.load_problem("pendulum"), t_span=(0, 1), workers=1))

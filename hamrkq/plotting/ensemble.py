@@ -122,7 +122,9 @@ def member_map(
     label : str
         What ``values`` is.
     log : bool
-        Logarithmic colour (or y) scale; values <= 0 are drawn as missing.
+        Logarithmic colour (or y) scale; values <= 0 are drawn as missing
+        (on a map, grey cells that the colour bar's label names: a member at
+        an equilibrium drifts by exactly 0).
     """
     values = np.asarray(values, dtype=float)
     shape = tuple(len(a) for _, a in axes)
@@ -147,8 +149,26 @@ def member_map(
     finite = grid[np.isfinite(grid)]
     lo, hi = (finite.min(), finite.max()) if finite.size else (1.0, 10.0)
     norm: Any = LogNorm(lo, hi) if log else Normalize(lo, hi)
-    mesh = ax.pcolormesh(x, y, grid, shading="nearest", norm=norm, cmap="magma")
-    fig.colorbar(mesh, ax=ax, label=label)
+    import matplotlib
+
+    cmap = matplotlib.colormaps["magma"].with_extremes(bad="lightgrey")
+    mesh = ax.pcolormesh(x, y, grid, shading="nearest", norm=norm, cmap=cmap)
+    fig.colorbar(mesh, ax=ax, label=label + _missing_note(values, log))
     ax.set_xlabel(xname)
     ax.set_ylabel(yname)
     return fig
+
+
+def _missing_note(values: np.ndarray, log: bool) -> str:
+    """What the grey cells of a map are, for its colour bar's label: zeros
+    (or negative values) that a log scale cannot show, values that are not
+    finite (a failed member's), or nothing."""
+    zero = bool(log and np.any(values <= 0.0))
+    not_finite = bool(np.any(~np.isfinite(values)))
+    if zero and not_finite:
+        return " (grey: 0, or not finite)"
+    if zero:
+        return " (grey: 0)"
+    if not_finite:
+        return " (grey: not finite)"
+    return ""
