@@ -73,8 +73,12 @@ def _case_table(key: str, case: dict[str, Any]) -> list[str]:
         tol = _fmt(row["tolerance"], 3)
         if row.get("matched") is False:
             tol += " (closest)"
+        integrator = row["integrator"]
+        if row.get("status", "SUCCESS") != "SUCCESS":
+            # a run that stopped early: its time and error are of [t0, t_last]
+            integrator += f" (**{row['status']} at t = {row['t_last']:g}**)"
         lines.append(
-            f"| {row['integrator']} | {tol} | {_fmt(row['max_true_error'])} | {row['nodes']} "
+            f"| {integrator} | {tol} | {_fmt(row['max_true_error'])} | {row['nodes']} "
             f"| {_fmt(row.get('steps'))} | {row['nfev']} | {row['seconds']:.3g} "
             f"({row['runs']} runs: {row['spread']}) | {row['ratio']:.3g} "
             f"| {row['memory_mb']:.3g} |"

@@ -174,6 +174,7 @@ class Bench:
             "memory_mb": peak,
             "energy_drift": float(np.max(np.abs(sol.energy - sol.energy[0]))),
             "status": sol.status.name,
+            "t_last": float(sol.t[-1]),
         }
         if sol.global_error is not None:
             row["max_estimated_error"] = float(np.max(np.abs(sol.global_error)))
