@@ -319,6 +319,17 @@ def match_tolerance(
     return Match(best[0], best[1], target, tries, bool(within))
 
 
+def integrator_label(row: dict[str, Any]) -> str:
+    """A table row's integrator, marked where its run stopped before the end
+    of the interval (its status, and the time it reached where the row
+    keeps it): its time and error are then of the part it covered."""
+    label = row["integrator"]
+    if row.get("status", "SUCCESS") == "SUCCESS":
+        return label
+    where = f" at t = {row['t_last']:g}" if "t_last" in row else " before t_end"
+    return f"{label} (**{row['status']}{where}**)"
+
+
 def max_error(y: np.ndarray, reference: np.ndarray) -> float:
     """Largest absolute error of any component at any node."""
     return float(np.max(np.abs(np.asarray(y) - np.asarray(reference))))

@@ -448,13 +448,9 @@ def table(results: dict) -> str:
             else:
                 compile_text = _g(row.get("compile_seconds"))
             matched = "" if row.get("matched", True) else " (*)"
-            integrator = row["integrator"]
-            if row.get("status", "SUCCESS") != "SUCCESS":
-                # a run that stopped early: its time and error are of [t0, t_last]
-                where = f" at t = {_g(row['t_last'])}" if "t_last" in row else " before t_end"
-                integrator += f" (**{row['status']}{where}**)"
             lines.append(
-                f"| {case['case']} | {integrator} | {_g(row['tolerance'])}{matched} | "
+                f"| {case['case']} | {measure.integrator_label(row)} | "
+                f"{_g(row['tolerance'])}{matched} | "
                 f"{_g(row['max_true_error'])} | {_g(row['seconds'])} | "
                 f"{row['seconds'] / base:.3g} | {compile_text} |"
             )

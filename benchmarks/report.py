@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import measure
+
 # The issue's targets (issue 5), checked against the measurements.
 TARGET_WARM_S = 0.15
 TARGET_SCIPY_RATIO = 15.0
@@ -73,12 +75,9 @@ def _case_table(key: str, case: dict[str, Any]) -> list[str]:
         tol = _fmt(row["tolerance"], 3)
         if row.get("matched") is False:
             tol += " (closest)"
-        integrator = row["integrator"]
-        if row.get("status", "SUCCESS") != "SUCCESS":
-            # a run that stopped early: its time and error are of [t0, t_last]
-            integrator += f" (**{row['status']} at t = {row['t_last']:g}**)"
         lines.append(
-            f"| {integrator} | {tol} | {_fmt(row['max_true_error'])} | {row['nodes']} "
+            f"| {measure.integrator_label(row)} | {tol} | {_fmt(row['max_true_error'])} "
+            f"| {row['nodes']} "
             f"| {_fmt(row.get('steps'))} | {row['nfev']} | {row['seconds']:.3g} "
             f"({row['runs']} runs: {row['spread']}) | {row['ratio']:.3g} "
             f"| {row['memory_mb']:.3g} |"
