@@ -16,12 +16,11 @@ import numpy as np
 
 from hamrkq._floats import EPS
 from hamrkq._tolerance import component_tolerance
-from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION, middle_of
+from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH, SHADOW_SATURATION
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.family import MEMBERS
 from hamrkq.solve.auto import (
     double_double_can_help,
-    retry_substeps,
     tangent_follows_saturation,
 )
 from hamrkq.solve.dispatch import (
@@ -38,8 +37,9 @@ from hamrkq.solve.output_times import (
     output_rounding_limits,
 )
 from hamrkq.solve.shadow import largest_state
+from hamrkq.solve.truncation_remedies import growth_text, remedies, size_growth
 
-__all__ = ["NEAR_OVERFLOW", "SIZE_GROWTH", "equation_of", "state_size", "unattainable"]
+__all__ = ["NEAR_OVERFLOW", "equation_of", "state_size", "unattainable"]
 
 
 def equation_of(task: Task, index: int) -> str:
@@ -189,9 +189,9 @@ def unattainable(out: RunOutput, task: Task) -> str:
         return text + _double_double_remedy(under_cap=False)
     factor = growth(out, task)
     # the state's growth matters only after an exponential-looking reading
-    grown = _size_growth(out, task) if factor > EXPONENTIAL_GROWTH else None
+    grown = size_growth(out, task) if factor > EXPONENTIAL_GROWTH else None
     if factor > EXPONENTIAL_GROWTH:
-        text += _growth_text(out, task, factor, grown)
+        text += growth_text(out, task, factor, grown)
     steps = out.stats.get("steps", 0)
     rounded = out.stats.get("roundoff_steps", 0)
     if steps and 2 * rounded > steps:
@@ -202,7 +202,7 @@ def unattainable(out: RunOutput, task: Task) -> str:
             ": a looser tolerance, or a shorter interval (the horizon of double precision for "
             "this orbit), is what works."
         )
-    return text + " What helps: " + "; ".join(_remedies(out, task, factor, grown)) + "."
+    return text + " What helps: " + "; ".join(remedies(out, task, factor, grown)) + "."
 
 
 #: A component whose tolerance at the last node is below this fraction of its
@@ -422,155 +422,3 @@ def _time_floor_note(task: Task) -> str:
         "to start at 0, and H written for the shifted time, its phases moved by w t0 "
         "computed once (cos(w t + phi), phi = w t0 mod 2 pi)."
     )
-
-
-def _retry_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
-    """The quencher steps per step that carry a run stopped on its
-    quencher's truncation error to its end (the rule auto's reruns use,
-    :func:`hamrkq.rkq.auto_rules.auto_retry_substeps`, with the estimate's
-    growth ``factor`` where it is exponential), or None."""
-    if task.options.gamma_name != "shadow":
-        return None
-    return retry_substeps(out, task, growth=factor if factor > EXPONENTIAL_GROWTH else None)
-
-
-def _growth_text(
-    out: RunOutput, task: Task, factor: float, grown: tuple[float, str] | None
-) -> str:
-    """What a stop after an exponential-looking growth of the estimate
-    (``factor`` over the second half) says about it: chaos and its kin, or,
-    where the state grew too (``grown``, :func:`_size_growth`), the rounding
-    that grows with it."""
-    if grown is not None:
-        size, name = grown
-        text = (
-            f" The estimate grew {factor:.3g}-fold over the second half of the run, while the "
-            f"state grew too: {name} grew {size:.3g}-fold in size, its tolerance atol's, and the "
-            "rounding of the quencher's stages grows with the size of the values (a winding "
-            "angle, an escaping body, a close approach), so this need not be exponential growth"
-        )
-    else:
-        text = (
-            f" The estimate grew {factor:.3g}-fold over the second half of the "
-            "run: faster than any power of t, as on a chaotic orbit or one near an unstable "
-            "equilibrium, a separatrix or a singularity, where errors (the rounding too) grow "
-            "like exp(lambda t)"
-        )
-    if _retry_substeps(out, task, factor) is not None:
-        return text + "."
-    burst = _burst_substeps(out, task, factor)
-    if burst is not None:
-        return text + (
-            ", or a burst (a close approach): one reading cannot tell them apart, and on a "
-            "chaotic orbit more quencher steps only delay the stop."
-        )
-    return text + "; more quencher steps only delay the stop."
-
-
-def _burst_substeps(out: RunOutput, task: Task, factor: float) -> int | None:
-    """The quencher steps per step that carry a run to its end if the
-    exponential-looking growth ``factor`` its estimate read was a burst (a
-    close approach) and its error grows like ``t^2`` from here, where that is
-    the first such reading (``task.exponential_until``: auto's run after one
-    reads a second), else None.  One reading cannot tell a burst from chaos:
-    ``rk56q8`` on Kepler at e = 0.9, atol 1e-13, ``max_step`` 0.1, its
-    quencher in double-double, read a 358-fold growth up to its stop at
-    t = 6.27, just before the pericentre, and said more quencher steps only
-    delay the stop; three carry it to the end (QA round 4, R2)."""
-    if factor <= EXPONENTIAL_GROWTH or task.exponential_until is not None:
-        return None
-    return _retry_substeps(out, task, 1.0)
-
-
-#: A component whose size grew this much over the second half of a run,
-#: its tolerance atol's (not rtol's, which grows with it), grew the rounding
-#: of the quencher's stages measured against that tolerance alike: the
-#: pendulum going over the top from q = 0, p = 3 at atol 1e-9 (rk34q8's
-#: tangent Gamma over [0, 100] reads 14 times more from q0 = 2 pi 80 than
-#: from q0 = 0), whose estimate grew 59-fold as q doubled, read as chaos.
-SIZE_GROWTH = 1.5
-
-
-def _size_growth(out: RunOutput, task: Task) -> tuple[float, str] | None:
-    """The growth in size over the second half of a run of the component
-    that grew most among those whose tolerance is atol's at their largest
-    size, and its name, where it is at least :data:`SIZE_GROWTH`; else None.
-    Measured on the returned rows up to the middle (thinned or not) against
-    the largest over every node."""
-    t = out.t
-    if t.shape[0] < 3:
-        return None
-    middle, direction = middle_of(float(t[0]), float(t[-1]))
-    before = (t - middle) * direction <= 0.0
-    if not before.any():
-        return None
-    first = np.abs(out.y[before]).max(axis=0)
-    whole = largest_state(out)
-    fixed = (
-        np.broadcast_to(task.atol, whole.shape) >= np.broadcast_to(task.rtol, whole.shape) * whole
-    )
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(fixed & (first > 0.0), whole / first, 0.0)
-    k = int(np.argmax(ratio))
-    if not ratio[k] >= SIZE_GROWTH:
-        return None
-    return float(ratio[k]), task.ham.names[k]
-
-
-def _remedies(
-    out: RunOutput, task: Task, factor: float = 1.0, grown: tuple[float, str] | None = None
-) -> list[str]:
-    """What carries the quencher further when its truncation error stopped
-    the run, the most specific first (``factor``: the estimate's growth; an
-    exponential one makes more quencher steps no remedy, unless the stop
-    was close to the end; ``grown``: the state's growth with it,
-    :func:`_size_growth`, where the quencher in double-double helps)."""
-    o = task.options
-    member = member_of(task)
-    exponential = factor > EXPONENTIAL_GROWTH
-    remedies = []
-    if exponential:
-        remedies.append("a looser tolerance or a shorter interval")
-        if grown is not None:
-            if double_double_can_help(task, under_cap=True):
-                remedies.append(
-                    "quencher_precision='double-double' (the quencher's stages and f in "
-                    "double-double do not round with the size of the values)"
-                )
-            elif not task.auto and not task.options.double_double:
-                remedies.append(
-                    "method='auto', which runs the quencher in double-double where its "
-                    "rounding stops a run"
-                )
-    substeps = _retry_substeps(out, task, factor)
-    burst = None if substeps is not None else _burst_substeps(out, task, factor)
-    if substeps is not None or burst is not None:
-        if burst is not None:
-            how = "if the growth was a burst and its error grows like t^2 from here"
-        elif exponential:
-            how = "if its error keeps growing as it did over the second half of the run"
-        else:
-            how = "if its error keeps growing like t^2, as on a periodic orbit"
-        substeps = substeps or burst
-        remedies.append(
-            f"z_substeps={substeps} (quencher steps per step, {member.z_substeps} in this run: "
-            f"its error falls like m^-{member.z_order}, and {substeps} carries it to the end "
-            f"{how})"
-        )
-    if not task.auto and burst is not None:
-        remedies.append(
-            "method='auto', which runs again with more quencher steps after a first such "
-            "reading and stops after a second"
-        )
-    if not task.auto and not exponential:
-        remedies.append(
-            "method='auto', which chooses a member and runs again with more quencher steps "
-            "when a run stops on the quencher's truncation error"
-        )
-    remedies.append(f"a smaller max_step (the quencher's error falls like h^{member.z_order})")
-    better = [name for name in MEMBERS if name not in (o.method, "rk34") and MEMBERS[name].use_z]
-    if better:
-        remedies.append(f"another member of the family ({', '.join(map(repr, better))})")
-    if not exponential:
-        remedies.append("a looser tolerance only if the quencher's error grows with the step")
-    return remedies
