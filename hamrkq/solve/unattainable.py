@@ -318,8 +318,8 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     return text + (
         " What helps: global_error_estimate='tangent' (the error carried by the Jacobian, no "
         "shadow: more quencher steps do not change the shadow's error, the quencher's in one "
-        f"step a step, {member.z_substeps}^{member.z_order} times its own{in_double}); a "
-        "looser tolerance or a shorter interval."
+        f"step a step, {member.z_substeps}^{member.z_order} times its own{in_double})"
+        + ("." if grew else "; a looser tolerance or a shorter interval.")
     )
 
 
