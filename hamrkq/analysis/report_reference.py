@@ -67,9 +67,9 @@ def _extended_if_unmeasured(
     from hamrkq.analysis.extended_reference import available
 
     unchanged = diag, "independent"
-    if diag.error is None or not available():
+    if diag.error is None or (diag.error_measured and not diag.reference_close):
         return unchanged
-    if diag.error_measured and not diag.reference_close:
+    if not available():  # last: it imports heyoka (30 ms)
         return unchanged
     accuracy = diag.error.reference_accuracy
     try:
