@@ -7,7 +7,7 @@ Four regular Henon-Heiles orbits at E = 1/12 (``energy_orbits``), t in
 ``q2 = -0.2``, ``q1 = 0.3``; the last three are grazed near the orbits'
 turning points), both directions and upward alone: the number of crossings
 ``hamrkq.poincare`` finds, with and without the search for two roots inside
-one step (``hamrkq.events.grazing_roots``), against heyoka's event detection
+one step (``hamrkq.events.crossings.grazing_roots``), against heyoka's event detection
 (Taylor integrator at tol 1e-15), and the largest time difference of the
 matched crossings.  Writes ``grazing_sections.txt`` beside this file.
 """
@@ -22,7 +22,7 @@ import heyoka as hy
 import numpy as np
 
 import hamrkq
-import hamrkq.events
+import hamrkq.events.crossings
 from hamrkq.analysis.energy_surface import energy_orbits
 
 HERE = Path(__file__).resolve().parent
@@ -67,7 +67,7 @@ def main() -> None:
             for k in range(len(q0)):
                 options = {"direction": direction, "atol": 1e-9, "gamma_limit": np.inf}
                 run = hamrkq.poincare(hh, section, q0[k], p0[k], (0.0, T_END), **options)
-                with mock.patch.object(hamrkq.events, "grazing_roots", lambda *a: []):
+                with mock.patch.object(hamrkq.events.crossings, "grazing_roots", lambda *a: []):
                     plain = hamrkq.poincare(hh, section, q0[k], p0[k], (0.0, T_END), **options)
                 times = heyoka_crossings(np.r_[q0[k], p0[k]], component, level, direction)
                 found, alone, reference = (

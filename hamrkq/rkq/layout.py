@@ -286,7 +286,7 @@ class Output(NamedTuple):
     quenched: np.ndarray
     #: the quencher's rounding at each node, modelled and measured by the
     #: witness (``sqrt(RHO2) + FLOOR``): what checks after the run, at event
-    #: states, count beside Gamma (:func:`hamrkq.events.attainability`)
+    #: states, count beside Gamma (:func:`hamrkq.rkq.dense.attainability`)
     rounding: np.ndarray
 
 
