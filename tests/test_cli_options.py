@@ -119,6 +119,7 @@ def test_named_atol_alone_keeps_the_problems_atol(files, tmp_path):
     [
         (["--atol", "w=1e-9"], "'w' is not a coordinate or momentum of 'named' (names: x, y, u"),
         (["--atol", "x=-1"], "expected a positive finite number"),
+        (["--atol", "-1e-6"], "expected a positive finite number"),  # not "expected one argument"
         (["--atol", "1e-8", "--atol", "1e-9"], "a plain --atol was already given"),
         (["--atol", "x=1e-9", "--atol", "x=1e-8"], "x was already given"),
         (["--method", "nope"], "method='nope' is not valid; valid values: "),
@@ -131,6 +132,23 @@ def test_bad_options_exit_2_with_the_culprit(files, tmp_path, argv, fragment):
     status, _, err = run("run", named, *argv, "--no-plots", "--out", tmp_path / "x")
     assert status == 2 and fragment in err, err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "dest", "value"),
+    [
+        (["run", "harmonic", "--t-end", "-1e1"], "t_end", -10.0),
+        (["run", "harmonic", "--t-start", "-.5e-3"], "t_start", -5e-4),
+        (["poincare", "kepler", "--energy", "-1/2"], "energy", "-1/2"),
+        (["poincare", "kepler", "--energy", "-sqrt(2)/20"], "energy", "-sqrt(2)/20"),
+    ],
+)
+def test_a_negative_value_after_an_option_is_its_value(argv, dest, value):
+    """argparse took ``-1e1`` and ``-1/2`` for options ("expected one
+    argument"; QA): Kepler's bound orbits have negative energies."""
+    from hamrkq.cli import build_parser
+
+    assert getattr(build_parser().parse_args(argv), dest) == value
 
 
 def test_method_auto_is_passed_through(files, tmp_path):

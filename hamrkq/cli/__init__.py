@@ -18,6 +18,7 @@ import atexit
 import contextlib
 import importlib
 import os
+import re
 import sys
 import threading
 import warnings
@@ -94,11 +95,26 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+#: What argparse reads as a negative value rather than an option: a minus,
+#: then a digit or a point and a digit, or a function's name and "(".
+NEGATIVE_VALUE = re.compile(r"^-(\.?\d|[A-Za-z_]\w*\()")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse exits with status 2 on bad usage already; keep its message short."""
 
     #: The subcommands' parsers by name (on the top-level parser).
     commands: dict[str, argparse.ArgumentParser] | None = None
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        # A value that starts with a minus is an option to argparse unless it
+        # looks like a plain negative number (-10, -.5): ``--t-end -1e1``,
+        # ``--energy -1/2`` (Kepler's bound orbits) and ``--energy
+        # -sqrt(2)/20`` were refused with "expected one argument".  No
+        # option of hamrkq's starts with a minus and a digit, a point or a
+        # function's name and parenthesis, so such a word is a value.
+        self._negative_number_matcher = NEGATIVE_VALUE
 
     def error(self, message: str):  # pragma: no cover - exercised through main
         self.print_usage(sys.stderr)
