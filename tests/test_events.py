@@ -184,6 +184,10 @@ def test_bad_event_tables_are_rejected(tmp_path):
         load_problem(path)
     with pytest.raises(InputError, match="not coordinates"):
         hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=sp.Symbol("x"))
+    # The system's q is real=True; a plain Symbol("q") is another symbol to
+    # SymPy: the message said q was "not a coordinate" (QA).
+    with pytest.raises(InputError, match=r"uses q, a symbol with other assumptions \(none\)"):
+        hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=sp.Symbol("q") - 0.3)
 
 
 def test_summary_json_lists_the_events():

@@ -98,6 +98,11 @@ def test_parameters_are_arguments_not_regenerated():
     # symbol to SymPy: the message said "unknown parameter a (parameters: a)".
     with pytest.raises(InputError, match=r"other assumptions \(positive=True\).*key it by name"):
         ham.parameter_values({sp.Symbol("a", positive=True): 3.0})
+    # The same for initial values keyed by symbol: "unknown coordinate 'q';
+    # the coordinates are q" before (QA).
+    q_plain = sp.Symbol(ham.q[0].name, positive=True)
+    with pytest.raises(InputError, match=r"q0: .* other assumptions \(positive=True\)"):
+        ham.state_values({q_plain: 0.3}, [0.2])
     with pytest.raises(InputError, match="finite"):
         ham.parameter_values({a: np.inf})
     no_default = Hamiltonian(a * p**2, q=[q], p=[p], parameters=[a])

@@ -19,6 +19,7 @@ from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.symbolic.expressions import parse_expression
 from hamrkq.symbolic.hamiltonian import Hamiltonian
+from hamrkq.symbolic.values import assumptions_twin
 
 __all__ = ["EventSpec", "event_specs"]
 
@@ -74,7 +75,15 @@ def _symbols(ham: Hamiltonian) -> dict[str, sp.Symbol]:
 
 def _expression_rows(ham: Hamiltonian, expr: sp.Expr, params: np.ndarray, label: str):
     allowed = {*ham.state, *ham.parameters, ham.t}
-    stray = sorted(str(s) for s in expr.free_symbols - allowed)
+    strays = sorted(expr.free_symbols - allowed, key=str)
+    for symbol in strays:
+        twin = assumptions_twin(symbol, (*ham.state, *ham.parameters, ham.t))
+        if twin is not None:
+            raise InputError(
+                f"event {label!r} uses {symbol!s}, {twin}: write the event as a string "
+                "in the system's names or with the Hamiltonian's own symbols"
+            )
+    stray = [str(s) for s in strays]
     if stray:
         raise InputError(
             f"event {label!r} uses {', '.join(stray)}, which are not coordinates, momenta, "

@@ -64,6 +64,21 @@ def _assumptions(symbol: sp.Symbol) -> str:
     return ", ".join(f"{k}={v}" for k, v in sorted(shown.items())) or "none"
 
 
+def assumptions_twin(key: Any, symbols: tuple[sp.Symbol, ...]) -> str | None:
+    """Why ``key``, a SymPy symbol not among ``symbols``, is not the one of
+    them that has its name (``Symbol("q")`` beside a catalogue's
+    ``Symbol("q", real=True)``: SymPy tells symbols apart by their
+    assumptions too), as a clause for a message; None when no symbol of
+    ``symbols`` has its name."""
+    twin = next((s for s in symbols if s.name == getattr(key, "name", None)), None)
+    if twin is None or not isinstance(key, sp.Symbol):
+        return None
+    return (
+        f"a symbol with other assumptions ({_assumptions(key)}) than the Hamiltonian's "
+        f"{twin!s} ({_assumptions(twin)}); SymPy counts them as different symbols"
+    )
+
+
 def bind_parameters(
     parameters: tuple[sp.Symbol, ...],
     defaults: Mapping[sp.Symbol, float],
@@ -78,15 +93,11 @@ def bind_parameters(
         symbol = by_name.get(key) if isinstance(key, str) else key
         if symbol not in parameters:
             known = ", ".join(by_name) or "none"
-            twin = by_name.get(getattr(key, "name", None))
+            twin = assumptions_twin(key, parameters)
             if twin is not None:
-                # Symbol("w", real=True) is not Symbol("w"): SymPy tells
-                # symbols apart by their assumptions too.
                 raise InputError(
-                    f"parameter {key!s} is keyed by a symbol with other assumptions "
-                    f"({_assumptions(key)}) than the Hamiltonian's {twin!s} "
-                    f"({_assumptions(twin)}); SymPy counts them as different symbols: key "
-                    f"it by name ({twin.name!r}) or by the Hamiltonian's own symbol"
+                    f"parameter {key!s} is keyed by {twin}: key it by name ({key.name!r}) "
+                    "or by the Hamiltonian's own symbol"
                 )
             raise InputError(f"unknown parameter {key!s} (parameters: {known})")
         chosen[symbol] = as_number(value, f"parameter {symbol}")
@@ -177,6 +188,12 @@ def _bind_by_name(
         symbol = by_name.get(key) if isinstance(key, str) else key
         if symbol not in symbols:
             shown = key if isinstance(key, str) else str(key)
+            twin = assumptions_twin(key, symbols)
+            if twin is not None:
+                raise InputError(
+                    f"{label}: {shown!r} is keyed by {twin}: key it by name ({shown!r}) "
+                    "or by the Hamiltonian's own symbol"
+                )
             if any(shown == s.name for s in other):
                 where = "p0" if label == "q0" else "q0"
                 raise InputError(
