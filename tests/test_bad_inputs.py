@@ -126,6 +126,11 @@ LIBRARY = [
                  r"H is a string.*never evaluates text", id="ham-string"),
     pytest.param(lambda: hamrkq.Hamiltonian(p**2 + q, q=[q, a], p=[p]), HamiltonianError,
                  r"q has 2 symbols but p has 1: every coordinate needs its", id="ham-lengths"),
+    # strings for symbols: "which is not a SymPy Symbol" without "q and p are
+    # empty" beside it, which the strings' being left out had made up (QA)
+    pytest.param(lambda: hamrkq.Hamiltonian(p**2 + q**2, q=["q"], p=["p"]), HamiltonianError,
+                 r"q contains 'q', which is not a SymPy Symbol but a string: give the symbol "
+                 r"itself \(sympy\.Symbol\('q'\)\)\n.*p contains 'p'[^\n]*$", id="ham-strings"),
     pytest.param(lambda: hamrkq.Hamiltonian(p**2 + a * q, q=[q], p=[p], parameters={a: np.nan}),
                  HamiltonianError, r"parameter a must be finite, got nan", id="ham-param-nan"),
     # catalogue and expressions

@@ -29,6 +29,7 @@ __all__ = [
     "check_scalar",
     "complex_kinks",
     "declared_parameters",
+    "degrees_of_freedom",
     "numbers_beyond_double",
     "shadowed_constants",
     "shared_names",
@@ -90,6 +91,19 @@ def symbol_tuple(symbols: Any, label: str, problems: list[str]) -> tuple[sp.Symb
     return tuple(result)
 
 
+def degrees_of_freedom(q: tuple, p: tuple) -> list[str]:
+    """What is wrong with the numbers of coordinates and momenta, if anything."""
+    if len(q) != len(p):
+        return [
+            f"q has {len(q)} symbol{'s' if len(q) != 1 else ''} but p has {len(p)}: "
+            "every coordinate needs its conjugate momentum, so give q and p the same "
+            "number of symbols (q=[q1, q2], p=[p1, p2])"
+        ]
+    if not q:
+        return ["q and p are empty: at least one degree of freedom is needed"]
+    return []
+
+
 def _constant_hint(item: Any) -> str:
     """Why a name like ``E`` is not a symbol: ``from sympy import *`` binds
     ``E`` to Euler's number, ``I`` to the imaginary unit, ``pi``, ``S``, ``N``..."""
@@ -102,6 +116,8 @@ def _constant_hint(item: Any) -> str:
     if callable(item) and not isinstance(item, sp.Basic):
         name = getattr(item, "__name__", repr(item))
         return f" but the SymPy function or class {name}; declare a symbol with sympy.Symbol"
+    if isinstance(item, str):
+        return f" but a string: give the symbol itself (sympy.Symbol({item!r}))"
     return ""
 
 

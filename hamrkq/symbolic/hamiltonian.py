@@ -29,6 +29,7 @@ from hamrkq.symbolic.declaration import (
     check_scalar,
     complex_kinks,
     declared_parameters,
+    degrees_of_freedom,
     numbers_beyond_double,
     shadowed_constants,
     shared_names,
@@ -126,16 +127,11 @@ class Hamiltonian:
     ):
         problems: list[str] = []
         H = check_scalar(H, problems)
+        before = len(problems)
         q = symbol_tuple(q, "q", problems)
         p = symbol_tuple(p, "p", problems)
-        if len(q) != len(p):
-            problems.append(
-                f"q has {len(q)} symbol{'s' if len(q) != 1 else ''} but p has {len(p)}: "
-                "every coordinate needs its conjugate momentum, so give q and p the same "
-                "number of symbols (q=[q1, q2], p=[p1, p2])"
-            )
-        if not q and not p:
-            problems.append("q and p are empty: at least one degree of freedom is needed")
+        if len(problems) == before:  # else their counts would mislead ("q and p are empty")
+            problems += degrees_of_freedom(q, p)
         free = H.free_symbols if H is not None else set()
         t = time_symbol(t, free, q, p, problems)
         params, defaults = declared_parameters(parameters, free, problems)
