@@ -239,6 +239,12 @@ def test_bad_reference_requests():
     no_track = make_solution(sol.t, sol.y, sol.energy, method="rk34")
     with pytest.raises(InputError, match="needs a quencher track"):
         diagnose(no_track, reference="rk8")
+    # A problem without an exact solution is named as such; the message said
+    # "needs an exact solution (exact= or a problem)" though a problem was given (QA).
+    pendulum = hamrkq.load_problem("prentice2011")
+    short = hamrkq.solve(pendulum, t_span=(0.0, 0.5), method="rk34q8")
+    with pytest.raises(InputError, match="problem 'prentice2011' has no exact solution; use"):
+        diagnose(short, pendulum, reference="exact")
     other = integrate_reference(lambda t, y, p: np.array([y[1], -y[0]]), sol.y[0], sol.t[:5])
     with pytest.raises(InputError, match="node times"):
         diagnose(sol, reference=other)

@@ -224,6 +224,21 @@ def exact_solution_accuracy(states, times, ham, params, exact_from=(None, None))
     return exact_accuracy(states, builtin, start, times, rates)
 
 
+def _no_exact_solution(problem: Any) -> str:
+    """Why ``reference="exact"`` cannot be had: the problem given has none
+    (a problem file without an ``[exact]`` table), or none was given."""
+    name = getattr(problem, "name", None)
+    if hasattr(problem, "exact") and name:
+        return (
+            f"reference='exact': problem {name!r} has no exact solution; use "
+            "reference='independent', or pass exact= (a function of t)"
+        )
+    return (
+        "reference='exact' needs an exact solution: pass exact= (a function of t) or a "
+        "problem that has one"
+    )
+
+
 def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None, None)):
     """(states, source, description, accuracy) for a reference kind or object;
     the independent references start from where the run started
@@ -246,7 +261,7 @@ def _reference_states(sol, kind, ham, params, exact, periodic, exact_from=(None,
         return sol.z, "rk8", _own_track(sol), gamma
     if kind == "exact":
         if exact is None:
-            raise InputError("reference='exact' needs an exact solution (exact= or a problem)")
+            raise InputError(_no_exact_solution(None))
         states = np.asarray(exact(sol.t), dtype=float).reshape(sol.y.shape)
         if sol.t.size and t0 == sol.t[0]:
             _check_exact_start(states[0], sol.y[0])
@@ -400,6 +415,8 @@ def diagnose(
     kind = reference
     if isinstance(kind, str) and kind == "auto":
         kind = _auto_reference(sol, exact, notes)
+    if isinstance(kind, str) and kind == "exact" and exact is None:
+        raise InputError(_no_exact_solution(problem))
     t, y = sol.t, sol.y
     rule = str(sol.options.get("tolerance_rule", "componentwise"))
     delta = tolerance(y, sol.atol, sol.rtol, rule)
