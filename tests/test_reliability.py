@@ -168,6 +168,9 @@ def test_2_sigterm_during_the_run_writes_partial_results_and_exits_1(tmp_path):
     saved = Solution.load(out / "solution.npz")
     assert saved.status is Status.INTERRUPTED and len(saved) == summary["nodes"] > 10
     assert saved.t[-1] < 4000 and np.all(np.isfinite(saved.y))
+    # the run's own message names the signal: "(KeyboardInterrupt)" beside
+    # "stopped by SIGTERM" before (QA)
+    assert saved.message.startswith("Interrupted (SIGTERM) near t = "), saved.message
     assert not list(out.glob(".*")), list(out.glob(".*"))  # no temp file, no lock
 
 

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
 from hamrkq._floats import MIN_RTOL
+from hamrkq._interruption import interrupted_near
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.baselines import PREFIX, SCIPY_SOLVER_HOMES
 from hamrkq.errors import InputError, OptionError
@@ -311,7 +312,7 @@ def _drive(solver, nodes, times, keep_every, max_steps, progress, t0, t_end):
                 progress(float((solver.t - t0) / (t_end - t0)), float(solver.t))
     except KeyboardInterrupt:
         status = Status.INTERRUPTED
-        message = f"Interrupted (KeyboardInterrupt) near t = {float(good[0])!r}."
+        message = interrupted_near(good[0])
     if since_kept:
         # A run that stopped early keeps its last accepted node whatever keep_every says.
         nodes.add(good[0], good[1], track)

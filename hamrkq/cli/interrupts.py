@@ -19,6 +19,8 @@ import sys
 import threading
 from collections.abc import Iterator
 
+from hamrkq._interruption import RECEIVED
+
 __all__ = [
     "QUICK_REPORT",
     "Terminated",
@@ -40,8 +42,9 @@ class Terminated(KeyboardInterrupt):
 
 
 #: Names of the signals received while the current command ran, SIGINT
-#: (Ctrl-C) included (see :func:`signals_received`).
-_RECEIVED: list[str] = []
+#: (Ctrl-C) included (see :func:`signals_received`); the messages of the
+#: runs they stop name them (:func:`hamrkq._interruption.cause`).
+_RECEIVED = RECEIVED
 
 
 def signals_received() -> tuple[str, ...]:

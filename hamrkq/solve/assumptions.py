@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hamrkq._interruption import interrupted_near
 from hamrkq.events import terminal_cut
 from hamrkq.result import Solution, Status, kept_nodes_note
 from hamrkq.rkq.driver import RunOutput
@@ -166,5 +167,5 @@ def breach_message(breach: Breach, t_kept: np.ndarray) -> str:
         "carry it out of its domain."
     )
     if breach.interrupted_near is not None:
-        text = f"Interrupted (KeyboardInterrupt) near t = {breach.interrupted_near!r}. " + text
+        text = f"{interrupted_near(breach.interrupted_near)} {text}"
     return text + kept_nodes_note(len(t_kept))

@@ -11,6 +11,7 @@ import math
 import sys
 
 from hamrkq._floats import EPS
+from hamrkq._interruption import interrupted_near
 from hamrkq.result import Status, kept_nodes_note
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.solve.dispatch import (
@@ -103,7 +104,7 @@ def message(status: Status, out: RunOutput, task: Task) -> str:
             + _steps_needed(out, task)
         )
     elif status is Status.INTERRUPTED:
-        text = f"Interrupted (KeyboardInterrupt) near t = {float(t)!r}."
+        text = interrupted_near(t)
     elif status is Status.TOLERANCE_UNATTAINABLE:
         text = unattainable(out, task)
     else:  # pragma: no cover - other statuses come from other methods

@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hamrkq._interruption import interrupted_near
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.result import Solution, Status, kept_nodes_note
 from hamrkq.rkq.driver import RunOutput
@@ -139,5 +140,5 @@ def crossing_message(crossing: Crossing, ham: Hamiltonian, t_kept: np.ndarray) -
         "run on without the certificate."
     )
     if crossing.interrupted_near is not None:
-        text = f"Interrupted (KeyboardInterrupt) near t = {crossing.interrupted_near!r}. " + text
+        text = f"{interrupted_near(crossing.interrupted_near)} {text}"
     return text + kept_nodes_note(len(t_kept))
