@@ -27,6 +27,7 @@ from hamrkq.events import event_specs
 from hamrkq.options import applicable_settings
 from hamrkq.result import freeze_in_place
 from hamrkq.solve import solve
+from hamrkq.solve.arguments import checked_eval_times
 from hamrkq.symbolic.hamiltonian import Hamiltonian
 
 __all__ = ["Request", "build_request"]
@@ -420,12 +421,4 @@ def _problem_initial(
 def _t_eval(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
     if t_eval is None:
         return None
-    times = _column("t_eval", t_eval)
-    if np.ndim(t_eval) != 1 or times.size == 0:
-        raise InputError(f"t_eval must be a non-empty 1-D array, got {_show(t_eval)}")
-    lo, hi = min(t0, t_end), max(t0, t_end)
-    if not np.all(np.isfinite(times)) or times.min() < lo or times.max() > hi:
-        raise InputError(f"t_eval must lie within t_span ({t0!r}, {t_end!r})")
-    if np.any(np.diff(times) * math.copysign(1.0, t_end - t0) <= 0):
-        raise InputError("t_eval must be strictly monotonic in the direction of integration")
-    return times
+    return checked_eval_times(_column("t_eval", t_eval), t_eval, t0, t_end)

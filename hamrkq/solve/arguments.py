@@ -219,15 +219,47 @@ def eval_times(t_eval: Any, t0: float, t_end: float) -> np.ndarray | None:
         times = np.array([_real("t_eval", v) for v in np.ravel(np.asarray(t_eval, dtype=object))])
     except TypeError:
         raise InputTypeError(f"t_eval must be an array of numbers, got {_show(t_eval)}") from None
+    return checked_eval_times(times, t_eval, t0, t_end)
+
+
+def checked_eval_times(times: np.ndarray, t_eval: Any, t0: float, t_end: float) -> np.ndarray:
+    """``times`` (``t_eval`` as floats) if they are a non-empty 1-D array
+    inside ``[t0, t_end]``, monotonic in the direction of integration."""
     if np.ndim(t_eval) != 1 or times.size == 0:
         raise InputError(f"t_eval must be a non-empty 1-D array, got {_show(t_eval)}")
     lo, hi = min(t0, t_end), max(t0, t_end)
     if not np.all(np.isfinite(times)) or times.min() < lo or times.max() > hi:
-        raise InputError(f"t_eval must lie within t_span ({t0!r}, {t_end!r})")
+        raise InputError(
+            f"t_eval must lie within t_span ({t0!r}, {t_end!r}){_outside(times, lo, hi)}"
+        )
     steps = np.diff(times) * (1.0 if t_end >= t0 else -1.0)
     if np.any(steps <= 0):
         raise InputError("t_eval must be strictly monotonic in the direction of integration")
     return times
+
+
+#: A value of ``t_eval`` this many ulps or fewer past an end of ``t_span`` is
+#: named as rounding (``np.arange(4) * 0.1`` ends at 0.30000000000000004).
+ROUNDING_ULPS = 4
+
+
+def _outside(times: np.ndarray, lo: float, hi: float) -> str:
+    """The first value of ``times`` outside ``[lo, hi]``, for the message;
+    a few ulps past an end is said to be a rounding, with what avoids it."""
+    bad = np.flatnonzero(~np.isfinite(times) | (times < lo) | (times > hi))
+    k = int(bad[0])
+    value = float(times[k])
+    end = lo if value < lo else hi
+    if not math.isfinite(value) or value == end:
+        return f": t_eval[{k}] = {value!r}"
+    ulps = abs(value - end) / np.spacing(abs(end)) if end != 0.0 else math.inf
+    if ulps > ROUNDING_ULPS:
+        return f": t_eval[{k}] = {value!r}"
+    return (
+        f": t_eval[{k}] = {value!r} is {ulps:.0f} ulp{'s' if ulps > 1 else ''} past {end!r}, "
+        "a rounding (of np.arange's steps, say): np.linspace(t0, t_end, n) ends on t_end "
+        "exactly, or clip the values to the span"
+    )
 
 
 def progress_callback(progress: Any, label: str) -> Callable[[float, float], None] | None:
