@@ -140,3 +140,20 @@ def test_sigint_writes_partial_results_marked_partial_and_exits_1(tmp_path):
     assert "Interrupted (KeyboardInterrupt)" in child.stdout
     assert {"solution.npz", "summary.json"} <= set(summary["files"])
     assert not list(out.glob(".*.tmp"))  # no temporary file left behind
+
+
+def test_an_interrupted_runs_message_names_the_running_commands_signal_only():
+    """The message names SIGTERM while the command that received it runs;
+    a library call after it in the same process is told KeyboardInterrupt."""
+    from hamrkq._interruption import RECEIVED, interrupted_near
+    from hamrkq.cli.interrupts import sigterm_as_interrupt
+
+    assert interrupted_near(2) == "Interrupted (KeyboardInterrupt) near t = 2.0."
+    with sigterm_as_interrupt():
+        RECEIVED.append("SIGTERM")  # as its handler records it
+        assert interrupted_near(2.5) == "Interrupted (SIGTERM) near t = 2.5."
+        RECEIVED.append("SIGINT")
+        assert interrupted_near(2.5).startswith("Interrupted (KeyboardInterrupt)")
+        RECEIVED.append("SIGTERM")
+    assert RECEIVED[-1] == "SIGTERM"  # kept for the command's exit
+    assert interrupted_near(3).startswith("Interrupted (KeyboardInterrupt)")

@@ -19,7 +19,7 @@ import sys
 import threading
 from collections.abc import Iterator
 
-from hamrkq._interruption import RECEIVED
+from hamrkq._interruption import COMMAND_RUNNING, RECEIVED
 
 __all__ = [
     "QUICK_REPORT",
@@ -148,9 +148,11 @@ def sigterm_as_interrupt() -> Iterator[None]:
     previous_int = signal.getsignal(signal.SIGINT)
     if previous_int is signal.default_int_handler:
         signal.signal(signal.SIGINT, _raise_interrupt)
+    COMMAND_RUNNING[0] = True
     try:
         yield
     finally:
+        COMMAND_RUNNING[0] = False
         signal.signal(signal.SIGTERM, previous)
         if previous_int is signal.default_int_handler:
             signal.signal(signal.SIGINT, previous_int)
