@@ -297,6 +297,24 @@ def test_cli_poincare_energy_with_the_other_coordinate_0_not_allowed(tmp_path):
     assert data["t"].size > 0 and np.max(np.abs(data["y"][:, 0] - 0.5)) < 1e-8
 
 
+@pytest.mark.parametrize("orbits", [1, 3, 5])
+def test_energy_orbits_step_past_a_singular_point(orbits):
+    """Kepler on q1 = 0 at E = -1/2: the allowed interval -2 < q2 < 2 holds
+    the centre, where H = -inf; the middle of an odd number of orbits sat on
+    it and the momentum's solve failed with a traceback (QA).  It starts half
+    a spacing further up, on the energy surface like the others."""
+    kepler = load_problem("kepler")
+    q0, p0 = energy_orbits(kepler.hamiltonian, -0.5, orbits, "q1 = 0", kepler.parameters)
+    spacing = 4.0 / (orbits + 1)
+    middle = orbits // 2
+    assert q0[middle, 1] == pytest.approx(0.5 * spacing, abs=1e-12)
+    assert np.all(q0[:, 0] == 0.0) and np.all(q0[:, 1] != 0.0) and np.all(p0[:, 0] > 0.0)
+    energy = numeric_of(kepler.hamiltonian).energy(
+        0.0, np.hstack([q0, p0]), kepler.parameter_array
+    )
+    np.testing.assert_allclose(energy, -0.5, rtol=1e-14)
+
+
 def test_energy_orbits_interval_ends_are_the_roots():
     # Before: the ends were points of a grid of step 1e-3 (the seeds off by
     # up to 1e-3 from evenly spread between -0.43969 and 0.67365).

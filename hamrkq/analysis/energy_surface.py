@@ -96,16 +96,38 @@ def energy_orbits(
 
     from scipy.optimize import brentq  # 0.1 s to import: only when seeding orbits
 
-    xs = np.linspace(lo, hi, orbits + 2)[1:-1]
+    xs = _seeds(h_line, lo, hi, orbits, name, section)
     q0 = np.zeros((orbits, 2))
     p0 = np.zeros((orbits, 2))
     for j, x in enumerate(xs):
         top = 1.0
-        while h_at(x, top) < energy:
+        while h_at(x, top) < energy and top < 1e300:
             top *= 2.0
+        if not h_at(x, top) >= energy:
+            raise InputError(
+                f"no momentum {ham.p[k].name} >= 0 gives H = {energy!r} at {name} = {x!r} "
+                f"on the section {section!r}"
+            )
         pk = brentq(lambda s, x=x: h_at(x, s) - energy, 0.0, top, xtol=1e-15, rtol=1e-15)
         q0[j, k], q0[j, other], p0[j, k] = value, x, pk
     return q0, p0
+
+
+def _seeds(h_line: Any, lo: float, hi: float, orbits: int, name: str, section: str) -> np.ndarray:
+    """``orbits`` points spread evenly inside ``(lo, hi)``; one where ``H`` is
+    singular (Kepler's centre, where ``H(q, p = 0) = -inf``: the middle one
+    of an odd number on its section through the centre, whose momentum
+    solve failed with a traceback, found by QA) moved half a spacing up."""
+    xs = np.linspace(lo, hi, orbits + 2)[1:-1]
+    singular = ~np.isfinite(h_line(xs))
+    xs[singular] += 0.5 * (hi - lo) / (orbits + 1)
+    still = ~np.isfinite(h_line(xs))
+    if np.any(still):
+        raise InputError(
+            f"H is singular at {name} = {float(xs[still][0])!r} on the section {section!r} "
+            "and half a spacing from it: choose another number of orbits"
+        )
+    return xs
 
 
 def _section_constant(ham: Hamiltonian, section: str, coordinate: str, rhs: str) -> sp.Expr:
