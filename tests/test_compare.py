@@ -40,10 +40,23 @@ def test_compare_writes_every_promised_file(kepler_compare):
     status, stdout, stderr, out = kepler_compare
     assert status == 0, stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(FILES.values())
+    listed = json.loads((out / FILES["json"]).read_text())["files"]
+    assert sorted(listed) == sorted(FILES.values())
     for name in (FILES["work_precision"], FILES["energy"]):
         data = (out / name).read_bytes()
         assert data.startswith(PNG_MAGIC) and len(data) > 10_000
     assert "matched error" in stdout and "wrote" in stdout
+
+
+def test_comparison_json_lists_only_the_files_written(tmp_path):
+    """With --no-plots it listed the two figures it had not written (QA)."""
+    out = tmp_path / "cmp"
+    argv = ["compare", "harmonic", "--methods", "rk34q8", "--quick", "--t-end", "2"]
+    status, _, stderr = run_cli([*argv, "--no-plots", "--out", str(out)])
+    assert status == 0, stderr
+    listed = json.loads((out / FILES["json"]).read_text())["files"]
+    assert sorted(listed) == sorted(p.name for p in out.iterdir())
+    assert FILES["work_precision"] not in listed
 
 
 def test_tables_agree_and_hold_every_column(kepler_compare):

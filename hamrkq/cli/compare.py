@@ -346,10 +346,11 @@ def compare_command(args: argparse.Namespace) -> int:
     command = _command_line(args, methods)
     out.text(FILES["markdown"], markdown(result, command=command))
     out.text(FILES["csv"], _csv(result))
-    out.json(FILES["json"], {**result.to_dict(), "files": list(FILES.values())})
     if not args.no_plots:
         out.figure(FILES["work_precision"], work_precision_figure(result), dpi=args.dpi)
         out.figure(FILES["energy"], energy_figure(result), dpi=args.dpi)
+    # last, listing what was written (it listed the figures after --no-plots too; QA)
+    out.json(FILES["json"], {**result.to_dict(), "files": [*out.written, FILES["json"]]})
     print(f"{problem.name}: headline at {result.matched_by()}")
     print("\n".join(_table(result.selected(), result.reference_accuracy)))
     for note in result.notes:
