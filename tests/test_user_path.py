@@ -87,6 +87,30 @@ def test_file_binds_initial_values_by_name(tmp_path):
     assert named.with_parameters(k=8).q0[0] == pytest.approx(np.sqrt(8) / 2)
 
 
+@pytest.mark.parametrize(("coordinates", "momenta"), [("x", "p"), ("q", "v"), ("q", "p")])
+def test_file_lists_bind_where_a_coordinate_is_named_q_or_a_momentum_p(
+    tmp_path, coordinates, momenta
+):
+    """The lists q = [...] and p = [...] were refused as "mixing the lists q
+    with the names p" where the momentum is named p (QA)."""
+    text = f"""
+name = "named_qp"
+coordinates = ["{coordinates}"]
+momenta = ["{momenta}"]
+hamiltonian = "{momenta}**2/2 + {coordinates}**2/2"
+
+[initial]
+q = [0.5]
+p = [0.25]
+
+[integration]
+t_span = [0, 1]
+"""
+    path = tmp_path / "named_qp.toml"
+    path.write_text(text)
+    assert hamrkq.load_problem(path).y0.tolist() == [0.5, 0.25]
+
+
 @pytest.mark.parametrize(
     ("initial", "fragments"),
     [

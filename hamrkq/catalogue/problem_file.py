@@ -319,6 +319,13 @@ class _FileReader:
         state = [*q_names, *p_names]
         listed = [k for k in initial if k in ("q", "p") and k not in state]
         named = [k for k in initial if k not in listed]
+        if set(initial) == {"q", "p"}:
+            # The two lists, also where a coordinate is named q or a momentum
+            # p (x and p: "mixes the lists q with the names p", found by QA):
+            # read by name, they would bind a name that is not the state's or
+            # leave one out, but where the names are q and p themselves, and
+            # then both readings are the same.
+            listed, named = ["q", "p"], []
         if listed and named:
             raise self.error(
                 f"mixes the lists {' and '.join(listed)} with the names "
