@@ -295,6 +295,9 @@ def test_show_prints_initial_values_as_the_shortest_text_of_the_double(capsys):
     assert main(["show", "kepler"]) == 0
     # printed with %.17g: q0 = [0.40000000000000002, 0]
     assert "initial: q0 = [0.4, 0], p0 = [0, 2]" in capsys.readouterr().out
+    # and the parameters: with %g Arenstorf's mu read 0.0122775 (QA)
+    assert main(["show", "arenstorf"]) == 0
+    assert "parameters:  mu = 0.012277471\n" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("command", [["run", "harmonic"], ["show", "kepler"], ["list"]])

@@ -278,7 +278,9 @@ def _cmd_show(args: argparse.Namespace) -> int:
     out.append(f"coordinates: {', '.join(map(str, ham.q))}")
     out.append(f"momenta:     {', '.join(map(str, ham.p))}")
     if ham.parameters:
-        values = ", ".join(f"{s} = {problem.parameters[s.name]:g}" for s in ham.parameters)
+        values = ", ".join(
+            f"{s} = {_shortest(problem.parameters[s.name])}" for s in ham.parameters
+        )
         out.append(f"parameters:  {values}")
     out += ["", "H =", f"  {fmt(ham.H)}", "", "Hamilton's equations:"]
     for y, f in zip(ham.state, ham.rhs, strict=True):
