@@ -386,6 +386,9 @@ def test_newton_failure_is_a_status_with_partial_results(method):
     t_fail = float(res.t[-1])
     assert 3.0 < t_fail < 30.0  # a long stretch was integrated before the failure
     assert f"t={t_fail!r}" in res.message and "Newton" in res.message
+    # what helps and what is kept, as every other failed run says (QA)
+    assert "What works: a smaller step" in res.message
+    assert res.message.endswith(f" The {res.t.size} nodes computed so far are kept.")
     assert res.steps == round(t_fail / 0.1) and res.y.shape == (res.steps + 1, 2)
     assert np.isfinite(res.y).all()
     # the partial trajectory is right: the same run stopped earlier agrees with it
@@ -422,6 +425,8 @@ def test_non_finite_state_is_a_status():
     assert np.isfinite(res.y).all() and res.t[-1] < 50.0
     assert res.t.size == 2  # the first node and the last good one
     assert f"non-finite at t={float(res.t[-1]) + 0.5!r}" in res.message
+    assert "What works: a smaller step" in res.message
+    assert res.message.endswith(" The 2 nodes computed so far are kept.")
 
 
 def test_overflow_in_an_implicit_method_is_a_status():
@@ -443,6 +448,8 @@ def test_max_steps_stops_with_status():
     res = integrate_fixed("verlet", pendulum_rhs, None, [0.0, 1.0], 0.0, 10.0, 0.1, max_steps=30)
     assert res.status is Status.MAX_STEPS and res.steps == 30
     assert res.t[-1] == pytest.approx(3.0) and "max_steps=30" in res.message
+    assert "What works: a larger max_steps" in res.message
+    assert res.message.endswith(f" The {res.t.size} nodes computed so far are kept.")
 
 
 # -- the mesh, storage and counters ------------------------------------------------

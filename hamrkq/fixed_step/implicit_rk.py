@@ -35,6 +35,7 @@ import numpy as np
 import sympy as sp
 
 from hamrkq._floats import EPS
+from hamrkq._interruption import interrupted_near
 
 __all__ = [
     "GAUSS_TABLEAUS",
@@ -435,5 +436,5 @@ def gauss_integrate(
                 stored += 1
     except KeyboardInterrupt:
         out.failure = "interrupted"
-        out.reason = f"interrupted at t={float(mesh.time(reached))!r}"
+        out.reason = interrupted_near(mesh.time(reached))
     return mesh.stored_rows(ys, stored, reached, y), reached, out

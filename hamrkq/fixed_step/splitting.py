@@ -26,6 +26,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from hamrkq._interruption import interrupted_near
 from hamrkq.fixed_step.implicit_rk import LoopOutcome, Mesh, Rhs
 
 __all__ = ["SPLITTING_SCHEMES", "SplittingScheme", "splitting_integrate"]
@@ -132,5 +133,5 @@ def splitting_integrate(scheme: SplittingScheme, rhs: Rhs, y0, mesh: Mesh, param
                 stored += 1
     except KeyboardInterrupt:
         out.failure = "interrupted"
-        out.reason = f"interrupted at t={float(mesh.time(reached))!r}"
+        out.reason = interrupted_near(mesh.time(reached))
     return mesh.stored_rows(ys, stored, reached, last), reached, out

@@ -43,7 +43,7 @@ from hamrkq.fixed_step.implicit_rk import (
     gauss_integrate,
 )
 from hamrkq.fixed_step.splitting import SPLITTING_SCHEMES, SplittingScheme, splitting_integrate
-from hamrkq.result import Solution, Status
+from hamrkq.result import Solution, Status, kept_nodes_note
 
 __all__ = [
     "FIXED_STEP_METHODS",
@@ -152,6 +152,21 @@ _STATUS = {
     "interrupted": Status.INTERRUPTED,
 }
 
+#: What helps a run that failed, by failure (the messages named none; QA).
+_REMEDIES = {
+    "newton": (
+        " What works: a smaller step (the Newton iteration of an implicit step converges "
+        "where the step is short against the motion's time scales)."
+    ),
+    "non_finite": (
+        " What works: a smaller step (an explicit splitting grows without bound where its "
+        "step is too long for the fastest oscillation: verlet needs h omega < 2), unless "
+        "the state leaves the domain of H there."
+    ),
+    "interrupted": "",
+    "max_steps": " What works: a larger max_steps, or a longer step.",
+}
+
 
 def integrate_fixed(
     method: str,
@@ -251,16 +266,19 @@ def integrate_fixed(
 
     status = _STATUS[out.failure]
     if out.failure is not None:
-        message = out.reason
+        reason = out.reason[:1].upper() + out.reason[1:].rstrip(".") + "."
+        message = reason + _REMEDIES[out.failure]
     elif mesh.stop < mesh.steps:
         status = Status.MAX_STEPS
         message = (
             f"{method}: max_steps={mesh.stop} reached at t={float(mesh.time(reached))!r} "
-            f"({mesh.steps} steps needed to reach t1={t1!r})"
+            f"({mesh.steps} steps needed to reach t1={t1!r})." + _REMEDIES["max_steps"]
         )
     else:
         message = f"{method} reached t={t1!r} in {_steps_taken(mesh)}"
     idx = mesh.kept_indices(reached)
+    if status is not Status.SUCCESS:
+        message += kept_nodes_note(idx.size)
     t = mesh.t0 + idx * mesh.h
     if reached == mesh.steps:
         t[-1] = mesh.t1
