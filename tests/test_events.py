@@ -182,6 +182,18 @@ def test_bad_event_tables_are_rejected(tmp_path):
     path = _copy_harmonic(tmp_path, '\n[[events]]\nexpression = "q"\nwhen = 1\n')
     with pytest.raises(ProblemFileError, match="events"):
         load_problem(path)
+    # The refusals name the line, like every other key's (they had none; QA).
+    lines = path.read_text().splitlines()
+    header = len(lines) - 2  # the 1-based line of the [[events]] just appended
+    assert lines[header - 1] == "[[events]]"
+    with pytest.raises(ProblemFileError, match=rf"harmonic.toml:{header}, key 'events\[0\]'"):
+        load_problem(path)
+    second = _copy_harmonic(
+        tmp_path, '\n[[events]]\nexpression = "q"\n[[events]]\nexpression = "y"\n'
+    )
+    last = len(second.read_text().splitlines())
+    with pytest.raises(ExpressionError, match=rf":{last}, key 'events\[1\].expression'"):
+        load_problem(second)
     with pytest.raises(InputError, match="not coordinates"):
         hamrkq.solve(OSC, [1.0], [0.0], (0.0, 1.0), events=sp.Symbol("x"))
     # The system's q is real=True; a plain Symbol("q") is another symbol to

@@ -118,6 +118,9 @@ class _FileReader:
 
     def _line(self, key: str) -> int | None:
         """Best-effort line number of a dotted key (tomllib gives none)."""
+        entry = re.match(r"^(\w+)\[(\d+)\](?:\.(\w+))?$", key)
+        if entry:  # "events[1].expression": in the second [[events]] table
+            return self._entry_line(entry.group(1), int(entry.group(2)), entry.group(3))
         key = re.sub(r"\[\d+\]$", "", key)  # "initial.q[0]": the line of "q = [...]"
         *section, last = key.split(".")
         table = ".".join(section)
@@ -130,6 +133,23 @@ class _FileReader:
                 if current == key:
                     return number
             elif current == table and re.match(rf"^\"?{re.escape(last)}\"?\s*=", stripped):
+                return number
+        return None
+
+    def _entry_line(self, array: str, index: int, key: str | None) -> int | None:
+        """The line of ``key`` in the ``index``-th ``[[array]]`` table (of
+        its header without a key); the ``[[events]]`` tables' refusals had
+        none (QA)."""
+        seen, inside = -1, False
+        for number, line in enumerate(self.text.splitlines(), start=1):
+            stripped = line.strip()
+            if stripped.startswith("["):
+                inside = re.match(rf"^\[\[\s*{re.escape(array)}\s*\]\]", stripped) is not None
+                seen += inside
+                inside = inside and seen == index
+                if inside and key is None:
+                    return number
+            elif inside and re.match(rf"^\"?{re.escape(key)}\"?\s*=", stripped):
                 return number
         return None
 
