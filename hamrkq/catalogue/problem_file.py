@@ -339,7 +339,7 @@ class _FileReader:
         state = [*q_names, *p_names]
         listed = [k for k in initial if k in ("q", "p") and k not in state]
         named = [k for k in initial if k not in listed]
-        if set(initial) == {"q", "p"}:
+        if set(initial) == {"q", "p"} and all(isinstance(v, list) for v in initial.values()):
             # The two lists, also where a coordinate is named q or a momentum
             # p (x and p: "mixes the lists q with the names p", found by QA):
             # read by name, they would bind a name that is not the state's or
