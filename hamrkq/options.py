@@ -349,6 +349,36 @@ def applicable_settings(method: str, settings: Mapping[str, Any]) -> dict[str, A
     return {key: value for key, value in settings.items() if key not in refused}
 
 
+def inapplicable_setting(settings: Mapping[str, Any]) -> tuple[str, str] | None:
+    """The first setting of a problem file's ``[integration]`` that its own
+    method (``method``, else ``"auto"``) has no use for, and why; or a
+    fixed-step method without its ``step``.  None if there is none.
+
+    A file's settings are defaults for the method it names: where a caller
+    runs another method, those that do not apply to it are left out
+    (:func:`applicable_settings`); but a file whose settings do not apply
+    to its own method says something it does not do (``z_method`` beside
+    ``auto``'s default, ``step`` without a fixed-step method: both ran
+    without them, found by QA)."""
+    method = str(settings.get("method", "auto"))
+    if method in FIXED_STEP_METHODS and settings.get("step") is None:
+        return "method", f"method {method!r} is a fixed-step method: its step must be set too"
+    refused, why = refused_options(method)
+    for key in settings:
+        if key in refused:
+            return key, f"{key} does not apply to the file's method {method!r} ({why})"
+        if key == "step" and method not in FIXED_STEP_METHODS:
+            return key, (
+                f"step applies only to the fixed-step methods, not to the file's method {method!r}"
+            )
+        if key == "z_method" and not z_method_applies(method):
+            return key, (
+                f"z_method chooses among the order-8 quenchers: the file's method {method!r} "
+                "has no quencher it can replace"
+            )
+    return None
+
+
 def z_method_applies(method: str) -> bool:
     """Whether ``z_method`` (an 8th-order quencher) can replace ``method``'s
     quencher: the paper's ``rk34q8`` (also as SciPy's OdeSolver) and the

@@ -112,6 +112,42 @@ t_span = [0, 1]
 
 
 @pytest.mark.parametrize(
+    ("settings", "key", "fragment"),
+    [
+        ('z_method = "dop853"', "z_method", "the file's method 'auto' has no quencher"),
+        ('method = "rk34"\nglobal_error_estimate = "tangent"', "global_error_estimate", "rk34"),
+        ("step = 0.1", "step", "applies only to the fixed-step methods"),
+        ('method = "gauss4"', "method", "its step must be set too"),
+        ('method = "verlet"\nstep = 0.1\natol = 1e-8', "atol", "a fixed-step method"),
+    ],
+)
+def test_file_settings_its_own_method_has_no_use_for_are_refused(
+    tmp_path, settings, key, fragment
+):
+    """They were dropped without a word (the run ran auto without z_method,
+    rk34 without a Gamma, auto without the step; QA); gauss4 without its
+    step was refused only when run."""
+    text = NAMED.format(name="named", initial=BY_NAME).replace("atol = 1e-9", settings)
+    path = tmp_path / "named.toml"
+    path.write_text(text)
+    with pytest.raises(ProblemFileError, match=f"key 'integration.{key}': .*{fragment}"):
+        hamrkq.load_problem(path)
+
+
+def test_file_settings_for_its_own_method_are_kept_where_another_runs(tmp_path):
+    """rk34q8's z_method in its own file: left out of a run of auto."""
+    text = NAMED.format(name="named", initial=BY_NAME).replace(
+        "atol = 1e-9", 'method = "rk34q8"\nz_method = "cooper_verner"\natol = 1e-9'
+    )
+    path = tmp_path / "named.toml"
+    path.write_text(text)
+    problem = hamrkq.load_problem(path)
+    assert problem.integration["z_method"] == "cooper_verner"
+    sol = hamrkq.solve(problem, method="auto", t_span=(0, 0.5))
+    assert sol.success and sol.options["z_method"] != "cooper_verner"
+
+
+@pytest.mark.parametrize(
     ("initial", "fragments"),
     [
         (BY_NAME + "\nq = [1, 2]", ["key 'initial.", "mixes the lists q with the names"]),

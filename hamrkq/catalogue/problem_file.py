@@ -297,6 +297,7 @@ class _FileReader:
         for key, value in integration.items():
             if key != "t_span":
                 self.setting(key, value, [*q_names, *p_names])
+        self.settings_apply(integration)
         span = integration.pop("t_span", None)
         if not isinstance(span, list) or len(span) != 2:
             raise self.error("t_span must be a list of two values", "integration.t_span")
@@ -440,6 +441,16 @@ class _FileReader:
                 f"of {', '.join(state)}), got a list of {len(value)}",
                 f"integration.{key}",
             )
+
+    def settings_apply(self, integration: Mapping[str, Any]) -> None:
+        """Refuse ``[integration]`` settings its own method has no use for
+        (:func:`hamrkq.options.inapplicable_setting`)."""
+        from hamrkq.options import inapplicable_setting
+
+        found = inapplicable_setting({k: v for k, v in integration.items() if k != "t_span"})
+        if found is not None:
+            key, why = found
+            raise self.error(why, f"integration.{key}")
 
     def exact_spec(self, symbols: Mapping[str, sp.Symbol], n: int) -> dict | None:
         table = self.table("exact")
