@@ -333,6 +333,21 @@ def test_toda_spectrum_is_conserved_along_the_flow():
     assert np.ptp(sol.y[0]) > 0.5  # the particles did move
 
 
+def test_toda_description_says_which_invariants_its_start_tests():
+    """The symmetric start keeps the motion where tr L^3 = 3/4 at every
+    state: any Runge-Kutta method keeps it to rounding, which the file now
+    says (it called the problem a test of the invariants besides H; QA).
+    The start the description suggests makes it a test."""
+    problem = hamrkq.load_problem("toda")
+    trace_l3 = problem.invariant_functions()["trace_L3"]
+    spreads = []
+    for q0, p0 in ((None, None), ([0.0, 0.2, -0.1], [1.0, 0.3, -0.5])):
+        sol = hamrkq.solve(problem, q0=q0, p0=p0, method="scipy:RK45", atol=1e-4, rtol=1e-4)
+        spreads.append(np.ptp(trace_l3(sol.t, sol.y)))
+    assert spreads[0] < 1e-14 < 1e-4 < spreads[1]
+    assert "tr L**3 is 3/4 at every state" in problem.description
+
+
 def test_arenstorf_orbit_closes_after_one_period():
     problem = hamrkq.load_problem("arenstorf")
     ham, prm = problem.hamiltonian, problem.parameter_array
