@@ -444,3 +444,28 @@ def test_a_damaged_kernel_is_compiled_again_and_runs_compiled(tmp_path, kernel_a
         assert "the step kernel: compiled 1 function(s)" in done.stdout
     after = _solve(env)
     assert after == before
+
+
+def test_a_damaged_compiled_marker_is_rewritten_not_raised():
+    """The marker that says a system's code is in numba's cache, garbled
+    (bytes 0xff 0xfe), made every run end in UnicodeDecodeError's traceback
+    (QA); it is read as absent and written again."""
+    import numpy as np
+    import sympy as sp
+
+    import hamrkq
+    from hamrkq.backends import codegen
+
+    q, p = sp.symbols("q p", real=True)
+    ham = hamrkq.Hamiltonian(p**2 / 2 + q**2 / 2 + q**4 / 977, q=[q], p=[p])  # its own files
+    hamrkq.solve(ham, [1.0], [0.0], (0.0, 1.0), backend="numba")
+    key = codegen.cache_key(ham)
+    module = codegen.module_path(codegen.part_key(key, "system"))
+    marker = module.with_suffix(compiled.COMPILED_SUFFIX)
+    marker.write_bytes(b"\xff\xfe")
+    assert compiled.is_compiled(ham) in (True, False)  # in this process it was compiled
+    compiled.mark_compiled(module)
+    assert marker.read_text() == compiled._numba_cache_setting()
+    marker.write_bytes(b"\xff\xfe")
+    sol = hamrkq.solve(ham, [1.0], [0.0], (0.0, 1.0), backend="numba")
+    assert sol.success and np.isfinite(sol.y).all()

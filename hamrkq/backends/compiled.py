@@ -324,10 +324,20 @@ def _numba_cache_setting() -> str:
     return "NUMBA_CACHE_DIR=" + os.environ.get("NUMBA_CACHE_DIR", "")
 
 
+def _marker_text(marker: Path) -> str | None:
+    """A compiled-marker's text, or None where it cannot be read as text (a
+    damaged one: bytes 0xff 0xfe made every run end in UnicodeDecodeError's
+    traceback, found by QA; it only saves a later helper, and is rewritten)."""
+    try:
+        return marker.read_text()
+    except (OSError, ValueError):
+        return None
+
+
 def mark_compiled(path: Path) -> None:
     marker = path.with_suffix(COMPILED_SUFFIX)
     try:
-        if not marker.exists() or marker.read_text() != _numba_cache_setting():
+        if _marker_text(marker) != _numba_cache_setting():
             marker.write_text(_numba_cache_setting())
     except OSError:  # a read-only cache: the marker only saves a later helper
         pass
@@ -345,10 +355,7 @@ def is_compiled(ham: Hamiltonian, gamma: str = "off") -> bool:
         return True
     for part in parts:
         marker = codegen.module_path(codegen.part_key(key, part)).with_suffix(COMPILED_SUFFIX)
-        try:
-            if marker.read_text() != _numba_cache_setting():
-                return False
-        except OSError:
+        if _marker_text(marker) != _numba_cache_setting():
             return False
     return True
 
