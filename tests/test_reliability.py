@@ -97,6 +97,31 @@ def test_1_a_stale_lock_of_a_killed_process_is_taken_over(tmp_path):
     assert sorted(p.name for p in (tmp_path / "CC").iterdir()) == ["a.txt"]
 
 
+def test_1_a_directory_made_unwritable_during_the_command_is_released_quietly(
+    tmp_path, monkeypatch
+):
+    """The lock file cannot be removed from a directory whose permissions
+    changed during the run: that ended the command in a traceback, exit 1,
+    where its results' failed writes had said exit 3 (QA).  The lock is let
+    go of; the next command takes over the file left."""
+    from pathlib import Path
+
+    out = OutputDir(tmp_path / "CC")
+    unlink = Path.unlink
+
+    def refused(self, *args, **kwargs):
+        if self.name == LOCK_NAME:
+            raise PermissionError(13, "Permission denied", str(self))
+        return unlink(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "unlink", refused)
+    out.close()  # raised PermissionError
+    monkeypatch.undo()
+    assert (tmp_path / "CC" / LOCK_NAME).exists()
+    OutputDir(tmp_path / "CC", force=True).close()  # not held: taken over
+    assert not (tmp_path / "CC" / LOCK_NAME).exists()
+
+
 @pytest.mark.slow
 def test_1_two_concurrent_runs_into_one_out_never_mix_their_files(tmp_path):
     """Before: both exited 0, leaving one run's summary.json beside the other's
