@@ -88,10 +88,25 @@ def test_a_damaged_generated_file_is_rebuilt_with_one_warning(tmp_path, damage):
     assert path.stat().st_mtime_ns == stamp
 
 
+def test_another_systems_intact_file_under_this_ones_name_is_rebuilt(tmp_path):
+    """The checksum covered the text alone: one system's file copied under
+    another's name was imported, and the other system's equations
+    integrated, to SUCCESS (QA).  It hashes the file's name too."""
+    ham, other = _system(0.0301), _system(0.0302)
+    path = Path(codegen.load_module(ham, tmp_path).__file__)
+    source = Path(codegen.load_module(other, tmp_path).__file__)
+    _forget(path)
+    path.write_text(source.read_text())
+    with pytest.warns(HamrkqWarning, match="checksum does not match its contents and name"):
+        module = codegen.load_module(ham, tmp_path)
+    y = [0.7, -0.3]
+    np.testing.assert_allclose(_rhs(module, y), _exact_rhs(0.0301, y), rtol=1e-15)
+
+
 def test_every_cached_file_ends_with_the_checksum_of_its_text(tmp_path):
     module = codegen.load_module(_system(0.01), tmp_path)
     body, last = Path(module.__file__).read_text().rstrip("\n").rsplit("\n", 1)
-    assert last == source_cache._checksum_line(body + "\n")
+    assert last == source_cache._checksum_line(Path(module.__file__).stem, body + "\n")
     assert source_cache.damage_of(Path(module.__file__)) is None
 
 

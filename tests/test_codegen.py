@@ -365,7 +365,8 @@ def test_load_module_writes_once_and_names_the_file_by_the_key(tmp_path):
     assert files[0].stat().st_mtime_ns == stamp  # and never rewritten
     body, checksum = files[0].read_text().rstrip("\n").rsplit("\n", 1)
     assert body + "\n" == codegen.generate_source(ham)
-    assert checksum == codegen.CHECKSUM_PREFIX + hashlib.sha256((body + "\n").encode()).hexdigest()
+    named = f"{files[0].stem}\n{body}\n"  # the name hashed with the text
+    assert checksum == codegen.CHECKSUM_PREFIX + hashlib.sha256(named.encode()).hexdigest()
 
 
 def test_the_tangent_part_is_generated_on_its_first_use(tmp_path):
@@ -415,7 +416,7 @@ def test_an_existing_file_is_imported_not_regenerated(tmp_path, monkeypatch):
     """A second process finds the file: nothing is derived or printed again."""
     ham = hamrkq.load_problem("toda").hamiltonian
     path = tmp_path / f"{codegen.MODULE_PREFIX}{codegen.cache_key(ham)[:32]}.py"
-    path.write_text(source_cache.sealed(codegen.generate_source(ham)))
+    path.write_text(source_cache.sealed(codegen.generate_source(ham), path.stem))
     monkeypatch.setattr(codegen, "generate_source", lambda *a: pytest.fail("regenerated"))
     module = codegen.load_module(ham, tmp_path)
     assert module.DIM == 6

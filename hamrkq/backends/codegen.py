@@ -91,8 +91,10 @@ __all__ = [
 ]
 
 #: Version of the generated text's layout; part of every cache key, so a change
-#: to this module's output never meets a stale file.
-CODEGEN_VERSION = 16
+#: to this module's output never meets a stale file.  17: the checksum line
+#: hashes the file's name too (:func:`~hamrkq.backends.source_cache.sealed`),
+#: and files of 16 are not read as damaged: they are not looked up.
+CODEGEN_VERSION = 17
 # cache_key's memo: one digest per Hamiltonian object, dropped with it.
 _KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 

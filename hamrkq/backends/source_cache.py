@@ -41,8 +41,10 @@ MODULE_PREFIX = "hamrkq_gen_"
 _MODULE_LOCK = threading.Lock()
 _LOADED: dict[str, ModuleType] = {}
 #: The last line of every cached file: ``CHECKSUM_PREFIX`` + the SHA-256 of
-#: the text before it.  A file whose last line does not match (truncated,
-#: emptied, edited) is rebuilt, not imported.
+#: the file's name (its stem, which holds its key) and the text before it.
+#: A file whose last line does not match (truncated, emptied, edited, or a
+#: file of another key copied under this one's name) is rebuilt, not
+#: imported.
 CHECKSUM_PREFIX = "# hamrkq-checksum: sha256="
 
 
@@ -91,23 +93,28 @@ def _import_file(name: str, path: Path) -> ModuleType:
     return module
 
 
-def _checksum_line(text: str) -> str:
-    return CHECKSUM_PREFIX + hashlib.sha256(text.encode("utf-8")).hexdigest()
+def _checksum_line(name: str, text: str) -> str:
+    """The checksum line of ``text`` in the file named ``name`` (its stem):
+    the name is hashed with the text, so that a file of another system copied
+    under this one's name is not taken for it (with the text's checksum
+    alone it was, and the wrong equations were integrated: found by QA)."""
+    return CHECKSUM_PREFIX + hashlib.sha256(f"{name}\n{text}".encode()).hexdigest()
 
 
-def sealed(text: str) -> str:
-    """``text`` followed by its checksum line."""
+def sealed(text: str, name: str) -> str:
+    """``text`` followed by its checksum line, for the file named ``name``."""
     if not text.endswith("\n"):
         text += "\n"
-    return text + _checksum_line(text) + "\n"
+    return text + _checksum_line(name, text) + "\n"
 
 
 def damage_of(path: Path) -> str | None:
     """Why the cached file at ``path`` cannot be trusted, or None if it is intact.
 
-    Intact means: readable as UTF-8, and its last line is the checksum of the
-    text before it (so an emptied, truncated or edited file is caught before
-    it is imported, or compiled by numba).
+    Intact means: readable as UTF-8, and its last line is the checksum of
+    its name and the text before it (so an emptied, truncated or edited file,
+    or another key's file under this name, is caught before it is imported,
+    or compiled by numba).
     """
     try:
         text = path.read_text(encoding="utf-8")
@@ -118,8 +125,8 @@ def damage_of(path: Path) -> str | None:
         return "it is empty"
     if not last.startswith(CHECKSUM_PREFIX):
         return "its checksum line is missing (truncated?)"
-    if last != _checksum_line(body + "\n"):
-        return "its checksum does not match its contents"
+    if last != _checksum_line(path.stem, body + "\n"):
+        return "its checksum does not match its contents and name"
     return None
 
 
@@ -148,7 +155,7 @@ def load_source(key: str, make_source, directory: Path | None = None) -> ModuleT
             return module
         directory.mkdir(parents=True, exist_ok=True)
         if not path.exists():
-            _write_atomically(path, sealed(make_source()))
+            _write_atomically(path, sealed(make_source(), name))
         else:
             damage = damage_of(path)
             if damage is not None:
@@ -158,7 +165,7 @@ def load_source(key: str, make_source, directory: Path | None = None) -> ModuleT
                     HamrkqWarning,
                     stacklevel=_caller_level(),
                 )
-                _write_atomically(path, sealed(make_source()))
+                _write_atomically(path, sealed(make_source(), name))
         module = _import_file(name, path)
         _LOADED[str(path)] = module
         return module
