@@ -469,3 +469,24 @@ def test_a_damaged_compiled_marker_is_rewritten_not_raised():
     marker.write_bytes(b"\xff\xfe")
     sol = hamrkq.solve(ham, [1.0], [0.0], (0.0, 1.0), backend="numba")
     assert sol.success and np.isfinite(sol.y).all()
+
+
+def test_a_cache_folder_that_cannot_be_used_compiles_without_a_cache(tmp_path):
+    """A file where numba's subfolder of the kernel's cache folder belongs:
+    numba fell back to the folder beside the function's source, and wrote the
+    kernel's machine code into hamrkq's own package (QA).  Now the function
+    is compiled without a cache, with one warning naming the folder, and
+    nothing is written beside its source."""
+    cache = tmp_path / "kernel-x"
+    _compile(cache)
+    (subfolder,) = [p for p in cache.iterdir() if p.is_dir()]
+    shutil.rmtree(subfolder)
+    subfolder.write_text("junk")
+    beside = Path(__file__).parent / "__pycache__"
+    before = sorted(beside.glob("*_sample*")) if beside.exists() else []
+    with pytest.warns(HamrkqWarning, match=f"the cache folder {cache} cannot hold") as caught:
+        dispatcher = _compile(cache)
+    assert len(_hamrkq_warnings(caught)) == 1
+    assert dispatcher(0.3) == pytest.approx(_expected(0.3), rel=1e-15)
+    after = sorted(beside.glob("*_sample*")) if beside.exists() else []
+    assert after == before and subfolder.read_text() == "junk"

@@ -276,9 +276,13 @@ def _load_overload(cache: Any, load: Callable[[], Any]) -> Any:
 
 
 @functools.cache
-def _checked_cache_type() -> type:
+def _checked_cache_type(in_folder: bool = False) -> type:
     """numba's ``FunctionCache`` with the checks (defined on first use, so
-    that importing this module does not import numba)."""
+    that importing this module does not import numba); ``in_folder``: only
+    in numba's cache directory, the folder hamrkq gave (writable, or
+    read-only), never numba's other places (beside the function's source:
+    the kernel's machine code was written into hamrkq's own package where
+    its folder could not be used, found by QA)."""
     from numba.core import caching
 
     class CheckedCacheFile(caching.IndexDataCacheFile):
@@ -332,9 +336,13 @@ def _checked_cache_type() -> type:
             caching.UserProvidedCacheLocator,
             ReadOnlyCacheLocator,
             *(
-                cls
-                for cls in caching.CompileResultCacheImpl._locator_classes
-                if cls is not caching.UserProvidedCacheLocator
+                ()
+                if in_folder
+                else (
+                    cls
+                    for cls in caching.CompileResultCacheImpl._locator_classes
+                    if cls is not caching.UserProvidedCacheLocator
+                )
             ),
         )
 
@@ -375,9 +383,13 @@ def compile_checked(
     signature: Any,
     flags: dict[str, Any],
     damaged: list[DamagedEntry],
+    in_folder: bool = False,
 ) -> Any:
     """``numba.njit(signature, cache=True, **flags)(function)``, with the
-    cache checked (see the module's description).
+    cache checked (see the module's description); with ``in_folder``, cached
+    only in numba's cache directory (the folder hamrkq gave), or, where that
+    cannot be used, compiled without a cache (the dispatcher's ``_cache`` is
+    then numba's null cache, ``uncached_reason`` says why).
 
     Parameters
     ----------
@@ -404,12 +416,20 @@ def compile_checked(
     # As numba.njit(signature, cache=True) does, with the checked cache put in
     # before the first compile.
     dispatcher = numba.njit(**flags)(function)
-    cache = _checked_cache_type()(dispatcher.py_func)
-    dispatcher._cache = cache
+    try:
+        cache = _checked_cache_type(in_folder)(dispatcher.py_func)
+    except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
+        if not in_folder:
+            raise
+        dispatcher.uncached_reason = error_text(exc)
+        cache = None  # numba's null cache stays
+    else:
+        dispatcher._cache = cache
     try:
         with typeinfer.register_dispatcher(dispatcher):
             dispatcher.compile(signature)
     finally:
-        damaged.extend(cache.damaged)
+        if cache is not None:
+            damaged.extend(cache.damaged)
     dispatcher.disable_compile()
     return dispatcher

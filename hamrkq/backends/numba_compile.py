@@ -165,7 +165,9 @@ def jit(
             warnings.simplefilter("ignore", numba.NumbaWarning)
             linking = callees_optimised_once() if callees_once else contextlib.nullcontext()
             with linking:
-                dispatcher = compile_checked(numba, function, signature, flags, damaged)
+                dispatcher = compile_checked(
+                    numba, function, signature, flags, damaged, in_folder=cache_dir is not None
+                )
             _account(dispatcher, started)
     except Exception as exc:
         if not damaged:
@@ -184,7 +186,30 @@ def jit(
             f"({time.perf_counter() - started:.1f} s) and cached the new code"
         )
     _warn_not_saved(function, dispatcher, time.perf_counter() - started)
+    _warn_uncached(function, dispatcher, cache_dir, time.perf_counter() - started)
     return dispatcher
+
+
+#: Cache folders that could not be used at all, already warned about.
+_UNUSABLE_WARNED: set[str] = set()
+
+
+def _warn_uncached(
+    function: Callable, dispatcher: Any, folder: str | None, seconds: float
+) -> None:
+    """One warning per cache folder that could not be used at all (neither
+    written nor read: a file where numba's subfolder belongs, say): the
+    function was compiled without a cache, as every process will."""
+    reason = getattr(dispatcher, "uncached_reason", None)
+    if reason is None or str(folder) in _UNUSABLE_WARNED:
+        return
+    _UNUSABLE_WARNED.add(str(folder))
+    warn(
+        f"hamrkq: the cache folder {folder} cannot hold "
+        f"{function.__module__}.{function.__qualname__} ({reason}): compiled it without a "
+        f"cache ({seconds:.1f} s), and every process will compile it again; removing the "
+        "folder lets hamrkq build it anew"
+    )
 
 
 #: Read-only cache folders already warned about in this process.
