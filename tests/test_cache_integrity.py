@@ -88,6 +88,25 @@ def test_a_damaged_generated_file_is_rebuilt_with_one_warning(tmp_path, damage):
     assert path.stat().st_mtime_ns == stamp
 
 
+def test_a_damaged_file_that_cannot_be_rebuilt_is_an_error_not_a_warning(tmp_path, monkeypatch):
+    """In a read-only cache it warned "rebuilding it", twice, and rebuilt
+    nothing (QA): now the error says why the file cannot be used, once, as
+    the compiled backend's reason to fall back, and nothing is claimed."""
+    ham = _system(0.0303)
+    path = Path(codegen.load_module(ham, tmp_path).__file__)
+    _forget(path)
+    path.write_text("emptied\n")
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(source_cache, "_write_atomically", read_only)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(OSError, match=r"is damaged .* and cannot be rebuilt there"):
+            codegen.load_module(ham, tmp_path)
+
+
 def test_another_systems_intact_file_under_this_ones_name_is_rebuilt(tmp_path):
     """The checksum covered the text alone: one system's file copied under
     another's name was imported, and the other system's equations

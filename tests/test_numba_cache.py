@@ -160,6 +160,22 @@ def test_a_read_only_cache_folder_is_loaded_from_and_never_written(tmp_path, mon
     assert "is read-only" in text and "every process will compile it again" in text
 
 
+def test_a_damaged_file_in_a_read_only_folder_is_said_once_not_to_be_kept(tmp_path, monkeypatch):
+    """It said "compiled it again and cached the new code", then that the
+    folder is read-only and nothing was kept (QA): one warning, true."""
+    _compile(tmp_path)
+    (data,) = _files(tmp_path, ".nbc")
+    data.write_bytes(_garbled(data.read_bytes()))
+    _read_only(monkeypatch, tmp_path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        again = _compile(tmp_path)
+    assert again(0.3) == pytest.approx(_expected(0.3), rel=1e-15)
+    (text,) = _hamrkq_warnings(caught)
+    assert "is damaged" in text and "the new code is not kept" in text, text
+    assert "cached the new code" not in text
+
+
 def test_every_file_ends_with_its_checksum_and_plain_numba_still_reads_it(tmp_path):
     _compile(tmp_path)
     files = _files(tmp_path, ".nbi") + _files(tmp_path, ".nbc")

@@ -180,11 +180,22 @@ def jit(
         ) from exc
     finally:
         numba.config.CACHE_DIR = previous
+    not_saved = getattr(getattr(dispatcher, "_cache", None), "not_saved", None) or ()
     for damage in damaged:
+        # In a read-only folder the new code is not kept: said here, once
+        # (it said "cached the new code", then that the folder is read-only;
+        # found by QA).
+        kept = (
+            "; its folder is read-only, so the new code is not kept and every process will "
+            "compile it again"
+            if not_saved
+            else " and cached the new code"
+        )
         warn(
             f"hamrkq: {_damage_text(function, damage)}; compiled it again "
-            f"({time.perf_counter() - started:.1f} s) and cached the new code"
+            f"({time.perf_counter() - started:.1f} s){kept}"
         )
+        _READ_ONLY_WARNED.update(not_saved)
     _warn_not_saved(function, dispatcher, time.perf_counter() - started)
     _warn_uncached(function, dispatcher, cache_dir, time.perf_counter() - started)
     return dispatcher

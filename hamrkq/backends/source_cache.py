@@ -159,13 +159,22 @@ def load_source(key: str, make_source, directory: Path | None = None) -> ModuleT
         else:
             damage = damage_of(path)
             if damage is not None:
+                try:
+                    _write_atomically(path, sealed(make_source(), name))
+                except OSError as exc:
+                    # A read-only cache: said once, as the reason the compiled
+                    # backend cannot be used, and not "rebuilding it" (twice,
+                    # with nothing rebuilt: found by QA).
+                    raise OSError(
+                        f"the cached file {path} is damaged ({damage}) and cannot be "
+                        f"rebuilt there ({exc.strerror or exc})"
+                    ) from exc
                 warnings.warn(
-                    f"hamrkq: the cached file {path} is damaged ({damage}); "
-                    "rebuilding it (and the compiled code kept beside it)",
+                    f"hamrkq: the cached file {path} is damaged ({damage}): "
+                    "rebuilt it (and the compiled code kept beside it)",
                     HamrkqWarning,
                     stacklevel=_caller_level(),
                 )
-                _write_atomically(path, sealed(make_source(), name))
         module = _import_file(name, path)
         _LOADED[str(path)] = module
         return module
