@@ -528,7 +528,8 @@ def test_a_files_settings_for_another_method_apply_where_they_can(tmp_path):
     )
     files = {
         "fixed": 'method = "gauss4"\nstep = 0.05',
-        "quencher": 'z_method = "cooper_verner"',
+        # (with the method it applies to: a file's own method must use its settings)
+        "quencher": 'method = "rk34q8"\nz_method = "cooper_verner"',
     }
     for name, settings in files.items():
         path = tmp_path / f"{name}.toml"
