@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -185,6 +186,9 @@ class CompiledKernel:
         #: member's tableaus are immutable and passed to every run of it, and
         #: their nine arrays were a third of the key's cost.
         self._tableaus: dict[int, tuple[Any, tuple]] = {}
+        #: Seconds spent compiling or loading signatures in calls, so far: a
+        #: run's driver counts them as compiling, not as integration.
+        self.build_seconds = 0.0
 
     def __reduce__(self):
         # Compiled entry points cannot be pickled; another process uses its own
@@ -199,6 +203,7 @@ class CompiledKernel:
             with LOCK:
                 entry = self._by_types.get(key)
                 if entry is None:
+                    started = time.perf_counter()
                     dispatcher = _compile_kernel(_signature((rhs, tangent, jac, *args)))
                     # The compiled code's own entry point: the dispatcher would
                     # type every argument again to choose among its one
@@ -207,6 +212,7 @@ class CompiledKernel:
                     (entry,) = (cres.entry_point for cres in dispatcher.overloads.values())
                     self.dispatchers[key] = dispatcher
                     self._by_types[key] = entry
+                    self.build_seconds += time.perf_counter() - started
         return entry(rhs, tangent, jac, *args)
 
     def _describe_tableaus(self, tableaus: tuple) -> tuple:
