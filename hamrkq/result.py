@@ -249,6 +249,11 @@ class Solution:
         Names of the state components, ``q``'s then ``p``'s.
     atol, rtol : ndarray, shape (2n,)
         The tolerances, per component.
+    q, p : ndarray, shape (N, n)
+        The coordinates and the momenta: the halves of ``y``.
+    success : bool
+        True for ``SUCCESS`` and ``TERMINAL_EVENT`` (the run ended where it
+        was asked to, as SciPy counts it).
     partial : bool
         True when the run stopped early (the nodes are those computed so far).
     sol : callable or None
@@ -323,7 +328,8 @@ class Solution:
 
     @property
     def success(self) -> bool:
-        """True when the integration reached the end of the interval."""
+        """True when the run ended where it was asked to: at the end of the
+        interval, or at a terminal event (:attr:`Status.success`)."""
         return self.status.success
 
     @property

@@ -94,6 +94,8 @@ def test_short_reproduction_writes_every_promised_file(short_run):
     assert summary["settings"]["t_span"] == [0.0, 100.0]
     text = (out / "comparison.md").read_text()
     assert "shortened run" in text
+    # stdout says it too, under its header, before the paper's numbers (QA)
+    assert stdout.splitlines()[1].startswith("This is a shortened run"), stdout
     expected = hamrkq.load_problem("prentice2011").expected
     rows = summary["comparison"]
     assert [r["key"] for r in rows] == list(PAPER_KEYS)

@@ -57,6 +57,9 @@ def load_problem(name_or_path: str | Path, **parameters: float) -> Problem:
         The file is malformed, or its ``[exact]`` solution does not solve
         Hamilton's equations at these parameter values; the message names the
         file, the line when known, and the key.
+    InputError, InputTypeError
+        A parameter override names no parameter of the problem, or its value
+        is not a finite real number.
     """
     if not isinstance(name_or_path, str | Path):
         raise InputTypeError(

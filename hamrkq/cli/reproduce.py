@@ -173,6 +173,8 @@ def _prentice2011(args: argparse.Namespace, out: OutputDir) -> int:
     out.json("summary.json", summary)
 
     print(f"prentice2011 (Prentice 2011, Section 4) over [{t_span[0]:g}, {t_span[1]:g}]")
+    if t_span != PAPER_T_SPAN:  # as comparison.md says it (stdout did not; QA)
+        print(_interval_note(t_span[1]).replace("**", ""))
     print(format_table((r["quantity"], f"paper {r['paper']} | this run {r['run']} | "
                         f"true {r['true']}") for r in rows))  # fmt: skip
     print(promise_line(diags["RK34Q8"]))

@@ -103,8 +103,9 @@ class Hamiltonian:
         real numbers within the range of a double (not ``Integer(10)**400``
         or ``Float("1e400")``), ``pi``, ``E``, ``+ * **`` and the elementary
         functions (trigonometric, hyperbolic and their inverses, ``exp``,
-        ``log``, ``Abs``, ``sign``), not undefined functions, integrals,
-        ``I`` or infinities.
+        ``log``, ``Abs``, ``sign``; ``Abs`` and ``sign`` of symbols declared
+        real, ``sp.symbols("q p", real=True)``, whose derivatives SymPy then
+        knows), not undefined functions, integrals, ``I`` or infinities.
 
     Examples
     --------
