@@ -459,6 +459,23 @@ def test_the_witness_measures_the_rounding_of_the_time():
         assert sol.options["quencher_precision"] == "double"  # double-double does not help
 
 
+def test_the_time_floors_note_names_a_shift_only_where_the_start_is_far_from_zero(monkeypatch):
+    """A run from t = 0 to 50 was told "t_span shifted to start at 0" (QA):
+    its times are the span's own."""
+    from types import SimpleNamespace
+
+    from hamrkq.solve import unattainable
+
+    monkeypatch.setattr(unattainable, "time_rounding_limits", lambda task: True)
+    monkeypatch.setattr(
+        unattainable, "time_scale", lambda task: max(abs(task.t0), abs(task.t_end))
+    )
+    from_zero = unattainable._time_floor_note(SimpleNamespace(t0=0.0, t_end=50.0))
+    far = unattainable._time_floor_note(SimpleNamespace(t0=1e8, t_end=1e8 + 300.0))
+    assert "H depends on t" in from_zero and "Integrating from t = 0" not in from_zero
+    assert "Integrating from t = 0 lowers it" in far
+
+
 def test_double_double_asked_for_where_the_time_rounding_matters_is_refused():
     """Its stage times are doubles, so it does not go below the time's
     rounding, and it runs no witness that would see it: asked for at
