@@ -326,6 +326,25 @@ def test_a_stop_where_rtol_shrinks_a_crossing_components_tolerance_says_so():
     assert "passing close to zero" not in plain.message
 
 
+@pytest.mark.parametrize("method", ["auto", "rk56q9"])
+def test_a_stop_whose_next_node_is_at_a_crossing_names_the_tiny_atol(method):
+    """rtol 1e-6 with atol 1e-30 on the oscillator: the run stops where a
+    step would end near a zero of p, with the last node kept away from it;
+    the message named only more quencher steps, other members and
+    double-double (whose own rerun failed too), not the atol (QA)."""
+    sol = hamrkq.solve(HARMONIC, [1.0], [0.0], (0.0, 10 * np.pi), atol=1e-30, rtol=1e-6,
+                       method=method)  # fmt: skip
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert "cross zero along the run, where max(atol, rtol |y|) falls to atol (1e-30)" in (
+        sol.message
+    )
+    assert "A larger atol" in sol.message
+    # with an atol the same run reaches the end
+    fine = hamrkq.solve(HARMONIC, [1.0], [0.0], (0.0, 10 * np.pi), atol=1e-9, rtol=1e-6,
+                        method=method)  # fmt: skip
+    assert fine.status is Status.SUCCESS
+
+
 @pytest.mark.parametrize("method", ["auto", "rk34q8", "scipy:DOP853"])
 def test_a_step_limit_with_output_times_names_the_last_time_kept(method):
     # With t_eval the steps reach past the last output time kept; the

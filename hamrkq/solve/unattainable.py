@@ -226,7 +226,7 @@ def _near_zero(out: RunOutput, task: Task) -> str:
     k = int(np.argmax(np.abs(out.gamma[-1]) / last))
     typical = float(np.max(delta[:, k]))
     if task.rtol[k] <= 0 or last[k] >= NEAR_ZERO * typical:
-        return ""
+        return _crossing_zero(out, task, delta)
     name = task.ham.names[k]
     return (
         f" The component closest to its limit, {name} = {out.y[-1, k]:.3g}, is passing "
@@ -234,6 +234,37 @@ def _near_zero(out: RunOutput, task: Task) -> str:
         f"{last[k] / typical:.2g} of its largest along the run ({typical:.3g}), and it "
         f"falls to atol = {task.atol[k]:.3g} at zero, so there the limit is atol's: a "
         "larger atol (the error acceptable where a component is near zero) helps too."
+    )
+
+
+#: An ``atol`` below this fraction of a component's largest tolerance is too
+#: small to certify anything where the component passes zero.
+TINY_ATOL = 1e-3
+
+
+def _crossing_zero(out: RunOutput, task: Task, delta: np.ndarray) -> str:
+    """The sentence of :func:`_near_zero` where the last node is not near a
+    zero, but a component that crosses zero along the run has an ``atol``
+    too small to certify anything there: the step that stopped the run ends
+    near such a crossing.  The oscillator at rtol 1e-6, atol 1e-30 stopped
+    with ``auto`` at t = 30.68, the next node near p = 0, and its message
+    named only more quencher steps, other members and double-double (QA)."""
+    crossing = [
+        k
+        for k in range(out.y.shape[1])
+        if task.rtol[k] > 0
+        and task.atol[k] < TINY_ATOL * float(np.max(delta[:, k]))
+        and np.any(np.diff(np.signbit(out.y[:, k])))
+    ]
+    if not crossing:
+        return ""
+    names = ", ".join(task.ham.names[k] for k in crossing)
+    atol = float(min(task.atol[k] for k in crossing))
+    return (
+        f" {names} {'crosses' if len(crossing) == 1 else 'cross'} zero along the run, where "
+        f"max(atol, rtol |y|) falls to atol ({atol:.3g}): a step that ends near such a "
+        "crossing certifies nothing above atol. A larger atol (the error acceptable where a "
+        "component is near zero) is the first remedy."
     )
 
 
