@@ -928,6 +928,23 @@ def test_a_saturated_shadow_in_double_double_does_not_offer_a_floor_already_met(
     assert np.max(np.abs(sol.y - truth) / np.maximum(1e-8, 1e-5 * np.abs(truth))) <= 1.05
 
 
+def test_a_saturated_shadow_names_a_tighter_tolerance_not_a_looser_one():
+    """The pendulum just inside its separatrix (E = 1 - 1e-9) over three
+    periods: auto's shadow saturates at 1e-7 and the message named a looser
+    tolerance, which only lengthens the steps; at 1e-9 the run reaches the
+    end (QA).  Saturation does not depend on the tolerance, the shadow's
+    error falls with the steps."""
+    q, p = sp.symbols("q p", real=True)
+    pendulum = hamrkq.Hamiltonian(p**2 / 2 - sp.cos(q), q=[q], p=[p])
+    q0 = 2 * math.asin(math.sqrt((2 - 1e-9) / 2))
+    span = (0.0, 145.13)  # three periods, 12 K(m) with m = sin(q0 / 2)^2
+    stopped = hamrkq.solve(pendulum, [q0], [0.0], span, atol=1e-7)
+    assert stopped.status is Status.TOLERANCE_UNATTAINABLE and "shadow track" in stopped.message
+    assert "a tighter tolerance (shorter steps" in stopped.message
+    assert "looser tolerance" not in stopped.message
+    assert hamrkq.solve(pendulum, [q0], [0.0], span, atol=1e-9).status is Status.SUCCESS
+
+
 def test_auto_returns_its_run_that_reached_furthest():
     """:func:`hamrkq.solve.auto.returned_run`: the last run, or an earlier
     stop that reached further by more than 1 % of the interval, only where

@@ -309,15 +309,24 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         "node where it held."
     )
     grew = growth(out, task) > EXPONENTIAL_GROWTH
-    # (after the growth's sentence, which names them, the two remedies left
-    # are not named again)
-    looser = "" if grew else " What helps: a looser tolerance or a shorter interval."
+    # A tighter tolerance, not a looser one: the shadow's error is m^z times
+    # the quencher's, which falls with the pair's steps, and saturation does
+    # not depend on the tolerance.  A looser one was named, and it only
+    # lengthens the steps: the pendulum near its separatrix (E = 1 - 1e-9,
+    # three periods) stopped with auto at 1e-6, 1e-7 and 1e-8 and reached the
+    # end at 1e-9 and 1e-10 (found by QA).  (After the growth's sentence,
+    # which names them, the two remedies are not named again.)
+    tighter = (
+        "a tighter tolerance (shorter steps: the shadow's error, "
+        f"{member.z_substeps}^{member.z_order} times the quencher's, falls with them) or a "
+        "shorter interval"
+    )
+    looser = "" if grew else f" What helps: {tighter}."
     if grew:
         text += (
             " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
             "an unstable equilibrium or a separatrix, or in a burst at a close approach (Kepler "
-            "at e = 0.95 reads so at its pericentres): a looser tolerance or a shorter interval "
-            "is what works."
+            f"at e = 0.95 reads so at its pericentres): {tighter} is what works."
         )
     if tangent_follows_saturation(task):
         # auto ran the tangent estimate after this run, which stopped
@@ -350,7 +359,7 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         " What helps: global_error_estimate='tangent' (the error carried by the Jacobian, no "
         "shadow: more quencher steps do not change the shadow's error, the quencher's in one "
         f"step a step, {member.z_substeps}^{member.z_order} times its own{in_double})"
-        + ("." if grew else "; a looser tolerance or a shorter interval.")
+        + ("." if grew else f"; {tighter}.")
     )
 
 
