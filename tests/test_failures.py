@@ -339,6 +339,9 @@ def test_a_stop_whose_next_node_is_at_a_crossing_names_the_tiny_atol(method):
         sol.message
     )
     assert "A larger atol" in sol.message
+    # a max_step alone makes the estimate the tangent one, which stopped
+    # Henon-Heiles's auto run sooner (QA): the remedy says to keep the shadow
+    assert "a smaller max_step with global_error_estimate='shadow'" in sol.message
     # with an atol the same run reaches the end
     fine = hamrkq.solve(HARMONIC, [1.0], [0.0], (0.0, 10 * np.pi), atol=1e-9, rtol=1e-6,
                         method=method)  # fmt: skip

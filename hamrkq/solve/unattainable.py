@@ -169,10 +169,10 @@ def unattainable(out: RunOutput, task: Task) -> str:
                 f"({', '.join(map(repr, quiet))}) goes below the first, not the second."
             )
         else:
-            text += (
-                "this is double precision's floor for this orbit and interval, and no member "
-                "or step size in double goes below it."
-            )
+            # Not "no member or step size in double goes below it": rk34q12
+            # in double reached t = 499 on prentice2011 at 1e-12 where auto's
+            # run in double stopped at 129 (found by QA).
+            text += "this is double precision's floor for this orbit and interval."
         text += _time_floor_note(task) + _truncation_too(out, task)
         if double_double_can_help(task, under_cap=True) and not double_double_can_help(task):
             return text + _double_double_remedy(under_cap=True)
@@ -316,17 +316,20 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     # three periods) stopped with auto at 1e-6, 1e-7 and 1e-8 and reached the
     # end at 1e-9 and 1e-10 (found by QA).  (After the growth's sentence,
     # which names them, the two remedies are not named again.)
-    tighter = (
+    tighter_tolerance = (
         "a tighter tolerance (shorter steps: the shadow's error, "
-        f"{member.z_substeps}^{member.z_order} times the quencher's, falls with them) or a "
-        "shorter interval"
+        f"{member.z_substeps}^{member.z_order} times the quencher's, falls with them)"
     )
+    tighter = f"{tighter_tolerance} or a shorter interval"
     looser = "" if grew else f" What helps: {tighter}."
     if grew:
         text += (
             " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
             "an unstable equilibrium or a separatrix, or in a burst at a close approach (Kepler "
-            f"at e = 0.95 reads so at its pericentres): {tighter} is what works."
+            f"at e = 0.95 reads so at its pericentres): a shorter interval is what works, and "
+            f"{tighter_tolerance} delays the saturation where the growth allows it (not in a "
+            "burst at Kepler's e = 0.999999, which stops at the same pericentre at any "
+            "tolerance; found by QA)."
         )
     if tangent_follows_saturation(task):
         # auto ran the tangent estimate after this run, which stopped
