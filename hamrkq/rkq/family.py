@@ -79,11 +79,6 @@ def merge_pair(high: ButcherTableau, low: ButcherTableau) -> tuple[np.ndarray, .
     return tuple(_read_only(x) for x in (A, b, b_err, c))
 
 
-def _read_only(array: np.ndarray) -> np.ndarray:
-    array.setflags(write=False)
-    return array
-
-
 #: The quencher's arrays of a member without one: never read, and read-only
 #: like every tableau's, so that the kernel's argument types are the same
 #: (writeable, they made numba compile a second kernel for the pair alone,
