@@ -195,6 +195,7 @@ def jit(
             f"hamrkq: {_damage_text(function, damage)}; compiled it again "
             f"({time.perf_counter() - started:.1f} s){kept}"
         )
+    if damaged:  # the read-only folder is said above: not again below
         _READ_ONLY_WARNED.update(not_saved)
     _warn_not_saved(function, dispatcher, time.perf_counter() - started)
     _warn_uncached(function, dispatcher, cache_dir, time.perf_counter() - started)

@@ -19,6 +19,9 @@ import sys
 import threading
 from collections.abc import Iterator
 
+# The signals received while the current command runs, SIGINT (Ctrl-C)
+# included: kept in hamrkq._interruption, whose messages of the runs they
+# stop name them (see :func:`signals_received`).
 from hamrkq._interruption import COMMAND_RUNNING, RECEIVED
 
 __all__ = [
@@ -41,17 +44,11 @@ class Terminated(KeyboardInterrupt):
     like Ctrl-C."""
 
 
-#: Names of the signals received while the current command ran, SIGINT
-#: (Ctrl-C) included (see :func:`signals_received`); the messages of the
-#: runs they stop name them (:func:`hamrkq._interruption.cause`).
-_RECEIVED = RECEIVED
-
-
 def signals_received() -> tuple[str, ...]:
     """The signals other than Ctrl-C's (``"SIGTERM"``) the current command has
     received so far: a command says in its report that it was stopped by
     one, not by Ctrl-C."""
-    return tuple(name for name in _RECEIVED if name != "SIGINT")
+    return tuple(name for name in RECEIVED if name != "SIGINT")
 
 
 #: The note of a command stopped by SIGTERM before its report: the report is
@@ -73,7 +70,7 @@ def quick_report() -> bool:
 
 def interrupted() -> bool:
     """Whether Ctrl-C or SIGTERM has reached the current command."""
-    return bool(_RECEIVED)
+    return bool(RECEIVED)
 
 
 #: While a command writes its results (:func:`interrupts_held`): the
@@ -109,16 +106,16 @@ def raise_if_interrupted() -> None:
     for SIGTERM, KeyboardInterrupt for Ctrl-C), if any: for a command that
     keeps no partial results and would otherwise go on after the run it
     stopped (``hamrkq compare``'s sweep)."""
-    if not _RECEIVED:
+    if not RECEIVED:
         return
-    if _RECEIVED[-1] == "SIGINT":
+    if RECEIVED[-1] == "SIGINT":
         raise KeyboardInterrupt
-    raise Terminated(f"signal {_RECEIVED[-1]}")
+    raise Terminated(f"signal {RECEIVED[-1]}")
 
 
 def _raise_terminated(signum: int, frame: object) -> None:
     name = signal.Signals(signum).name
-    _RECEIVED.append(name)
+    RECEIVED.append(name)
     if _HOLDING[0]:
         _HELD.append(Terminated(f"signal {name}"))
         return
@@ -127,7 +124,7 @@ def _raise_terminated(signum: int, frame: object) -> None:
 
 def _raise_interrupt(signum: int, frame: object) -> None:
     # Python's own handler (signal.default_int_handler), recorded.
-    _RECEIVED.append("SIGINT")
+    RECEIVED.append("SIGINT")
     if _HOLDING[0]:
         _HELD.append(KeyboardInterrupt())
         return
@@ -143,7 +140,7 @@ def sigterm_as_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    _RECEIVED.clear()
+    RECEIVED.clear()
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
     previous_int = signal.getsignal(signal.SIGINT)
     if previous_int is signal.default_int_handler:
@@ -202,8 +199,8 @@ def interrupts_in_callbacks_delivered() -> Iterator[None]:
             previous(unraisable)
             return
         terminated = isinstance(exc, Terminated)
-        if _RECEIVED and _RECEIVED[-1] == ("SIGTERM" if terminated else "SIGINT"):
-            _RECEIVED.pop()  # its handler records it again
+        if RECEIVED and RECEIVED[-1] == ("SIGTERM" if terminated else "SIGINT"):
+            RECEIVED.pop()  # its handler records it again
         # From another thread, a moment later: raised here, in the hook, it
         # would be swallowed the same way.
         timer = threading.Timer(

@@ -328,8 +328,7 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
             "an unstable equilibrium or a separatrix, or in a burst at a close approach (Kepler "
             f"at e = 0.95 reads so at its pericentres): a shorter interval is what works, and "
             f"{tighter_tolerance} delays the saturation where the growth allows it (not in a "
-            "burst at Kepler's e = 0.999999, which stops at the same pericentre at any "
-            "tolerance; found by QA)."
+            "burst: Kepler at e = 0.999999 stops at the same pericentre at any tolerance)."
         )
     if tangent_follows_saturation(task):
         # auto ran the tangent estimate after this run, which stopped
