@@ -257,7 +257,6 @@ def _member_config(member: Member) -> dict[str, float]:
         "shadow_scale": member.shadow_scale,
         "error_exponent": 1.0 / (member.error_order + 1),
         "beta": member.beta,
-        "witness_stochastic": int(member.stage_rounding_dominates),
     }
     if len(_MEMBER_CONFIGS) >= 256:  # members made on the fly (replace): bounded
         _MEMBER_CONFIGS.clear()

@@ -163,8 +163,8 @@ class Member:
     @functools.cached_property
     def stage_rounding_dominates(self) -> bool:
         """Whether the quencher's weights magnify the rounding of its stage
-        values so much that the rounding witness must round them
-        stochastically to see it (:data:`STAGE_ROUNDING_WEIGHTS`)."""
+        values so much that the rounding witness runs at every tolerance
+        (:data:`STAGE_ROUNDING_WEIGHTS`)."""
         if not self.use_z:
             return False
         return float(np.abs(self.quencher.b).sum()) > STAGE_ROUNDING_WEIGHTS

@@ -88,7 +88,6 @@ CONFIG = np.dtype(
         ("beta", _F),  # PI controller: weight of the previous error
         ("witness", _I),  # 1: run the rounding witness beside the quencher
         ("witness_scale", _F),  # the witness's divergence times this estimates z's rounding
-        ("witness_stochastic", _I),  # 1: the witness rounds its stage values stochastically
         ("project", _I),  # 1: abandon when the projection of Gamma to t_end fails
         ("t_start", _F),  # t0, for the fraction of the interval covered
         ("project_from", _F),  # the projection is made from this fraction ...

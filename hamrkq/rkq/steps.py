@@ -401,9 +401,10 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     The witness is the quencher track again, from the same initial value on
     the same mesh, with every stage sum and the increment added in the
     opposite order (the same value, rounded differently), its stage values
-    rounded stochastically where the quencher's weights magnify their
-    rounding (``cfg["witness_stochastic"]``,
-    :data:`hamrkq.rkq.witness_rules.STAGE_ROUNDING_WEIGHTS`), and the parameters
+    rounded stochastically (rounded to nearest, the two tracks share the
+    rounding of every stage value, which ``h J`` magnifies: at Kepler's
+    pericentres and, with DOP853's weights, near the Moon on the Arenstorf
+    orbit; docs/algorithm.md), and the parameters
     moved by about an ulp (``witness_params``: constants formed from them,
     such as products, are rounded the same way at every evaluation, a
     systematic error that differs between the two only this way; a sum such
@@ -427,7 +428,7 @@ def witness_step(rhs, t, h, tab, cfg, params, work, attempt):
     seeds = float(tab.bz.shape[0] * whi.shape[0])  # per quencher step
     stages = float(tab.bz.shape[0] + 1)
     for k in range(n):
-        seed = (attempt * n + k) * seeds if cfg["witness_stochastic"] else -1.0
+        seed = (attempt * n + k) * seeds
         # Its stage times rounded stochastically too, from a substep's start
         # rounded so: where f depends on the time, their rounding (an ulp of
         # 1.5e-8 at t = 1e8) is the witness's to measure (time_seed).

@@ -1,5 +1,4 @@
-"""The rounding witness's rules: when it runs, how its divergence is read,
-and when it rounds its stage values stochastically.
+"""The rounding witness's rules: when it runs and how its divergence is read.
 
 The witness itself is :func:`hamrkq.rkq.steps.witness_step`; these are the
 numbers the driver configures it with (docs/algorithm.md, "The rounding
@@ -57,15 +56,17 @@ def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> flo
 #: (measured: 0.57 of it on prentice2011 at 1e-12, ``docs/algorithm.md``).
 WITNESS_SAFETY = 2.0
 
-#: A quencher whose weights' absolute values sum to more than this has the
-#: rounding witness round its stage values stochastically
-#: (``hamrkq.rkq.arith.round_stochastically``): each stage value's rounding
-#: reaches the step weighted by ``|b_j| |h J|``, which the witness, rounding
-#: to nearest, shares with the quencher.  DOP853's weights sum to 12.9 and
-#: let members return nodes of 1.17 and 1.29 delta on the Arenstorf orbit;
-#: Cooper-Verner's sum to 1.0, Verner 9's to 1.8, Feagin's to 1.3 and 1.7,
-#: where it is not needed and would cost about a quarter of a witness run's
-#: time (the outer solar system at rtol 1e-6: 0.097 -> 0.122 s).
+#: A quencher whose weights' absolute values sum to more than this runs the
+#: rounding witness at every tolerance (:func:`needs_witness`): each stage
+#: value's rounding reaches the step weighted by ``|b_j| |h J|``, and
+#: DOP853's weights, summing to 12.9, make that a floor far above other
+#: quenchers' (members returned nodes of 1.17 and 1.29 delta on the Arenstorf
+#: orbit before).  Cooper-Verner's sum to 1.0, Verner 9's to 1.8, Feagin's to
+#: 1.3 and 1.7.  The witness rounds its stage values stochastically for
+#: every quencher (:func:`hamrkq.rkq.steps.witness_step`): rounded to
+#: nearest it shared them with the quencher, and at Kepler's pericentres,
+#: where ``h J`` is large, missed Feagin 12's rounding thirtyfold
+#: (``benchmarks/witness_rounding.md``).
 STAGE_ROUNDING_WEIGHTS = 4.0
 
 #: With the shadow estimate, the witness runs where the tolerance is tighter
