@@ -111,7 +111,8 @@ def test_both_backends_agree():
 
 def test_auto_carries_prentice2011_at_1e_12():
     """The paper's problem over [0, 4000] at 1e-12: in double the quencher
-    stops at its floor near t = 129 (the rounding witness measures it);
+    stops at its floor near t = 80 (the rounding witness measures it; 129
+    while the witness rounded Feagin's stage values to nearest);
     auto runs again in double-double, where two quencher steps a step are
     projected past half the limit at t = 80 and abandoned, and three reach
     the end (every node within the tolerance against the long-double
@@ -125,7 +126,7 @@ def test_auto_carries_prentice2011_at_1e_12():
     # the message says which run was in which precision, and why each stopped
     assert (
         "ran rk78q12 with z_substeps=3, the quencher in double-double: the run with "
-        "z_substeps=2 and the rounding witness stopped at t = 129." in sol.message
+        "z_substeps=2 and the rounding witness stopped at t = 80." in sol.message
     )
     assert "(measured by the witness) is 0.04" in sol.message
     assert "double precision's floor" in sol.message

@@ -53,7 +53,8 @@ def tightest_tolerance(atol: np.ndarray, rtol: np.ndarray, y: np.ndarray) -> flo
 #: The rounding witness's divergence from the quencher, times this, is taken
 #: as the quencher's rounding error.  The divergence is one sample of a random
 #: walk; the factor covers a sample below the quencher's own rounding
-#: (measured: 0.57 of it on prentice2011 at 1e-12, ``docs/algorithm.md``).
+#: (measured: 0.68 of it on prentice2011 at 1e-12, 0.93 on the harmonic
+#: oscillator, ``benchmarks/algorithm_facts.txt``).
 WITNESS_SAFETY = 2.0
 
 #: A quencher whose weights' absolute values sum to more than this runs the

@@ -72,7 +72,7 @@ def projects(requested: SolveOptions, task: Task) -> bool:
     abandoned when its projection fails (:func:`rerun`).  Not where the
     rounding witness runs: near double precision's floor more quencher steps
     shrink the truncation error, not the rounding (prentice2011 at 1e-12, the
-    quencher in double, stops at the floor at t = 129, 143, 59 and 60 in 2,
+    quencher in double, stops at the floor at t = 80, 201, 54 and 60 in 2,
     3, 4 and 6 steps a step, ``benchmarks/algorithm_facts.txt``); a run that
     stops on the quencher's truncation error there still runs again."""
     return (

@@ -170,8 +170,9 @@ def unattainable(out: RunOutput, task: Task) -> str:
             )
         else:
             # Not "no member or step size in double goes below it": rk34q12
-            # in double reached t = 499 on prentice2011 at 1e-12 where auto's
-            # run in double stopped at 129 (found by QA).
+            # in double reached t = 578 on prentice2011 at 1e-12 where auto's
+            # run in double stopped at 80 (QA found 499 and 129 before the
+            # witness rounded every quencher's stage values stochastically).
             text += "this is double precision's floor for this orbit and interval."
         text += _time_floor_note(task) + _truncation_too(out, task)
         if double_double_can_help(task, under_cap=True) and not double_double_can_help(task):
