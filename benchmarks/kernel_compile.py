@@ -1,6 +1,6 @@
 """The step kernel's compile on an empty cache: callees optimised once, or the plain way.
 
-    python benchmarks/kernel_compile.py [--rounds N]
+    python benchmarks/kernel_compile.py [--rounds N] [--before CHECKOUT [--before-label TEXT]]
 
 Each round runs two fresh interpreters with empty caches, the modes
 alternating: one compiles the kernel with its ``register_jitable`` callees
@@ -14,7 +14,9 @@ the systems' own compile) and the warm run time of ``auto`` on prentice2011
 at 1e-10 (median of 5) with each kernel.  One more process per mode compiles
 the kernel under cProfile and records the time spent in LLVM's pass
 managers and its machine-code generation (``finalize_object``), with their
-counts (the profiler slows the rest of the compile, not these).
+counts (the profiler slows the rest of the compile, not these).  With
+``--before``, a third mode compiles the kernel of the checkout at CHECKOUT
+(hamrkq's way) in the same rounds, and its states join the comparison.
 
 Writes ``benchmarks/kernel_compile.json`` and ``benchmarks/kernel_compile.md``.
 """
@@ -36,6 +38,7 @@ import measure  # noqa: E402
 import startup  # noqa: E402
 
 MODES = {"once": {}, "plain": {"HAMRKQ_PLAIN_NUMBA_LINKING": "1"}}
+LABELS = {"once": "callees optimised once (hamrkq)", "plain": "plain numba"}
 
 CODE = """
 import json, os, statistics, sys, time
@@ -78,30 +81,38 @@ print(json.dumps({**llvm, "hamrkq": os.path.dirname(hamrkq.__file__)}))
 """
 
 
-def run(rounds: int) -> dict:
+def run(rounds: int, before: Path | None = None, before_label: str = "before") -> dict:
     root = HERE.parent
-    startup.compile_bytecode(root)
-    runs = {mode: [] for mode in MODES}
-    results = measure.begin_record(rounds, runs=runs, llvm={}, bit_identical=True)
+    modes = {mode: (root, extra) for mode, extra in MODES.items()}
+    labels = dict(LABELS)
+    if before is not None:
+        modes["before"] = (before, {})
+        labels["before"] = f"{before_label}, callees optimised once"
+    for checkout in {r for r, _ in modes.values()}:
+        startup.compile_bytecode(checkout)
+    runs = {mode: [] for mode in modes}
+    results = measure.begin_record(rounds, runs=runs, llvm={}, bit_identical=True, labels=labels)
     with tempfile.TemporaryDirectory(prefix="hamrkq-kernel-compile-") as tmp:
-        for mode, extra in MODES.items():
+        for mode, (checkout, extra) in modes.items():
             code = "import os\nos.environ.update(" + repr(extra) + ")\n" + PROFILED
-            _, info = startup._python(code, root, Path(tmp) / f"profiled-{mode}", "wait")
+            _, info = startup._python(code, checkout, Path(tmp) / f"profiled-{mode}", "wait")
             results["llvm"][mode] = info
             print(f"profiled {mode}: {info}", flush=True)
         for k in range(rounds):
             states = {}
-            for mode, extra in MODES.items():
+            for mode, (checkout, extra) in modes.items():
                 cache = Path(tmp) / f"{mode}-{k}"
                 code = "import os\nos.environ.update(" + repr(extra) + ")\n" + CODE
-                wall, info = startup._python(code, root, cache, compile_mode="wait")
+                wall, info = startup._python(code, checkout, cache, compile_mode="wait")
                 info["wall"] = wall
                 results["runs"][mode].append(info)
                 states[mode] = np.load(cache / "states.npy")
                 print(f"round {k} {mode}: kernel {info['kernel_s']:.2f} s, "
                       f"warm auto {info['warm_auto_s']:.3f} s", flush=True)  # fmt: skip
-            same = states["once"].shape == states["plain"].shape and bool(
-                np.array_equal(states["once"], states["plain"])
+            first = states["once"]
+            same = all(
+                other.shape == first.shape and bool(np.array_equal(other, first))
+                for other in states.values()
             )
             results["bit_identical"] = results["bit_identical"] and same
     return measure.end_record(results)
@@ -117,8 +128,7 @@ def table(results: dict) -> str:
         "warm `auto`, prentice2011 atol 1e-10 (median) |",
         "|---|---|---|---|---|---|",
     ]
-    labels = {"once": "callees optimised once (hamrkq)", "plain": "plain numba"}
-    for mode, label in labels.items():
+    for mode, label in results.get("labels", LABELS).items():
         each = ", ".join(f"{r['kernel_s']:.1f}" for r in results["runs"][mode])
         llvm = results["llvm"][mode]
         lines.append(
@@ -135,7 +145,7 @@ def table(results: dict) -> str:
         f"{results['finished']}: {m['cpu']}, {m['cores']} cores, numba {m.get('numba')}, "
         f"load average {m['load_average']} at the start and {results['load_average_end']} "
         f"at the end. The states of prentice2011 (rk34q8; auto at 1e-10) and "
-        f"outer_solar_system (auto) from the two kernels: {same}."
+        f"outer_solar_system (auto) from the kernels: {same}."
     )
     return head + "\n\n" + "\n".join(lines)
 
@@ -146,8 +156,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--name", default="kernel_compile", help="the record's file name (another numba release)"
     )
+    parser.add_argument("--before", type=Path, help="a checkout from before a change")
+    parser.add_argument("--before-label", default="before", help="what the table calls it")
     args = parser.parse_args(argv)
-    results = run(args.rounds)
+    before = None if args.before is None else args.before.resolve()
+    results = run(args.rounds, before, args.before_label)
     measure.save_record(HERE, args.name, results, table)
     return 0 if results["bit_identical"] else 1
 

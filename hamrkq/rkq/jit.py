@@ -26,10 +26,17 @@ except Exception:  # ImportError, or llvmlite failing to load
 
 
 def jitable(function: F) -> F:
-    """Mark ``function`` as callable from compiled kernel code."""
+    """Mark ``function`` as callable from compiled kernel code.
+
+    Without a C-callable wrapper (``no_cfunc_wrapper``): numba makes one for
+    every function it compiles, so that it can be passed as a first-class
+    function, which no kernel helper ever is (only the generated ``rhs``,
+    ``jac`` and ``rhs_jvp`` are, :mod:`hamrkq.backends.codegen`); the kernel's
+    91 wrappers were about a twelfth of its compile on an empty cache
+    (``benchmarks/kernel_compile.md``)."""
     if _register is None:
         return function
-    return _register(function)
+    return _register(no_cfunc_wrapper=True)(function)
 
 
 def jitable_inline(function: F) -> F:
@@ -39,7 +46,7 @@ def jitable_inline(function: F) -> F:
     :mod:`hamrkq.rkq.taylor`)."""
     if _register is None:
         return function
-    return _register(inline="always")(function)
+    return _register(inline="always", no_cfunc_wrapper=True)(function)
 
 
 def borrow(value: T) -> T:
