@@ -32,8 +32,8 @@ def jitable(function: F) -> F:
     every function it compiles, so that it can be passed as a first-class
     function, which no kernel helper ever is (only the generated ``rhs``,
     ``jac`` and ``rhs_jvp`` are, :mod:`hamrkq.backends.codegen`); the kernel's
-    91 wrappers were about a twelfth of its compile on an empty cache
-    (``benchmarks/kernel_compile.md``)."""
+    91 wrappers took 1.7 s of a profiled 24 s compile on an empty cache
+    (docs/performance.md, ``benchmarks/kernel_compile_wrappers.md``)."""
     if _register is None:
         return function
     return _register(no_cfunc_wrapper=True)(function)
