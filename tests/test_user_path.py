@@ -190,7 +190,9 @@ def test_symbols_with_other_assumptions_are_explained():
         hamrkq.Hamiltonian(p**2 / 2 + q_plain**2, q=[q_real], p=[p])
     message = str(info.value)
     assert "undeclared symbols: q" in message
-    assert "(no assumptions) that is not the declared q (real=True)" in message
+    assert "H uses q, a symbol with other assumptions (none) than the declared q (real=True)" in (
+        message
+    )
 
 
 def test_eulers_number_E_is_explained():

@@ -21,7 +21,7 @@ import sympy as sp
 
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.symbolic.assumptions import assumption_conflict
-from hamrkq.symbolic.values import as_number
+from hamrkq.symbolic.values import as_number, assumptions_twin
 
 __all__ = [
     "TIME",
@@ -123,21 +123,17 @@ def _constant_hint(item: Any) -> str:
 
 def undeclared_hints(undeclared: set, declared: list) -> list[str]:
     """Explain the undeclared symbols that look like declared ones: SymPy treats
-    ``Symbol('q')`` and ``Symbol('q', real=True)`` as different symbols."""
+    ``Symbol('q')`` and ``Symbol('q', real=True)`` as different symbols
+    (:func:`hamrkq.symbolic.values.assumptions_twin`, which explains the same
+    for a parameter's or an initial value's key)."""
     hints = []
-    by_name = {s.name: s for s in declared}
     for symbol in sorted(undeclared, key=str):
-        twin = by_name.get(symbol.name)
-        if twin is None:
-            continue
-        mine = {k: v for k, v in symbol.assumptions0.items() if k in ("real", "positive")}
-        theirs = {k: v for k, v in twin.assumptions0.items() if k in ("real", "positive")}
-        hints.append(
-            f"H uses a symbol {symbol.name} ({_assumptions(mine)}) that is not the declared "
-            f"{twin.name} ({_assumptions(theirs)}): SymPy treats symbols with other "
-            "assumptions as different symbols; create both with the same call, for example "
-            f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
-        )
+        twin = assumptions_twin(symbol, tuple(declared))
+        if twin is not None:
+            hints.append(
+                f"H uses {symbol.name}, {twin}: create both with the same call, for example "
+                f"sympy.symbols('{symbol.name} ...', real=True) everywhere"
+            )
     return hints
 
 

@@ -74,7 +74,7 @@ def assumptions_twin(key: Any, symbols: tuple[sp.Symbol, ...]) -> str | None:
     if twin is None or not isinstance(key, sp.Symbol):
         return None
     return (
-        f"a symbol with other assumptions ({_assumptions(key)}) than the Hamiltonian's "
+        f"a symbol with other assumptions ({_assumptions(key)}) than the declared "
         f"{twin!s} ({_assumptions(twin)}); SymPy counts them as different symbols"
     )
 
