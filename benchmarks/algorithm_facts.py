@@ -124,10 +124,7 @@ def blind_spot():
     largest = np.diff(sol.t).max()
     yield f"rk34: {sol.status.name}, max true error {g(error(sol))}, largest step {g(largest)}"
     sol = run("rk34q8")
-    yield (
-        f"rk34q8: {sol.status.name} at t = {g(sol.t[-1], 3)}, max true error / tol "
-        f"{error(sol) / 1e-8:.3f}, {sol.stats['steps']} steps, {sol.stats['rejected']} rejected"
-    )
+    yield f"rk34q8: {sol.status.name} at t = {g(sol.t[-1], 3)}, max true error {g(error(sol))}"
     sol = run("rk34", max_step=0.5)
     yield f"rk34, max_step 0.5: {sol.status.name}, max true error {g(error(sol))}"
     for label, method, extra in (("rk34q8, max_step 0.5", "rk34q8", {"max_step": 0.5}),

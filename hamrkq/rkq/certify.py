@@ -13,21 +13,7 @@ import math
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith
 from hamrkq.rkq.jit import jitable
-from hamrkq.rkq.layout import (
-    DELTA,
-    FLOOR,
-    GAM,
-    GNEW,
-    K1,
-    NFLOOR,
-    NHI,
-    NOISE,
-    RHO2,
-    TMP2,
-    ZHI,
-    ZOLD,
-    U,
-)
+from hamrkq.rkq.layout import DELTA, FLOOR, GNEW, K1, NFLOOR, NHI, NOISE, RHO2, TMP2, ZHI, ZOLD, U
 
 __all__ = [
     "attainability",
@@ -55,25 +41,6 @@ def attainability(work, problem, cfg, unew, t_lo, h):
         value = quencher_share(V[RHO2, i] + V[NOISE, i], V[NHI, i], V[GNEW, i], V[NFLOOR, i])
         ratios[i] = (value + time_rounding(work, unew, i, t_lo, h)) / delta[i]
     return arith.vmax(ratios)
-
-
-@jitable
-def added_share(work, problem, cfg):
-    """``max_k |Gamma_new,k - Gamma_k| / delta_k``, with ``delta`` the
-    tolerance at the step's start (``V[U]``, into ``V[TMP2]``): how much the
-    step itself added to the quencher's estimated error, measured where the
-    step began, so that a tolerance falling during the step (a component
-    crossing zero under ``rtol``) does not count
-    (:func:`hamrkq.rkq.loop.promise_jumped`)."""
-    V = work.V
-    start = V[TMP2]
-    arith.tolerance(problem.atol, problem.rtol, V[U], V[U], cfg["relative"], cfg["rule"], start)
-    top = 0.0
-    for i in range(V.shape[1]):
-        value = abs(V[GNEW, i] - V[GAM, i]) / start[i]
-        if value > top:
-            top = value
-    return top
 
 
 @jitable

@@ -146,11 +146,6 @@ STATE = np.dtype(
         # The first step size tried, |h| (hamrkq.rkq.start.begin; 0 before it,
         # or where the run ended at its start)
         ("first_h", _F),
-        # The attainability ratio at the current node, and the attempts in a
-        # row rejected because one step carried it past gamma_limit from
-        # below JUMP_FROM of it (hamrkq.rkq.loop.promise_jumped)
-        ("node_ratio", _F),
-        ("jump_rejects", _I),
     ]
 )
 

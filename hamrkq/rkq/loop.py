@@ -25,12 +25,9 @@ run (the state's counters carry across calls).
 
 from __future__ import annotations
 
-import math
-
 from hamrkq._floats import EPS
 from hamrkq.rkq import arith, steps
 from hamrkq.rkq.certify import (
-    added_share,
     attainability,
     dense_attainability,
     projected_ratio,
@@ -99,16 +96,6 @@ MAX_FACTOR = 5.0  # never grow by more than 5x on one acceptance
 #: QA's rk34q10 at 1e-8: 2 999 405 after 595).  Below the default
 #: safety 0.9 the factor is already smaller: nothing changes there.
 MAX_REJECT_FACTOR = 0.9
-#: A step that carries the attainability ratio past ``gamma_limit`` from
-#: below this share of it at its start is rejected and tried shorter, not
-#: taken as the run's end (:func:`promise_jumped`) ...
-JUMP_FROM = 0.5
-#: ... by the estimated error the step itself added, at least this share of
-#: the limit against the tolerance where the step began ...
-JUMP_SHARE = 0.5
-#: ... this many times in a row at most (MIN_FACTOR ** 10: ten million
-#: times shorter), before the run ends there as any other.
-MAX_JUMP_REJECTS = 10
 #: :func:`quench_phase`'s "the run ends at the current node", apart from its
 #: -1, "this attempt is over" (it was ``-1 - RET_DONE``, which with
 #: ``RET_DONE = 0`` is -1 too: every rejected or redone attempt ended the
@@ -339,15 +326,9 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
     unew = nhi if quench else cand
     t_lo = time_low_word(s, h)
     ratio = attainability(work, problem, c, unew, t_lo, h)
-    if promise_jumped(s, c, ratio, added_share(work, problem, c)):
-        s["jump_rejects"] += 1
-        reject(s, h, MIN_FACTOR, 0)
-        return -1
     if not record_ratio(s, c, ratio, V[NFLOOR], V[DELTA]):
         stop(ST_UNATTAINABLE, work, out, s, c)
         return RUN_ENDS
-    s["node_ratio"] = ratio
-    s["jump_rejects"] = 0
     if c["project"]:
         projected = projected_ratio(work, c, s["t"] + h)
         if projected > c["project_limit"]:
@@ -361,36 +342,6 @@ def quench_phase(rhs, tangent, jac, problem, tab, c, s, work, out, h):
         arith.copy(cand, V[U])
     commit_quencher(work, c, s)
     return 1 if (quench or s["redo"]) else 0
-
-
-@jitable
-def promise_jumped(s, c, ratio, added):
-    """Whether one step carried the attainability ``ratio`` past
-    ``gamma_limit`` from below :data:`JUMP_FROM` of it at the step's start,
-    by the quencher's estimated error that the step itself ``added`` (at
-    least :data:`JUMP_SHARE` of ``gamma_limit`` against the tolerance at the
-    step's start, :func:`~hamrkq.rkq.certify.added_share`),
-    fewer than :data:`MAX_JUMP_REJECTS` times in a row: the step is then
-    tried shorter.  The
-    quencher's error is a sum over the steps, and one step that adds most of
-    it has stepped over something its stages sampled badly, not reached the
-    end of what the run can certify.  A force pulse
-    ``q exp(-((t - 50)/0.5)^2)`` on a free particle at ``atol`` 1e-4: the
-    pair's steps grew to 38 time units before it, the step across it read
-    5100 tolerances, and ``auto`` stopped at t = 12.2 blaming rounding in
-    every member and quencher step it tried; ``max_step=0.2`` reached the end
-    (QA).  A ratio that grows up to the limit over many steps (an orbit's
-    accumulated error, double precision's floor), or jumps for what a
-    shorter step does not change (a tolerance that falls as a component
-    crosses zero under ``rtol``, the stored values' own rounding, a
-    rounding model that overflows: not finite) still ends the run there."""
-    return (
-        ratio > c["gamma_limit"]
-        and math.isfinite(ratio)
-        and added >= JUMP_SHARE * c["gamma_limit"]
-        and s["node_ratio"] < JUMP_FROM * c["gamma_limit"]
-        and s["jump_rejects"] < MAX_JUMP_REJECTS
-    )
 
 
 @jitable
