@@ -126,7 +126,7 @@ class Comparison:
                 "problem's default tolerance"
             )
         return (
-            f"matched cost: for each method the run whose f evaluations are nearest to "
+            f"matched cost: for each method the run whose f evaluations are nearest (in ratio) to "
             f"{self.target:.0f}, those of rk34q8 at the problem's default tolerance"
         )
 

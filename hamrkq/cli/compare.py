@@ -102,7 +102,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--match", choices=MATCH_MODES, default="error",
         help="headline run of each method: the cheapest reaching rk34q8's error (error), "
-        "or the one nearest to rk34q8's cost in f evaluations (cost)",
+        "or the one nearest (in ratio) to rk34q8's cost in f evaluations (cost)",
     )  # fmt: skip
     p.add_argument("--tol-factors", type=float, nargs="+", metavar="F",
                    help="tolerance sweep, as multiples of the problem's default")  # fmt: skip
