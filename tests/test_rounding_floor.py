@@ -23,7 +23,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
-from helpers import pendulum_rotation_mpmath
+from helpers import pendulum_flow_mpmath, pendulum_rotation_mpmath
 
 import hamrkq
 from hamrkq.rkq.layout import FLOOR
@@ -528,3 +528,21 @@ def test_a_stop_at_the_floor_says_when_truncation_alone_is_above_the_limit():
         kepler, t_span=span, quencher_precision="double-double", z_substeps=4, **options
     )
     assert extended.status is hamrkq.Status.SUCCESS
+
+
+@pytest.mark.parametrize(("atol", "rtol"), [(1e-8, 0.0), (1e-9, 1e-9)])
+def test_a_short_run_near_the_separatrix_reads_its_estimates_growth(atol, rtol):
+    """The pendulum 1e-9 below its separatrix over [0, 20]: auto's rk78q12
+    takes 28 to 37 steps, and the estimate grows like e^t past the unstable
+    top.  Growth was read only from runs of 50 steps or more, so no witness
+    ran, and auto returned SUCCESS 1.30 and 5.17 times the tolerance off,
+    the quencher's rounding amplified alike (QA; with the quencher in
+    double-double the run is within 0.84).  Read from 20 steps on, the
+    growth sends the run to the witness and on to double-double."""
+    pendulum = hamrkq.load_problem("pendulum")
+    y0 = [0.0, math.sqrt(4 - 2e-9)]
+    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, 20.0), atol=atol, rtol=rtol)
+    truth = pendulum_flow_mpmath(y0, sol.t)
+    delta = np.maximum(atol, rtol * np.abs(truth))
+    assert np.max(np.abs(sol.y - truth) / delta) <= 1.05
+    assert sol.options["rounding_witness"] or sol.options["quencher_precision"] == "double-double"

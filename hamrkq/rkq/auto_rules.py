@@ -291,7 +291,7 @@ def auto_abandon_substeps(
 #: alone is not enough, :mod:`hamrkq.solve.auto`); 147 to 1900 on a chaotic
 #: Henon-Heiles orbit, 83 to 7500 on the Arenstorf orbit over several
 #: periods, 295 on a Duffing separatrix (whose other runs, of fewer than 50
-#: steps, are not measured).  A run made again with the rounding witness
+#: steps, were not measured then).  A run made again with the rounding witness
 #: reads the same and is not a second reading.
 EXPONENTIAL_GROWTH = 50.0
 
