@@ -162,6 +162,46 @@ def witness_reading_low():
     yield f"  its quencher's largest true error {np.abs(sol.z - truth).max():.3g}"
 
 
+def libration_truth(y0, times):
+    """The pendulum's libration from ``y0`` at 30 digits: Jacobi's sn and cn
+    (as ``tests/helpers.py``'s ``pendulum_flow_mpmath``)."""
+    ctx = mpmath.MPContext()
+    ctx.dps = 30
+    q0, p0 = (ctx.mpf(float(v)) for v in y0)
+    m = p0**2 / 4 + ctx.sin(q0 / 2) ** 2
+    k = ctx.sqrt(m)
+    u0 = ctx.ellipf(ctx.atan2(ctx.sin(q0 / 2), p0 / 2), m)
+    rows = []
+    for time_ in times:
+        u = u0 + ctx.mpf(float(time_))
+        sn, cn = ctx.ellipfun("sn", u, m=m), ctx.ellipfun("cn", u, m=m)
+        rows.append([float(2 * ctx.asin(k * sn)), float(2 * k * cn)])
+    return np.array(rows)
+
+
+def near_the_separatrix():
+    """Named members on librations just below the separatrix (QA, session
+    18): the quencher's rounding, amplified by the orbit's sensitivity to
+    its energy (the period grows like log 1/(1 - E)), which no rule for
+    running the witness covers there."""
+    pendulum = hamrkq.load_problem("pendulum")
+    cases = [
+        ([0.0, math.sqrt(4 - 2e-9)], "1 - 1e-9", "rk45q12", 1e-9, 0.0, 60.0),
+        ([math.pi - math.sqrt(2e-6), 0.0], "1 - 1e-6", "rk67q12", 1e-9, 0.0, 150.0),
+        ([math.pi - math.sqrt(2e-6), 0.0], "1 - 1e-6", "rk45q12", 1e-8, 1e-8, 150.0),
+        ([math.pi - math.sqrt(2e-6), 0.0], "1 - 1e-6", "auto", 1e-9, 0.0, 150.0),
+    ]
+    for y0, energy, method, atol, rtol, t_end in cases:
+        sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0, t_end), method=method,
+                           atol=atol, rtol=rtol)  # fmt: skip
+        truth = libration_truth(y0, sol.t)
+        yield (
+            f"pendulum at E = {energy}, [0, {t_end:g}], atol {atol:g}, rtol {rtol:g}, "
+            f"{method}: " + describe(sol, over(sol, truth, atol, rtol))
+        )
+        yield f"  its quencher's largest true error {np.abs(sol.z - truth).max():.3g}"
+
+
 def quench_threshold():
     """quench_threshold above 1: nodes up to theta delta."""
     problem = hamrkq.load_problem("kepler", e=0.6)
@@ -180,6 +220,7 @@ CASES = [
     ("A named member's long steps at a loose tolerance", long_steps_of_a_named_member),
     ("quench_threshold above 1", quench_threshold),
     ("The rounding witness reading low near the floor", witness_reading_low),
+    ("Named members just below the separatrix", near_the_separatrix),
 ]
 
 
