@@ -443,3 +443,25 @@ def test_a_step_floor_set_by_times_far_from_zero_names_the_shift():
     assert "comes from the times' size" in sol.message
     assert "t_span = (0, 12.5664)" in sol.message
     assert hamrkq.solve(kepler, atol=1e-10, t_span=(0.0, span)).status is Status.SUCCESS
+
+
+def test_a_stop_where_one_step_carried_the_estimate_far_past_the_limit_names_max_step():
+    """A free particle kicked by a narrow force pulse at atol 1e-4: the step
+    across the pulse reads thousands of tolerances from a node at nothing.
+    The message said the quencher had reached double precision's floor
+    (before the pulse its Richardson differences are rounding: nothing
+    moves), and auto ran it again with up to 12 quencher steps (QA); the
+    step met a feature narrower than the steps, and a max_step is what
+    works."""
+    import sympy as sp
+
+    q, p, t = sp.symbols("q p t", real=True)
+    pulse = hamrkq.Hamiltonian(p**2 / 2 - q * sp.exp(-(((t - 50) / sp.Rational(1, 2)) ** 2)),
+                               q=[q], p=[p], t=t)  # fmt: skip
+    run = {"q0": [0.0], "p0": [0.0], "t_span": (0.0, 100.0), "atol": 1e-4, "rtol": 0.0}
+    sol = hamrkq.solve(pulse, **run)
+    assert sol.status is Status.TOLERANCE_UNATTAINABLE
+    assert "One step from that node carried the estimate from 0 to" in sol.message
+    assert "A max_step below that feature's width is what works" in sol.message
+    assert "rounding floor" not in sol.message
+    assert hamrkq.solve(pulse, **run, max_step=0.2).status is Status.SUCCESS

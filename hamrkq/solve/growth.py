@@ -17,13 +17,21 @@ from typing import Any
 
 import numpy as np
 
+from hamrkq._tolerance import component_tolerance
 from hamrkq.rkq.auto_rules import middle_of
 from hamrkq.rkq.layout import checkpoint_fractions
 from hamrkq.solve.dispatch import Task
 from hamrkq.solve.member_rules import folded_growth_per_row
 from hamrkq.solve.shadow import largest_state
 
-__all__ = ["MIN_GROWTH_STEPS", "folded_growth", "growth", "growth_between"]
+__all__ = [
+    "JUMP_RATIO",
+    "MIN_GROWTH_STEPS",
+    "folded_growth",
+    "growth",
+    "growth_between",
+    "one_step_jump",
+]
 
 
 #: Fewer accepted steps than this say nothing about how the estimate grows
@@ -111,3 +119,31 @@ def folded_growth(
     (what the ensemble's batch loop folds): the rule's one home is
     :func:`hamrkq.solve.member_rules.folded_growth_per_row`."""
     return float(folded_growth_per_row(task, to_middle, to_end, y_size))
+
+
+#: A stop whose ratio is above this many times ``gamma_limit``, reached in
+#: one step from a node below half the limit, is a jump
+#: (:func:`one_step_jump`).
+JUMP_RATIO = 100.0
+
+
+def one_step_jump(out: Any, task: Task) -> float | None:
+    """The estimate's ratio at the last node where one step carried it from
+    there (below half of ``gamma_limit``) to more than :data:`JUMP_RATIO`
+    times the limit, the run's stop; None otherwise.  Its stages met what
+    the steps before them did not: a free particle kicked by a pulse
+    ``q exp(-((t - 50)/0.5)^2)`` at atol 1e-4 stopped at t = 12.2, the step
+    across the pulse reading 5 100 tolerances, and its message said the
+    quencher had reached double precision's floor (before the pulse its
+    Richardson differences were rounding: nothing moves), while auto ran it
+    again with 4, 9 and 12 quencher steps to the same stop; ``max_step=0.2``
+    reaches the end within the tolerance (QA).  The message names that
+    (:mod:`hamrkq.solve.unattainable`) and auto does not run it again."""
+    if out.gamma is None or out.y.shape[0] < 2 or float(out.t[-1]) != float(out.t_last):
+        return None
+    limit = task.options.gamma_limit
+    if not out.max_ratio > JUMP_RATIO * limit:
+        return None
+    last = component_tolerance(task.atol, task.rtol, out.y[-1])
+    before = float(np.max(np.abs(out.gamma[-1]) / last))
+    return before if before < 0.5 * limit else None

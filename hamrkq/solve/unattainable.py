@@ -30,7 +30,7 @@ from hamrkq.solve.dispatch import (
     time_scale,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
-from hamrkq.solve.growth import growth
+from hamrkq.solve.growth import growth, one_step_jump
 from hamrkq.solve.output_times import (
     atol_above_output_rounding,
     output_rounding,
@@ -126,7 +126,6 @@ def _truncation_too(out: RunOutput, task: Task) -> str:
 
 
 def unattainable(out: RunOutput, task: Task) -> str:
-    o = task.options
     if out.saturated:
         return _shadow_saturated(out, task)
     if not math.isfinite(out.max_ratio):
@@ -134,16 +133,10 @@ def unattainable(out: RunOutput, task: Task) -> str:
     text, final = _where_it_failed(out, task)
     if final:
         return text
-    if out.y.size:
-        y = np.abs(out.y[-1])
-        floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))
-        if floor >= 0.5 * o.gamma_limit:
-            return text + (
-                f" The tolerance is at double precision's floor for this state (the rounding "
-                f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
-            )
-        if out.event_failure is None:
-            text += _near_zero(out, task)
+    at_state, final = _at_the_last_state(out, task)
+    text += at_state
+    if final:
+        return text
     if out.at_rounding_floor:
         text += (
             f" The quencher's own rounding error, measured by the rounding witness (the "
@@ -204,6 +197,39 @@ def unattainable(out: RunOutput, task: Task) -> str:
             "this orbit), is what works."
         )
     return text + " What helps: " + "; ".join(remedies(out, task, factor, grown)) + "."
+
+
+def _at_the_last_state(out: RunOutput, task: Task) -> tuple[str, bool]:
+    """What the last node's state says about a stop: the stored values'
+    own rounding at the limit (final), one step that carried the estimate
+    from the node far past the limit (final, :func:`one_step_jump`), or a
+    component passing zero under ``rtol`` (:func:`_near_zero`)."""
+    if not out.y.size:
+        return "", False
+    y = np.abs(out.y[-1])
+    floor = float(np.max(EPS * y / component_tolerance(task.atol, task.rtol, y)))
+    if floor >= 0.5 * task.options.gamma_limit:
+        return (
+            f" The tolerance is at double precision's floor for this state (the rounding "
+            f"of the stored values alone is {floor:.3g} x the tolerance): loosen atol/rtol."
+        ), True
+    if out.event_failure is not None:
+        return "", False
+    near_zero = _near_zero(out, task)
+    before = None if near_zero or out.at_rounding_floor else one_step_jump(out, task)
+    if before is None:
+        return near_zero, False
+    longest = float(np.max(np.abs(np.diff(out.t))))
+    # Rejecting such a step and trying it shorter let later steps pass a
+    # pulse with no stage in it, silently (tried and reverted, 4b784eb).
+    return (
+        f" One step from that node carried the estimate from {before:.3g} to "
+        f"{out.max_ratio:.3g} x the tolerance: its stages met what the steps before them did "
+        "not, a feature of f narrower than the steps (a pulse in time, a close encounter) or "
+        "a stretch the steps grew too long for, and longer steps can pass such a feature with "
+        "no stage in it, unseen. A max_step below that feature's width is what works (the "
+        f"longest step kept was {longest:.3g})."
+    ), True
 
 
 #: A component whose tolerance at the last node is below this fraction of its
