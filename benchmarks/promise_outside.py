@@ -9,7 +9,8 @@ Kepler's exact solution (``hamrkq.catalogue.exact.kepler``), mpmath's Taylor
 integrator at 40 digits, and SciPy's DOP853 at rtol 1e-13 with a step bound
 far below the feature it must resolve.
 
-Run: ``python benchmarks/promise_outside.py`` (about a minute).  Output:
+Run: ``python benchmarks/promise_outside.py`` (about eight minutes, most of it the
+separatrix librations' 40-digit Taylor references).  Output:
 ``promise_outside.txt``.
 """
 
@@ -89,10 +90,11 @@ def eccentric_kepler():
         yield f"  its quencher's largest true error {np.abs(sol.z - truth).max():.3g}"
 
 
-def pendulum_truth(q0, times):
-    """The pendulum from (q0, 0) at mpmath's 40 digits (its Taylor integrator)."""
+def pendulum_truth(q0, times, p0=0.0):
+    """The pendulum from (q0, p0) at mpmath's 40 digits (its Taylor integrator)."""
     with mpmath.workdps(40):
-        flow = mpmath.odefun(lambda _t, v: [v[1], -mpmath.sin(v[0])], 0, [mpmath.mpf(q0), 0])
+        start = [mpmath.mpf(float(q0)), mpmath.mpf(float(p0))]
+        flow = mpmath.odefun(lambda _t, v: [v[1], -mpmath.sin(v[0])], 0, start)
         return np.array([[float(x) for x in flow(mpmath.mpf(float(t)))] for t in times])
 
 
@@ -162,23 +164,6 @@ def witness_reading_low():
     yield f"  its quencher's largest true error {np.abs(sol.z - truth).max():.3g}"
 
 
-def libration_truth(y0, times):
-    """The pendulum's libration from ``y0`` at 30 digits: Jacobi's sn and cn
-    (as ``tests/helpers.py``'s ``pendulum_flow_mpmath``)."""
-    ctx = mpmath.MPContext()
-    ctx.dps = 30
-    q0, p0 = (ctx.mpf(float(v)) for v in y0)
-    m = p0**2 / 4 + ctx.sin(q0 / 2) ** 2
-    k = ctx.sqrt(m)
-    u0 = ctx.ellipf(ctx.atan2(ctx.sin(q0 / 2), p0 / 2), m)
-    rows = []
-    for time_ in times:
-        u = u0 + ctx.mpf(float(time_))
-        sn, cn = ctx.ellipfun("sn", u, m=m), ctx.ellipfun("cn", u, m=m)
-        rows.append([float(2 * ctx.asin(k * sn)), float(2 * k * cn)])
-    return np.array(rows)
-
-
 def near_the_separatrix():
     """Named members on librations just below the separatrix (QA, session
     18): the quencher's rounding, amplified by the orbit's sensitivity to
@@ -194,7 +179,7 @@ def near_the_separatrix():
     for y0, energy, method, atol, rtol, t_end in cases:
         sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0, t_end), method=method,
                            atol=atol, rtol=rtol)  # fmt: skip
-        truth = libration_truth(y0, sol.t)
+        truth = pendulum_truth(y0[0], sol.t, y0[1])
         yield (
             f"pendulum at E = {energy}, [0, {t_end:g}], atol {atol:g}, rtol {rtol:g}, "
             f"{method}: " + describe(sol, over(sol, truth, atol, rtol))

@@ -47,7 +47,7 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
-from hamrkq.solve.growth import growth, growth_between, one_step_jump
+from hamrkq.solve.growth import growth, growth_between
 from hamrkq.solve.member_rules import witness_rerun_needed_per_row
 from hamrkq.solve.output_times import output_rounding_limits
 from hamrkq.solve.shadow import largest_state
@@ -227,8 +227,6 @@ def _after_a_stop(
         return None
     if out.gamma is None:
         return None
-    if one_step_jump(out, task) is not None:
-        return None  # more quencher steps on the same long step read the same
     # (no node kept: the run stopped before the first output time)
     last = out.y[-1] if out.y.shape[0] else largest_state(out)
     if float(np.max(EPS * np.abs(last) / component_tolerance(task.atol, task.rtol, last))) >= (

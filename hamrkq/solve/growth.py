@@ -135,10 +135,11 @@ def one_step_jump(out: Any, task: Task) -> float | None:
     ``q exp(-((t - 50)/0.5)^2)`` at atol 1e-4 stopped at t = 12.2, the step
     across the pulse reading 5 100 tolerances, and its message said the
     quencher had reached double precision's floor (before the pulse its
-    Richardson differences were rounding: nothing moves), while auto ran it
-    again with 4, 9 and 12 quencher steps to the same stop; ``max_step=0.2``
+    Richardson differences were rounding: nothing moves); ``max_step=0.2``
     reaches the end within the tolerance (QA).  The message names that
-    (:mod:`hamrkq.solve.unattainable`) and auto does not run it again."""
+    (:mod:`hamrkq.solve.unattainable`).  (auto's first run there, two
+    quencher steps a step, stops at the same node at 0.074 of the
+    tolerance, not a jump: auto still runs it again with more.)"""
     if out.gamma is None or out.y.shape[0] < 2 or float(out.t[-1]) != float(out.t_last):
         return None
     limit = task.options.gamma_limit

@@ -348,7 +348,7 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         f"{member.z_substeps}^{member.z_order} times the quencher's, falls with them)"
     )
     tighter = f"{tighter_tolerance} or a shorter interval"
-    looser = "" if grew else f" What helps: {tighter}."
+    helps = "" if grew else f" What helps: {tighter}."
     if grew:
         text += (
             " The estimate grew faster than any power of t, as on a chaotic orbit or one near "
@@ -360,7 +360,7 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
     if tangent_follows_saturation(task):
         # auto ran the tangent estimate after this run, which stopped
         # earlier: auto returns the run that reached furthest
-        return text + looser
+        return text + helps
     if task.options.double_double and task.double_floor_at is not None:
         # The tangent estimate has no double-double form, and in double auto's
         # run before this one stopped at the floor: Kepler at e = 0.95, rtol
@@ -371,7 +371,7 @@ def _shadow_saturated(out: RunOutput, task: Task) -> str:
         return text + (
             " The tangent estimate, which has no shadow, has no double-double form, and in "
             f"double the run before this one stopped at double precision's floor at "
-            f"t = {task.double_floor_at!r}." + looser
+            f"t = {task.double_floor_at!r}." + helps
         )
     # Not a smaller max_step: it keeps the shadow within its limit without
     # making Gamma honest again (hamrkq.solve.auto._with_tangent).  The
