@@ -203,13 +203,15 @@ def test_the_rules_on_python_floats_are_the_whole_array_rules(atol, rtol):
     sizes = np.abs(states) * 10.0 ** rng.uniform(0, 3, (M, D))
     steps = (10.0 ** rng.uniform(1, 4.5, M)).astype(np.int64)
     ranges = 10.0 ** rng.uniform(0, 1.5, M)
+    early = 10.0 ** rng.uniform(0, 5, M)  # beyond t^2 (256) in about half the rows
+    early[:20] = np.inf  # no reading that early: no amplification
     np.testing.assert_array_equal(
         scales.component_scales(atol, states), [scales.component_scales(atol, y) for y in states]
     )
-    rows = wr.needs_witness_after_run_per_row(atol, rtol, states, steps, sizes, ranges)
+    rows = wr.needs_witness_after_run_per_row(atol, rtol, states, steps, sizes, ranges, early)
     alone = [
-        wr.needs_witness_after_run(atol, rtol, y, int(n), s, float(r))
-        for y, n, s, r in zip(states, steps, sizes, ranges, strict=True)
+        wr.needs_witness_after_run(atol, rtol, y, int(n), s, float(r), float(g))
+        for y, n, s, r, g in zip(states, steps, sizes, ranges, early, strict=True)
     ]
     np.testing.assert_array_equal(_mixed(rows), alone)
     rows = wr.state_outgrew_its_start_per_row(atol, rtol, states, sizes)
@@ -260,12 +262,14 @@ def _runs_again_alone_member_by_member(batch, task, request):
             continue
         steps = int(batch.stats[i, 0])
         nodes = request.times.size if task.t_eval is not None else steps + 1
-        factor = 1.0
+        factor = early = 1.0
         if steps >= MIN_GROWTH_STEPS and nodes >= 3:
             y_size = batch.y_size[i]
             factor = folded_growth(task, batch.gamma_to_middle[i], batch.gamma_to_end[i], y_size)
+            early = folded_growth(task, batch.gamma_to_early[i], batch.gamma_to_end[i], y_size)
+        step_range = float(batch.step_range[i])
         rerun[i] = witness_rerun_needed(
-            task, request.y0[i], batch.y_size[i], factor, steps, float(batch.step_range[i])
+            task, request.y0[i], batch.y_size[i], factor, steps, step_range, early
         )
     return saturated, rerun
 
@@ -319,6 +323,28 @@ def test_members_that_run_again_alone_are_those_solve_alone_would_not_return(
         _assert_member_equals_solve(ens, i, problem, **options)
 
 
+@pytest.mark.parametrize("t_eval", [None, np.linspace(0.0, 150.0, 7)])
+def test_members_near_the_separatrix_run_again_as_solve_alone_decides(monkeypatch, t_eval):
+    """Pendulum librations with rk67q12 at atol 1e-9 over [0, 150]: 1e-6
+    below the separatrix the estimate grows 1.8e4-fold from the first
+    sixteenth of the run to its end (solve runs it again with the witness:
+    the orbit's amplification), farther below it does not; the batch loop
+    folds the growth from the nodes, or with ``t_eval`` from the kernel's
+    checkpoint at a sixteenth, as solve reads it, and every member equals
+    solve alone."""
+    decided = _spy_on_the_batch(monkeypatch)
+    pendulum = hamrkq.load_problem("pendulum")
+    q0 = np.array([[math.pi - math.sqrt(2e-6)], [math.pi - math.sqrt(3e-6)], [1.0], [2.0]])
+    options = {"t_span": (0.0, 150.0), "method": "rk67q12", "atol": 1e-9, "t_eval": t_eval}
+    ens = hamrkq.ensemble(pendulum, q0=q0, p0=np.zeros_like(q0), workers=1, chunk_size=4,
+                          **options)  # fmt: skip
+    ((again, saturated, rerun),) = decided
+    np.testing.assert_array_equal(again, saturated | rerun)
+    np.testing.assert_array_equal(rerun, [True, True, False, False])
+    for i in range(len(q0)):
+        _assert_member_equals_solve(ens, i, pendulum, **options)
+
+
 def test_members_whose_y0_decide_differently_group_as_each_alone_decides():
     """Pendulum members at atol 1e-12, rtol 1e-6: auto runs rk67q9 where
     every component's tolerance is at least 1e-7 (|q|, |p| >= 0.1), rk78q12
@@ -364,7 +390,9 @@ def test_the_rules_after_a_run_per_row_give_solve_s_hand_computed_decisions():
     it): the growth of the estimate over the second half, and whether a run
     is made again with the witness, by hand; one run alone as its row of
     many.  The shadow estimate (rk78q12): an exponential growth (over 50),
-    or the length's law at the run's largest state; the tangent estimate
+    or the length's law at the run's largest state, times the larger of the
+    close approaches' factor and the orbit's amplification (the growth from
+    the first sixteenth over ``REGULAR_GROWTH``); the tangent estimate
     (rk34q8): a state grown more than 10-fold, where the rule at the start
     would call for the witness and did not."""
     from hamrkq.solve import auto, member_rules, prepare
@@ -384,14 +412,20 @@ def test_the_rules_after_a_run_per_row_give_solve_s_hand_computed_decisions():
         assert auto.reruns_with_witness(task)
         growth = member_rules.folded_growth_per_row(task, to_middle, to_end, states)
         np.testing.assert_allclose(growth, growths, rtol=1e-15)
-    # (factor, steps, step range, largest |q1|) -> rerun with the shadow estimate
+    # (factor, steps, step range, largest |q1|, early growth) -> rerun with
+    # the shadow estimate
+    regular = wr.REGULAR_GROWTH
     shadow_cases = [
-        ((49.0, 10_000, 1.0, 0.18), False),  # 5.4e-11 against 1e-8
-        ((51.0, 10_000, 1.0, 0.18), True),  # exponential
-        ((49.0, 250_000, 1.0, 0.18), True),  # (250 000 / 15 000)^2 = 278: 1.5e-8
-        ((49.0, 100_000, 1.0, 0.18), False),  # 44: 2.4e-9
-        ((49.0, 10_000, 1000.0, 0.18), True),  # 500 times: 2.7e-8
-        ((49.0, 10_000, 1.0, 100.0), True),  # q1 reached 100: 3e-8
+        ((49.0, 10_000, 1.0, 0.18, 1.0), False),  # 5.4e-11 against 1e-8
+        ((51.0, 10_000, 1.0, 0.18, 1.0), True),  # exponential
+        ((49.0, 250_000, 1.0, 0.18, 1.0), True),  # (250 000 / 15 000)^2 = 278: 1.5e-8
+        ((49.0, 100_000, 1.0, 0.18, 1.0), False),  # 44: 2.4e-9
+        ((49.0, 10_000, 1000.0, 0.18, 1.0), True),  # 500 times: 2.7e-8
+        ((49.0, 10_000, 1.0, 100.0, 1.0), True),  # q1 reached 100: 3e-8
+        ((49.0, 10_000, 1.0, 0.18, 1000 * regular), True),  # 1000 times: 5.4e-8
+        ((49.0, 10_000, 1.0, 0.18, 100 * regular), False),  # 100 times: 5.4e-9
+        ((49.0, 10_000, 1.0, 0.18, math.inf), False),  # no early reading: 1
+        ((49.0, 10_000, 50.0, 0.18, 10 * regular), False),  # the larger (25), not 25 x 10
     ]
     # largest |q1| -> rerun with the tangent estimate (at start 5.4e-11, unneeded)
     tangent_cases = [
@@ -401,9 +435,9 @@ def test_the_rules_after_a_run_per_row_give_solve_s_hand_computed_decisions():
     ]
     for task, cases in (
         (shadow, shadow_cases),
-        (tangent, [((0.0, 10_000, 1.0, q1), rerun) for q1, rerun in tangent_cases]),
+        (tangent, [((0.0, 10_000, 1.0, q1, 1e9), rerun) for q1, rerun in tangent_cases]),
     ):
-        factors, steps, ranges, q1 = (
+        factors, steps, ranges, q1, early = (
             np.array(c) for c in zip(*(k for k, _ in cases), strict=True)
         )
         expected = [rerun for _, rerun in cases]
@@ -411,10 +445,13 @@ def test_the_rules_after_a_run_per_row_give_solve_s_hand_computed_decisions():
         sizes = rows.copy()
         sizes[:, 0] = q1
         decided = member_rules.witness_rerun_needed_per_row(
-            task, rows, sizes, factors, steps.astype(np.int64), ranges
+            task, rows, sizes, factors, steps.astype(np.int64), ranges, early
         )
         assert decided.tolist() == expected
         for k, rerun in enumerate(expected):  # one run alone (Python floats)
-            one = (task, y0, sizes[k], float(factors[k]), int(steps[k]), float(ranges[k]))
+            one = (
+                task, y0, sizes[k], float(factors[k]), int(steps[k]), float(ranges[k]),
+                float(early[k]),
+            )  # fmt: skip
             assert member_rules.witness_rerun_needed_per_row(*one) == rerun
             assert auto.witness_rerun_needed(*one) == rerun

@@ -302,8 +302,12 @@ def _runs_again_alone(batch: Any, task: Any, request: Request) -> np.ndarray:
             task, batch.gamma_to_middle[ok], batch.gamma_to_end[ok], y_size
         )
         factors = np.where(enough, growth, 1.0)
+        early = folded_growth_per_row(
+            task, batch.gamma_to_early[ok], batch.gamma_to_end[ok], y_size
+        )
+        early = np.where(enough, early, 1.0)
         again[ok] |= witness_rerun_needed_per_row(
-            task, request.y0[ok], y_size, factors, steps, batch.step_range[ok]
+            task, request.y0[ok], y_size, factors, steps, batch.step_range[ok], early
         )
     return again
 

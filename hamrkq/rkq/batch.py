@@ -38,6 +38,7 @@ from hamrkq.rkq.layout import (
 )
 from hamrkq.rkq.loop import advance, step_range
 from hamrkq.rkq.start import begin
+from hamrkq.rkq.witness_rules import EARLY_FRACTION
 
 __all__ = ["COUNTERS", "Batch", "allocate_batch", "run_members"]
 
@@ -63,7 +64,11 @@ class Batch(NamedTuple):
     nodes), ``stats`` (M, len(COUNTERS)), and for the growth of the estimate
     of Gamma (:func:`hamrkq.rkq.auto_rules.growth_of_maxima`) each
     component's largest ``|Gamma_k|`` over the kept nodes up to ``middle``
-    (``gamma_to_middle``, M x d) and over all of them (``gamma_to_end``) and
+    (``gamma_to_middle``, M x d) and over all of them (``gamma_to_end``),
+    up to :data:`~hamrkq.rkq.witness_rules.EARLY_FRACTION` of the interval
+    (``gamma_to_early``: over the nodes, or with ``t_eval`` at the kernel's
+    checkpoint there, NaN where none was passed;
+    :func:`hamrkq.solve.growth.early_growth` reads a single run's alike) and
     its largest ``|y_k|`` (``y_size``); and the ratio of its largest free
     step to its smallest (``step_range``, :func:`hamrkq.rkq.loop.step_range`).
     """
@@ -82,6 +87,7 @@ class Batch(NamedTuple):
     middle: np.ndarray
     gamma_to_middle: np.ndarray
     gamma_to_end: np.ndarray
+    gamma_to_early: np.ndarray
     y_size: np.ndarray
     step_range: np.ndarray
 
@@ -110,6 +116,7 @@ def allocate_batch(
         middle=np.array(middle_of(*kept_span), dtype=np.float64),
         gamma_to_middle=np.zeros((m, d)),
         gamma_to_end=np.zeros((m, d)),
+        gamma_to_early=np.zeros((m, d)),
         y_size=np.zeros((m, d)),
         step_range=np.ones(m),
     )
@@ -162,11 +169,15 @@ def fold_nodes(energy, params, c, s, batch, m, kept):
                 top = err if (kept + r == 0 and k == 0) else nan_max(top, err)
             batch.max_error[m] = top
             before = (out.t[r] - batch.middle[0]) * batch.middle[1] <= 0.0
+            # with t_eval, from the checkpoint only (fold_every_node), as solve
+            early = not c["use_t_eval"] and _fraction(c, out.t[r]) <= EARLY_FRACTION
             for k in range(out.y.shape[1]):
                 gamma = abs(out.gamma[r, k])
                 batch.gamma_to_end[m, k] = nan_max(batch.gamma_to_end[m, k], gamma)
                 if before:
                     batch.gamma_to_middle[m, k] = nan_max(batch.gamma_to_middle[m, k], gamma)
+                if early:
+                    batch.gamma_to_early[m, k] = nan_max(batch.gamma_to_early[m, k], gamma)
         if c["use_t_eval"]:
             arith.copy(out.y[r], batch.y[m, kept + r])
     if n > 0:
@@ -175,6 +186,15 @@ def fold_nodes(energy, params, c, s, batch, m, kept):
         batch.t_last[m] = out.t[n - 1]
     s["nout"] = 0
     return kept + n
+
+
+@jitable
+def _fraction(c, t):
+    """The fraction of the interval at the time ``t``, as
+    :func:`hamrkq.solve.growth.growth_between` computes it for a run that
+    reached ``t_end`` (the members whose growth is read succeeded)."""
+    span = c["t_end"] - c["t_start"]
+    return (t - c["t_start"]) / span if span != 0.0 else 0.0
 
 
 @jitable
@@ -188,9 +208,12 @@ def fold_every_node(c, s, work, batch, m):
     span = c["t_end"] - c["t_start"]
     middle = (batch.middle[0] - c["t_start"]) / span if span != 0.0 else 1.0
     row = -1
+    early_row = -1
     for k in range(s["checkpoint"]):  # the checkpoints passed, ascending
         if checkpoint_fraction(k) <= middle:
             row = CHK0 + k
+        if checkpoint_fraction(k) <= EARLY_FRACTION:
+            early_row = CHK0 + k
     reached_middle = (s["t"] - c["t_start"]) / span > middle if span != 0.0 else True
     for i in range(V.shape[1]):
         batch.y_size[m, i] = nan_max(batch.y_size[m, i], V[YMAX, i])
@@ -202,6 +225,7 @@ def fold_every_node(c, s, work, batch, m):
         else:
             up_to_middle = 0.0
         batch.gamma_to_middle[m, i] = nan_max(batch.gamma_to_middle[m, i], up_to_middle)
+        batch.gamma_to_early[m, i] = V[early_row, i] if early_row >= 0 else np.nan
 
 
 @jitable

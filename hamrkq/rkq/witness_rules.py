@@ -19,16 +19,21 @@ from hamrkq.rkq.scales import component_scales, scales_on_floats, scales_per_row
 
 __all__ = [
     "CLOSE_APPROACH_RANGE",
+    "EARLY_FRACTION",
     "FLOOR_STEPS",
+    "REGULAR_GROWTH",
     "STAGE_ROUNDING_WEIGHTS",
     "STATE_GROWTH",
     "TIME_ROUNDING_MARGIN",
+    "T_SQUARED_GROWTH",
     "WITNESS_BELOW",
     "WITNESS_REFERENCE_STEPS",
     "WITNESS_SAFETY",
     "WITNESS_SUBSTEPS",
     "WITNESS_SUBSTEPS_BELOW",
     "WITNESS_SUBSTEPS_NEAR_FLOOR",
+    "amplification_factor",
+    "beyond_length_factor",
     "close_approach_factor",
     "length_factor",
     "needs_witness",
@@ -340,6 +345,65 @@ def close_approach_factor(step_range: float) -> float:
     return max(1.0, step_range / CLOSE_APPROACH_RANGE)
 
 
+#: The fraction of a run's interval from which the growth of its estimate to
+#: the end is read for :func:`amplification_factor` (a checkpoint of the
+#: kernel's, :func:`hamrkq.rkq.layout.checkpoint_fraction`).
+EARLY_FRACTION = 1.0 / 16.0
+
+#: The growth of a regular orbit's estimate from :data:`EARLY_FRACTION` of
+#: its interval to the end by the length's law, ``t^2`` (:func:`length_factor`).
+T_SQUARED_GROWTH = (1.0 / EARLY_FRACTION) ** 2
+
+#: The growth from :data:`EARLY_FRACTION` above which it is read as the
+#: orbit's amplification (:func:`amplification_factor`): ``t^2``'s, times
+#: the scatter of regular orbits' readings above it.  Kepler's orbit at
+#: e = 0.6 over ten periods at 1e-9 read 34 times ``t^2`` (its pericentre
+#: passages: large truncation errors, not amplification), 4.1 times what
+#: would run the witness again with ``t^2`` alone, and holds its tolerance
+#: in double; the runs near the pendulum's separatrix that did not hold
+#: read 9.2 to 1.3e6 times it (``benchmarks/amplification.py``,
+#: ``benchmarks/amplification.txt``): 6 lies between.
+REGULAR_GROWTH = 6.0 * T_SQUARED_GROWTH
+
+
+def amplification_factor(growth: float) -> float:
+    """How much more a run's quencher rounding is amplified than
+    :func:`length_factor` allows for, when its estimate of Gamma grew
+    ``growth``-fold from :data:`EARLY_FRACTION` of its interval to the end:
+    ``max(1, growth /`` :data:`REGULAR_GROWTH` ``)``, and 1 where the growth
+    is not finite (no reading that early: no evidence).  A noisy reading:
+    a burst of the estimate at a first close encounter reads as
+    amplification too, and runs again with the witness for nothing (about
+    2.4 times that run's evaluations; docs/algorithm.md).
+
+    The estimate sums the quencher's truncation errors, each carried by the
+    orbit's flow, as the rounding is carried; a growth beyond a regular
+    orbit's ``t^2`` is the flow amplifying them.  Near a pendulum's
+    separatrix an error in the energy becomes a phase error ``1/(1 - E)``
+    times larger, over the first approach to the unstable top: Gamma grew
+    1.8e9-, 1.8e4- and 1.2e5-fold from 1/16 of the run (the second half
+    reading 3.0, 5.4 and 2.3, regular), and named members returned nodes
+    152, 9.4 and 1.5 times the tolerance off (``rk45q12`` at E = 1 - 1e-9,
+    atol 1e-9; ``rk67q12`` and ``rk45q12`` at E = 1 - 1e-6, atol 1e-9 and
+    atol = rtol = 1e-8; QA, session 18); with the quencher in double-double
+    0.99, 1.00 and 1.00.  Its stages are the same on a close approach, which
+    :func:`close_approach_factor` reads from the steps: the rule takes the
+    larger of the two, not their product.
+    """
+    if not math.isfinite(growth):
+        return 1.0
+    return max(1.0, growth / REGULAR_GROWTH)
+
+
+def beyond_length_factor(step_range: float, early_growth: float = 1.0) -> float:
+    """How much more a run's quencher rounding is amplified than
+    :func:`length_factor` allows for: the larger of
+    :func:`close_approach_factor` of its step range and
+    :func:`amplification_factor` of its estimate's growth from
+    :data:`EARLY_FRACTION` of its interval to the end."""
+    return max(close_approach_factor(step_range), amplification_factor(early_growth))
+
+
 def needs_witness_after_run(
     atol: np.ndarray,
     rtol: np.ndarray,
@@ -347,6 +411,7 @@ def needs_witness_after_run(
     steps: int,
     size: np.ndarray | None = None,
     step_range: float = 1.0,
+    early_growth: float = 1.0,
 ) -> bool:
     """Whether a run of ``steps`` steps without the witness, on a regular
     orbit, from ``y0``, whose components reached ``size`` (the largest
@@ -355,9 +420,11 @@ def needs_witness_after_run(
     grown with the state, could reach the tolerance, which the shadow
     estimate does not see.  The rounding reaches :func:`length_factor` times
     what it reaches in :data:`WITNESS_REFERENCE_STEPS`, and
-    :func:`close_approach_factor` times that where the free steps ranged
-    over ``step_range``; the witness runs where :func:`needs_witness`'s
-    threshold, scaled by both, is above some component's tolerance.
+    :func:`beyond_length_factor` times that where the free steps ranged
+    over ``step_range`` or the estimate grew ``early_growth``-fold from
+    :data:`EARLY_FRACTION` of the interval to its end; the witness runs
+    where :func:`needs_witness`'s threshold, scaled by both, is above some
+    component's tolerance.
 
     The length alone: prentice2011 to t = 1e6 at atol 1e-8 with
     ``method="auto"`` (``rk78q12``, six quencher steps a step, no witness:
@@ -379,12 +446,13 @@ def needs_witness_after_run(
     """
     y0 = np.asarray(y0, dtype=np.float64)
     small = None
-    if np.isscalar(steps) and np.isscalar(step_range):
+    if np.isscalar(steps) and np.isscalar(step_range) and np.isscalar(early_growth):
         small = small_state(y0, atol, rtol, y0 if size is None else size)
     if small is None:
-        return bool(_after_run_rows(atol, rtol, y0, steps, size, step_range))
+        return bool(_after_run_rows(atol, rtol, y0, steps, size, step_range, early_growth))
     state, floor, relative, reached = small
-    threshold = WITNESS_BELOW * (length_factor(steps) * close_approach_factor(step_range))
+    beyond = beyond_length_factor(step_range, early_growth)
+    threshold = WITNESS_BELOW * (length_factor(steps) * beyond)
     # the rounding at the run's largest state (it grows with |y|)
     scales = scales_on_floats(floor, list(map(max, map(abs, state), reached)))
     # the tolerance at y0, as the rule at the start
@@ -401,25 +469,29 @@ def needs_witness_after_run_per_row(
     steps: int | np.ndarray,
     sizes: np.ndarray | None = None,
     step_range: float | np.ndarray = 1.0,
+    early_growth: float | np.ndarray = 1.0,
 ) -> np.ndarray:
     """:func:`needs_witness_after_run` of each row of ``states`` (shape
     ``(m, d)``: an ensemble's ``y0``), with its row of ``sizes`` and its
-    element of ``steps`` and ``step_range`` (or one value for every row), in
-    whole-array operations: a bool per row (of the one state where
-    ``states`` is 1-D, and ``steps`` and ``step_range`` numbers)."""
+    element of ``steps``, ``step_range`` and ``early_growth`` (or one value
+    for every row), in whole-array operations: a bool per row (of the one
+    state where ``states`` is 1-D, and the others numbers)."""
     states = np.asarray(states, dtype=np.float64)
-    if states.ndim == 1 and np.isscalar(steps) and np.isscalar(step_range):
-        return np.bool_(needs_witness_after_run(atol, rtol, states, steps, sizes, step_range))
-    return _after_run_rows(atol, rtol, states, steps, sizes, step_range)
+    numbers = np.isscalar(steps) and np.isscalar(step_range) and np.isscalar(early_growth)
+    if states.ndim == 1 and numbers:
+        return np.bool_(
+            needs_witness_after_run(atol, rtol, states, steps, sizes, step_range, early_growth)
+        )
+    return _after_run_rows(atol, rtol, states, steps, sizes, step_range, early_growth)
 
 
-def _after_run_rows(atol, rtol, states, steps, sizes, step_range) -> np.ndarray:
+def _after_run_rows(atol, rtol, states, steps, sizes, step_range, early_growth=1.0) -> np.ndarray:
     """:func:`needs_witness_after_run_per_row` in whole-array operations."""
     states = np.asarray(states, dtype=np.float64)
-    if np.isscalar(steps) and np.isscalar(step_range):
-        ratio = length_factor(steps) * close_approach_factor(step_range)
+    if np.isscalar(steps) and np.isscalar(step_range) and np.isscalar(early_growth):
+        ratio = length_factor(steps) * beyond_length_factor(step_range, early_growth)
     else:  # one ratio per row, along the components
-        ratio = _each_length_factor(steps) * _each_close_approach_factor(step_range)
+        ratio = _each_length_factor(steps) * _each_beyond_length_factor(step_range, early_growth)
         ratio = np.asarray(ratio, dtype=np.float64)[..., None]
     # The tolerance at y0, as the rule at the start (with rtol, a component
     # that is 0 there has atol, as it has wherever it crosses zero); the
@@ -435,7 +507,7 @@ def _after_run_rows(atol, rtol, states, steps, sizes, step_range) -> np.ndarray:
 #: numpy's ufuncs on one number would make several times as slow (every
 #: solve asks).
 _each_length_factor = np.frompyfunc(length_factor, 1, 1)
-_each_close_approach_factor = np.frompyfunc(close_approach_factor, 1, 1)
+_each_beyond_length_factor = np.frompyfunc(beyond_length_factor, 2, 1)
 
 
 #: How many times its start's size (:func:`component_scales`) a run of the

@@ -47,7 +47,7 @@ from hamrkq.solve.dispatch import (
     uses_witness,
 )
 from hamrkq.solve.event_check import stored_rounding_limits
-from hamrkq.solve.growth import growth, growth_between
+from hamrkq.solve.growth import early_growth, growth, growth_between
 from hamrkq.solve.member_rules import witness_rerun_needed_per_row
 from hamrkq.solve.output_times import output_rounding_limits
 from hamrkq.solve.shadow import largest_state
@@ -352,9 +352,11 @@ def reruns_for_rounding(task: Task, out: Any, factor: float) -> bool:
     state and its steps.  :func:`rerun` makes the run; the message says why
     (:func:`hamrkq.solve.rerun_notes.rerun_note`)."""
     finished = out.status in (Status.SUCCESS.code, Status.TOLERANCE_UNATTAINABLE.code)
+    if not (finished and reruns_with_witness(task)):
+        return False
     steps = out.stats.get("steps", 0)
-    return finished and witness_rerun_needed(
-        task, task.y0, largest_state(out), factor, steps, out.step_range
+    return witness_rerun_needed(
+        task, task.y0, largest_state(out), factor, steps, out.step_range, early_growth(out, task)
     )
 
 
@@ -365,15 +367,18 @@ def witness_rerun_needed(
     factor: float,
     steps: int,
     step_range: float = 1.0,
+    early: float = 1.0,
 ) -> bool:
     """Whether a finished run of ``task`` from ``y0`` (an ensemble member's),
     whose largest ``|y_k|`` over its nodes are ``y_size``, whose estimate
     grew ``factor``-fold over the second half of its ``steps`` steps and
-    whose free steps ranged over ``step_range`` (the largest over the
-    smallest), runs again with the rounding witness: the witness did not run
-    and can (:func:`reruns_with_witness`), and the rounding, amplified by an
-    exponential growth, by a long run or by close approaches, could reach
-    the tolerance
+    ``early``-fold from the first sixteenth to the end
+    (:func:`hamrkq.solve.growth.early_growth`), and whose free steps ranged
+    over ``step_range`` (the largest over the smallest), runs again with the
+    rounding witness: the witness did not run and can
+    (:func:`reruns_with_witness`), and the rounding, amplified by an
+    exponential growth, by a long run, by close approaches or by the orbit's
+    sensitivity (an early growth beyond ``t^2``), could reach the tolerance
     (:func:`hamrkq.rkq.witness_rules.needs_witness_after_run`) at the run's
     largest state, not only at ``y0``: a pendulum going over the top from
     q = 0 at 1e-8 reached q = 13 000 by t = 5000 (an ulp of q there is
@@ -385,7 +390,7 @@ def witness_rerun_needed(
     decides it for an ensemble's members at once."""
     if not reruns_with_witness(task):
         return False
-    needed = witness_rerun_needed_per_row(task, y0, y_size, factor, steps, step_range)
+    needed = witness_rerun_needed_per_row(task, y0, y_size, factor, steps, step_range, early)
     return bool(needed)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from hamrkq._tolerance import component_tolerance
 from hamrkq.rkq.auto_rules import middle_of
 from hamrkq.rkq.layout import checkpoint_fractions
+from hamrkq.rkq.witness_rules import EARLY_FRACTION
 from hamrkq.solve.dispatch import Task
 from hamrkq.solve.member_rules import folded_growth_per_row
 from hamrkq.solve.shadow import largest_state
@@ -27,6 +28,7 @@ from hamrkq.solve.shadow import largest_state
 __all__ = [
     "JUMP_RATIO",
     "MIN_GROWTH_STEPS",
+    "early_growth",
     "folded_growth",
     "growth",
     "growth_between",
@@ -109,6 +111,25 @@ def growth_between(out: Any, task: Task, low: float, high: float) -> float:
     if to_low is None:
         return math.inf
     return folded_growth(task, to_low, to_high, largest_state(out))
+
+
+def early_growth(out: Any, task: Task) -> float:
+    """The growth of a run's estimate from
+    :data:`~hamrkq.rkq.witness_rules.EARLY_FRACTION` of the interval it
+    reached to its end (:func:`growth_between`), which
+    :func:`hamrkq.rkq.witness_rules.amplification_factor` reads as the
+    orbit's amplification of the quencher's rounding; 1 for a run of fewer
+    than :data:`MIN_GROWTH_STEPS` steps (as :func:`growth`)."""
+    if out.gamma is None or out.stats.get("steps", 0) < MIN_GROWTH_STEPS:
+        return 1.0
+    if out.thinned and out.gamma_checkpoints is not None:
+        # the kernel's maxima over every node (the ensemble's batch loop
+        # reads the same: hamrkq.rkq.batch.fold_every_node)
+        to_early = _checkpoint_until(out, task, EARLY_FRACTION)
+        if to_early is None:
+            return 1.0
+        return folded_growth(task, to_early, out.gamma_max, largest_state(out))
+    return growth_between(out, task, EARLY_FRACTION, 1.0)
 
 
 def folded_growth(

@@ -54,13 +54,16 @@ def witness_rerun_needed_per_row(
     factors: np.ndarray,
     steps: np.ndarray,
     step_ranges: np.ndarray,
+    early_growths: np.ndarray | float = 1.0,
 ) -> np.ndarray:
     """:func:`hamrkq.solve.auto.witness_rerun_needed` of each run of ``task``
     (all of which could run again with the witness: the caller asks
     :func:`hamrkq.solve.auto.reruns_with_witness` once), from the rows of
     ``states`` (their ``y0``) and ``y_sizes`` (their largest ``|y_k|``) and
     the elements of ``factors`` (their estimate's growth over the second
-    half), ``steps`` and ``step_ranges``.
+    half), ``steps``, ``step_ranges`` and ``early_growths`` (their
+    estimate's growth from the first sixteenth of the interval to its end,
+    :func:`hamrkq.solve.growth.early_growth`).
 
     Returns
     -------
@@ -81,6 +84,6 @@ def witness_rerun_needed_per_row(
     # t_eval read 5.6-fold, and would have run again for nothing).
     exponential = np.asarray(factors) > EXPONENTIAL_GROWTH
     regular = needs_witness_after_run_per_row(
-        task.atol, task.rtol, states, steps, y_sizes, step_ranges
+        task.atol, task.rtol, states, steps, y_sizes, step_ranges, early_growths
     )
     return exponential | regular

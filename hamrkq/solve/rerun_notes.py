@@ -12,10 +12,14 @@ from hamrkq.result import Status
 from hamrkq.rkq.auto_rules import EXPONENTIAL_GROWTH
 from hamrkq.rkq.driver import RunOutput
 from hamrkq.rkq.layout import ST_ABANDONED
-from hamrkq.rkq.witness_rules import close_approach_factor
+from hamrkq.rkq.witness_rules import (
+    T_SQUARED_GROWTH,
+    amplification_factor,
+    close_approach_factor,
+)
 from hamrkq.solve.auto import reruns_for_rounding
 from hamrkq.solve.dispatch import Task, member_of, uses_witness
-from hamrkq.solve.growth import growth
+from hamrkq.solve.growth import early_growth, growth
 
 __all__ = ["rerun_note"]
 
@@ -85,17 +89,7 @@ def rerun_note(
                 "alike and unseen by Gamma, where it was: run again with the witness"
             )
         elif reruns_for_rounding(earlier, run, factor):
-            approaches = ""
-            if close_approach_factor(run.step_range) > 1.0:
-                approaches = (
-                    f", and with close approaches: its steps ranged {run.step_range:.3g}-fold"
-                )
-            what += (
-                f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
-                "which Gamma does not see (it grows like the square of a run's length, and "
-                f"with the state's size{approaches}), could reach the tolerance: run again "
-                "with the witness"
-            )
+            what += _rounding_reach(earlier, run)
         after = "after it, " if index == len(discarded) - later else ""
         notes.append(f"{after}the run {_quencher_setting(earlier)} {what}")
     method = task.options.method
@@ -109,6 +103,30 @@ def rerun_note(
         f" {ran} {_quencher_setting(task)}: "
         f"{'; '.join(notes)} "
         f"({evaluations} evaluations: stats['discarded_evaluations'], not in nfev/njev)."
+    )
+
+
+def _rounding_reach(task: Task, run: RunOutput) -> str:
+    """Why a finished run's rounding could reach the tolerance
+    (:func:`hamrkq.solve.auto.reruns_for_rounding`): its length, its
+    state's size, close approaches or the orbit's amplification
+    (:func:`hamrkq.rkq.witness_rules.beyond_length_factor`)."""
+    approaches = ""
+    early = early_growth(run, task)
+    amplified = amplification_factor(early)
+    if amplified > 1.0 and amplified >= close_approach_factor(run.step_range):
+        approaches = (
+            f", and with the orbit's amplification: the estimate grew {early:.3g}-fold "
+            "from the first sixteenth of the interval to its end, "
+            f"{early / T_SQUARED_GROWTH:.3g} times a regular orbit's t^2"
+        )
+    elif close_approach_factor(run.step_range) > 1.0:
+        approaches = f", and with close approaches: its steps ranged {run.step_range:.3g}-fold"
+    return (
+        f"; over its {run.stats.get('steps', 0)} steps the quencher's rounding, "
+        "which Gamma does not see (it grows like the square of a run's length, and "
+        f"with the state's size{approaches}), could reach the tolerance: run again "
+        "with the witness"
     )
 
 
