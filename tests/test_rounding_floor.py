@@ -548,24 +548,38 @@ def test_a_short_run_near_the_separatrix_reads_its_estimates_growth(atol, rtol):
     assert sol.options["rounding_witness"] or sol.options["quencher_precision"] == "double-double"
 
 
+BELOW_1E9 = (0.0, math.sqrt(4 - 2e-9))  # at the bottom, E = 1 - 1e-9
+BELOW_1E6 = (math.pi - math.sqrt(2e-6), 0.0)  # at the turning point, E = 1 - 1e-6
+
+
 @pytest.mark.parametrize(
-    ("method", "atol", "rtol"), [("rk67q12", 1e-9, 0.0), ("rk45q12", 1e-8, 1e-8)]
+    ("y0", "t_end", "method", "atol", "rtol"),
+    [
+        (BELOW_1E6, 150.0, "rk67q12", 1e-9, 0.0),
+        (BELOW_1E6, 150.0, "rk45q12", 1e-8, 1e-8),
+        (BELOW_1E9, 60.0, "rk45q12", 1e-9, 0.0),
+    ],
 )
-def test_a_named_member_near_the_separatrix_reads_the_orbit_s_amplification(method, atol, rtol):
-    """The pendulum 1e-6 below its separatrix over [0, 150] with named
-    members: the estimate grows 1.8e4- and 1.2e5-fold from the first
-    sixteenth of the run to its end, its first approach to the unstable top
-    turning an error in the energy into a phase error 1/(1 - E) times
-    larger, yet only 5.4- and 2.3-fold over the second half, so no rule ran
-    the witness, and both returned SUCCESS 9.39 and 1.50 times the
-    tolerance off (QA, session 18; the quencher in double-double: 1.00).
-    Read as an amplification of the rounding beyond the length's ``t^2``
+def test_a_named_member_near_the_separatrix_reads_the_orbit_s_amplification(
+    y0, t_end, method, atol, rtol
+):
+    """The pendulum just below its separatrix with named members: the
+    estimate grows 1.8e4-, 1.2e5- and 1.8e9-fold from the first sixteenth
+    of the run to its end, the first approach to the unstable top turning
+    an error in the energy into a phase error 1/(1 - E) times larger, yet
+    only 5.4-, 2.3- and 3.0-fold over the second half, so no rule ran the
+    witness: SUCCESS 9.39 and 1.50 times the tolerance off, and a stop at
+    t = 47 after 198 nodes above 1.05 of it, the last 152 (QA, session 18;
+    the quencher in double-double: 1.00).  Read as an amplification of the
+    rounding beyond the length's ``t^2``
     (:func:`hamrkq.rkq.witness_rules.amplification_factor`), the growth
     sends them to the witness, which stops them where the rounding reaches
-    the limit, every node within the tolerance."""
+    the limit.  In the third the witness read 0.06 of the quencher's error
+    (a stop with nodes 1.30 off) until its increment was summed exactly
+    (:func:`hamrkq.rkq.arith.increment_accurate`): it had shared the
+    quencher's rounding of the products ``b_j K_j``."""
     pendulum = hamrkq.load_problem("pendulum")
-    y0 = [math.pi - math.sqrt(2e-6), 0.0]
-    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, 150.0), method=method,
+    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, t_end), method=method,
                        atol=atol, rtol=rtol)  # fmt: skip
     truth = pendulum_flow_mpmath(y0, sol.t)
     delta = np.maximum(atol, rtol * np.abs(truth))
