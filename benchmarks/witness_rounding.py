@@ -25,7 +25,10 @@ This script measures, with the ``hamrkq`` on the path:
    runs where the witness runs (``auto``) in fresh processes, both checkouts
    in turn, medians of 5 rounds: what the stochastic rounding costs.
 
-Writes ``benchmarks/witness_rounding.json`` and ``benchmarks/witness_rounding.md``.
+Writes ``benchmarks/witness_rounding.json`` and ``benchmarks/witness_rounding.md``
+(``--name NAME``: ``NAME.json`` and ``NAME.md``; ``witness_increment`` is the
+run that measured the witness's exactly summed increment, 0699e33, against
+e59c34a).
 """
 
 from __future__ import annotations
@@ -177,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--before", type=Path, help="a checkout from before the change")
     parser.add_argument("--before-label", help="what the table calls it (its commit)")
     parser.add_argument("--rows-only", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--name", default="witness_rounding", help="the outputs' name (NAME.json, NAME.md)"
+    )
     args = parser.parse_args(argv)
     if args.rows_only:
         print(json.dumps(rows()))
@@ -190,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         record["before"] = measure.rows_at_checkout(__file__, root, "--rows-only")
         record["before_label"] = args.before_label or str(root)
         record["timing"] = timings(root)
-    measure.save_record(HERE, "witness_rounding", measure.end_record(record), markdown)
+    measure.save_record(HERE, args.name, measure.end_record(record), markdown)
     return 0
 
 
