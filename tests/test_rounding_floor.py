@@ -548,41 +548,53 @@ def test_a_short_run_near_the_separatrix_reads_its_estimates_growth(atol, rtol):
     assert sol.options["rounding_witness"] or sol.options["quencher_precision"] == "double-double"
 
 
-BELOW_1E9 = (0.0, math.sqrt(4 - 2e-9))  # at the bottom, E = 1 - 1e-9
-BELOW_1E6 = (math.pi - math.sqrt(2e-6), 0.0)  # at the turning point, E = 1 - 1e-6
-
-
 @pytest.mark.parametrize(
-    ("y0", "t_end", "method", "atol", "rtol"),
-    [
-        (BELOW_1E6, 150.0, "rk67q12", 1e-9, 0.0),
-        (BELOW_1E6, 150.0, "rk45q12", 1e-8, 1e-8),
-        (BELOW_1E9, 60.0, "rk45q12", 1e-9, 0.0),
-    ],
+    ("method", "atol", "rtol"), [("rk67q12", 1e-9, 0.0), ("rk45q12", 1e-8, 1e-8)]
 )
-def test_a_named_member_near_the_separatrix_reads_the_orbit_s_amplification(
-    y0, t_end, method, atol, rtol
-):
-    """The pendulum just below its separatrix with named members: the
-    estimate grows 1.8e4-, 1.2e5- and 1.8e9-fold from the first sixteenth
-    of the run to its end, the first approach to the unstable top turning
-    an error in the energy into a phase error 1/(1 - E) times larger, yet
-    only 5.4-, 2.3- and 3.0-fold over the second half, so no rule ran the
-    witness: SUCCESS 9.39 and 1.50 times the tolerance off, and a stop at
-    t = 47 after 198 nodes above 1.05 of it, the last 152 (QA, session 18;
-    the quencher in double-double: 1.00).  Read as an amplification of the
-    rounding beyond the length's ``t^2``
+def test_a_named_member_near_the_separatrix_reads_the_orbit_s_amplification(method, atol, rtol):
+    """The pendulum 1e-6 below its separatrix over [0, 150] with named
+    members: the estimate grows 1.8e4- and 1.2e5-fold from the first
+    sixteenth of the run to its end, its first approach to the unstable top
+    turning an error in the energy into a phase error 1/(1 - E) times
+    larger, yet only 5.4- and 2.3-fold over the second half, so no rule ran
+    the witness, and both returned SUCCESS 9.39 and 1.50 times the
+    tolerance off (QA, session 18; the quencher in double-double: 1.00).
+    Read as an amplification of the rounding beyond the length's ``t^2``
     (:func:`hamrkq.rkq.witness_rules.amplification_factor`), the growth
     sends them to the witness, which stops them where the rounding reaches
-    the limit.  In the third the witness read 0.06 of the quencher's error
-    (a stop with nodes 1.30 off) until its increment was summed exactly
-    (:func:`hamrkq.rkq.arith.increment_accurate`): it had shared the
-    quencher's rounding of the products ``b_j K_j``."""
+    the limit, every node within the tolerance."""
     pendulum = hamrkq.load_problem("pendulum")
-    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, t_end), method=method,
+    y0 = [math.pi - math.sqrt(2e-6), 0.0]
+    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, 150.0), method=method,
                        atol=atol, rtol=rtol)  # fmt: skip
     truth = pendulum_flow_mpmath(y0, sol.t)
     delta = np.maximum(atol, rtol * np.abs(truth))
     assert np.max(np.abs(sol.y - truth) / delta) <= 1.05
     assert sol.options["rounding_witness"]
     assert "times a regular orbit's t^2" in sol.message
+
+
+@pytest.mark.xfail(strict=True, reason="open: the witness shares the quencher's rounding")
+def test_a_named_member_1e_9_below_the_separatrix_is_honest_with_the_witness():
+    """The pendulum 1e-9 below its separatrix over [0, 60] with ``rk45q12``
+    at atol 1e-9: the orbit's amplification (1.8e9-fold growth from the
+    first sixteenth) sends it to the witness, which stops it at t = 18.8,
+    but three nodes are above 1.05 delta, the last 1.30 (152 before
+    e59c34a).  The witness reads 0.06 of the quencher's error: summed in
+    double, forward or backward, its increment ``h sum b_j K_j`` rounds the
+    products and their sums as the quencher's does wherever the stages
+    agree (instrumented: a divergence of 0.03 of the quencher's true error
+    all along).  Summed exactly the witness reads 0.97 to 1.01 of it here,
+    but then missed a Kepler pericentre (``benchmarks/witness_increment.md``:
+    a node 1.10 delta off), and mirrored the quencher's rounding two
+    (``witness_antithetic.md``, 1.41), where the reversed sums hold; so the
+    witness kept its reversed sums (docs/algorithm.md, "Known silent
+    failures").  Strict: passing means this is fixed, and the docs say
+    otherwise."""
+    pendulum = hamrkq.load_problem("pendulum")
+    y0 = [0.0, math.sqrt(4 - 2e-9)]
+    sol = hamrkq.solve(pendulum, q0=y0[:1], p0=y0[1:], t_span=(0.0, 60.0), method="rk45q12",
+                       atol=1e-9)  # fmt: skip
+    assert sol.options["rounding_witness"]
+    truth = pendulum_flow_mpmath(y0, sol.t)
+    assert np.max(np.abs(sol.y - truth)) <= 1.05e-9

@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 from hamrkq._floats import EPS
-from hamrkq.rkq import ddarith
 from hamrkq.rkq.jit import jitable
 from hamrkq.rkq.layout import RULE_PRENTICE
 
@@ -217,37 +216,6 @@ def increment_compensated(h, b, b_low, K, out, reverse=False):
             acc += b[m] * K[m, i]
             low += b_low[m] * K[m, i]
         out[i] = (acc + low) * h
-
-
-@jitable
-def increment_accurate(h, b, b_low, K, out):
-    """``out = h sum_j (b + b_low)[j] K[j]``, every product and sum exact
-    (Dekker's TwoProduct and Knuth's TwoSum, :mod:`hamrkq.rkq.ddarith`)
-    and the result rounded once: the rounding witness's increment
-    (:func:`hamrkq.rkq.steps.witness_step`).
-
-    Summed in double (:func:`increment_compensated`), the products
-    ``b_j K_j`` and the product by ``h`` are rounded as the quencher rounds
-    them wherever the two tracks' stages agree, which most do (a stage value
-    rounded stochastically keeps the nearest double with probability at
-    least a half): their rounding, shared, was the part of the quencher's
-    error the witness could not see.  The pendulum 1e-9 below its
-    separatrix (``rk45q12``, atol 1e-9, to t = 19): the witness diverged by
-    0.03 of the quencher's true error with its sums reversed, 0.1 with them
-    compensated, and 0.97 to 1.01 all along with this (interpreted kernel
-    instrumented, session 19)."""
-    for i in range(out.shape[0]):
-        hi = 0.0
-        lo = 0.0
-        for m in range(b.shape[0]):
-            if b[m] == 0.0 and b_low[m] == 0.0:
-                continue  # (an exact zero adds nothing)
-            product, product_error = ddarith.two_prod(b[m], K[m, i])
-            hi, sum_error = ddarith.two_sum(hi, product)
-            lo += (sum_error + product_error) + b_low[m] * K[m, i]
-        total, rest = ddarith.two_sum(hi, lo)
-        scaled, scaled_error = ddarith.two_prod(total, h)
-        out[i] = scaled + (scaled_error + rest * h)
 
 
 @jitable

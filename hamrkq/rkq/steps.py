@@ -90,10 +90,8 @@ def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no o
     ``work.Kz[0]`` is reused when ``first_done``; ``reverse`` sums the stages
     the other way round and ``seed >= 0`` rounds the stage values
     stochastically (the rounding witness; seeds ``seed``, ``seed + 1``, ...
-    over the stages and components) and sums the increment exactly
-    (:func:`hamrkq.rkq.arith.increment_accurate`), ``time_seed >= 0`` the
-    stage times ``t + c_j h`` (seeds ``time_seed + j``).  Returns the
-    evaluations."""
+    over the stages and components), ``time_seed >= 0`` the stage times
+    ``t + c_j h`` (seeds ``time_seed + j``).  Returns the evaluations."""
     Kz, y = work.Kz, work.V[YT]
     nfev = 0
     for j in range(tab.bz.shape[0]):
@@ -107,10 +105,7 @@ def explicit_increment(  # noqa: PLR0913 - the kernel's convention: arrays, no o
             stage_time = arith.round_stochastically(t, tab.cz[j] * h, u)
         rhs(stage_time, y, params, Kz[j])
         nfev += 1
-    if seed >= 0.0:  # the rounding witness: no rounding shared with the quencher
-        arith.increment_accurate(h, tab.bz, tab.bz_low, Kz, out)
-    else:
-        arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
+    arith.increment_compensated(h, tab.bz, tab.bz_low, Kz, out, reverse)
     return nfev
 
 
