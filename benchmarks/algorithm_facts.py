@@ -137,7 +137,8 @@ def blind_spot():
 @fact("\"When the tolerance cannot be met\": y' = y^2, y(0) = 1, atol 1e-6, rk34q8's kernel")
 def blow_up():
     from hamrkq.rkq import layout
-    from hamrkq.rkq.driver import Integration, Settings, python_functions
+    from hamrkq.rkq.config import Settings
+    from hamrkq.rkq.driver import Integration, python_functions
     from hamrkq.rkq.family import get_member
 
     def f(t, y, params, out):

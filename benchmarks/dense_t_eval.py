@@ -34,7 +34,7 @@ sys.path.insert(0, str(HERE))
 import measure  # noqa: E402  (timing, the record)
 
 import hamrkq  # noqa: E402
-from hamrkq.rkq.driver import DENSE_SHARE, Settings  # noqa: E402
+from hamrkq.rkq.config import DENSE_SHARE, Settings  # noqa: E402
 from hamrkq.solve import dispatch  # noqa: E402
 
 #: (label, problem, its parameters, t_end, tolerances, output times, method)

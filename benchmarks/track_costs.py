@@ -34,7 +34,8 @@ import measure  # noqa: E402  (timing, the record)
 from peers import CASES, Bench, log  # noqa: E402  (the cases, heyoka's row)
 
 from hamrkq.backends.first_use import kernel_functions  # noqa: E402
-from hamrkq.rkq.driver import Integration, Settings  # noqa: E402
+from hamrkq.rkq.config import Settings  # noqa: E402
+from hamrkq.rkq.driver import Integration  # noqa: E402
 from hamrkq.rkq.family import MEMBERS  # noqa: E402
 from hamrkq.rkq.layout import GAMMA_OFF, QUENCH_NODE, RULE_COMPONENTWISE  # noqa: E402
 

@@ -25,7 +25,8 @@ from hamrkq.backends import codegen, compiled, first_use, kernel, kernel_helper,
 from hamrkq.backends.numeric import numeric_of
 from hamrkq.errors import HamrkqWarning, OptionError
 from hamrkq.rkq import layout, loop
-from hamrkq.rkq.driver import Integration, Settings, python_functions
+from hamrkq.rkq.config import Settings
+from hamrkq.rkq.driver import Integration, python_functions
 from hamrkq.rkq.family import get_member
 
 pytestmark = pytest.mark.skipif(

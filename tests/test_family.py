@@ -599,7 +599,7 @@ def test_a_run_again_with_the_witness_is_not_a_second_reading_of_exponential_gro
     # Every output time landed on, as when this was found: with the times
     # near a step's start filled in by dense output, the steps differ and
     # the first run is abandoned on its projection at t = 79 instead.
-    from hamrkq.rkq.driver import Settings
+    from hamrkq.rkq.config import Settings
     from hamrkq.solve import dispatch
 
     monkeypatch.setattr(dispatch, "Settings", functools.partial(Settings, dense_share=0.0))

@@ -12,7 +12,8 @@ import hamrkq
 from hamrkq import result
 from hamrkq.errors import InputError, InputTypeError
 from hamrkq.options import SolveOptions
-from hamrkq.rkq.driver import Integration, Settings, python_functions
+from hamrkq.rkq.config import Settings
+from hamrkq.rkq.driver import Integration, python_functions
 from hamrkq.rkq.family import get_member
 from hamrkq.rkq.layout import new_state
 
@@ -117,7 +118,7 @@ def test_a_runs_remembered_configuration_is_the_record_of_its_fields(t0, t_end):
     the fields, for settings met before or not, with a float in an integer
     field (NumPy truncates it) and with a zero whose sign the key cannot
     tell apart."""
-    from hamrkq.rkq import driver
+    from hamrkq.rkq import config
 
     for name in ("rk34q8", "rk78q12"):
         member = get_member(name)
@@ -126,9 +127,11 @@ def test_a_runs_remembered_configuration_is_the_record_of_its_fields(t0, t_end):
             Settings(quench=1, rule=1, gamma=2, keep_every=2.7, first_step=0.01, witness=True),
             Settings(quench=0, rule=0, gamma=1, first_step=-0.0),
         ):
-            expected = driver._config(member, settings, settings.gamma, 0, 1, t0, t_end, False)
+            expected = config.kernel_config(
+                member, settings, settings.gamma, 0, 1, t0, t_end, False
+            )
             for _ in range(2):  # made, then remembered
-                made = driver._config(member, settings, settings.gamma, 0, 1, t0, t_end)
+                made = config.kernel_config(member, settings, settings.gamma, 0, 1, t0, t_end)
                 assert made.tobytes() == expected.tobytes() and made.dtype == expected.dtype
                 assert made.flags.writeable and made.flags.aligned and made.flags.c_contiguous
 
@@ -140,7 +143,7 @@ def test_every_setting_but_the_times_is_in_a_remembered_configurations_key():
     to Settings cannot be left out of it."""
     import dataclasses
 
-    from hamrkq.rkq import driver
+    from hamrkq.rkq import config
 
     member = get_member("rk78q12")
     base = Settings(quench=0, rule=0, gamma=3)
@@ -150,12 +153,12 @@ def test_every_setting_but_the_times_is_in_a_remembered_configurations_key():
                "double_double": True, "dense_share": 0.25}  # fmt: skip
     keyed = {f.name for f in dataclasses.fields(Settings)} - {"t_eval"}
     assert set(changed) == keyed
-    driver._config(member, base, base.gamma, 0, 1, 0.0, 1.0)
+    config.kernel_config(member, base, base.gamma, 0, 1, 0.0, 1.0)
     for name, value in changed.items():
         settings = dataclasses.replace(base, **{name: value})
-        expected = driver._config(member, settings, base.gamma, 0, 1, 0.0, 1.0, False)
+        expected = config.kernel_config(member, settings, base.gamma, 0, 1, 0.0, 1.0, False)
         for _ in range(2):  # made, then remembered
-            made = driver._config(member, settings, base.gamma, 0, 1, 0.0, 1.0)
+            made = config.kernel_config(member, settings, base.gamma, 0, 1, 0.0, 1.0)
             assert made.tobytes() == expected.tobytes(), name
 
 

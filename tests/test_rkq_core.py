@@ -14,7 +14,8 @@ import hamrkq
 from hamrkq.catalogue import exact
 from hamrkq.methods.tableaus import DOP853_RK8
 from hamrkq.rkq import layout, steps
-from hamrkq.rkq.driver import Integration, Settings, python_functions
+from hamrkq.rkq.config import Settings
+from hamrkq.rkq.driver import Integration, python_functions
 from hamrkq.rkq.family import get_member
 from hamrkq.rkq.layout import DINC, INC
 

@@ -9,7 +9,8 @@ import pytest
 import sympy as sp
 
 import hamrkq
-from hamrkq.rkq.driver import Integration, Settings
+from hamrkq.rkq.config import Settings
+from hamrkq.rkq.driver import Integration
 from hamrkq.rkq.family import get_member
 from hamrkq.rkq.layout import GAMMA_SHADOW, QUENCH_NODE, RULE_COMPONENTWISE
 

@@ -345,7 +345,8 @@ def probe(functions, dim: int, n_params: int):
     """A one-step integration whose kernel call has the signature of every run
     (:class:`~hamrkq.rkq.driver.Integration` of ``functions``, a stand-in
     state of ``dim`` components and ``n_params`` parameters)."""
-    from hamrkq.rkq.driver import Integration, Settings
+    from hamrkq.rkq.config import Settings
+    from hamrkq.rkq.driver import Integration
     from hamrkq.rkq.family import PAPER_METHOD, get_member
     from hamrkq.rkq.layout import GAMMA_OFF, QUENCH_NODE, RULE_COMPONENTWISE
 

@@ -239,7 +239,7 @@ def plan_step(c, s, t_eval):
     exactly on the target (the next ``t_eval`` time or the end) when it would
     reach or nearly reach it (``clipped``), ``h_free`` is the controller's
     choice.  A ``t_eval`` time within ``dense_share`` of the free step
-    (:data:`hamrkq.rkq.driver.DENSE_SHARE`) is passed, not landed on
+    (:data:`hamrkq.rkq.config.DENSE_SHARE`) is passed, not landed on
     (``dense``: the step's ``t_eval`` times are written from dense output,
     :func:`emit_dense`), where there is a quencher track to step from."""
     t = s["t"]

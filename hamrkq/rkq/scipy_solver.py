@@ -53,7 +53,8 @@ from hamrkq._validate import choice, tolerance
 from hamrkq.errors import InputError, OptionError, warn
 from hamrkq.result import Status
 from hamrkq.rkq import dense, layout
-from hamrkq.rkq.driver import Integration, Settings, python_functions
+from hamrkq.rkq.config import Settings
+from hamrkq.rkq.driver import Integration, python_functions
 from hamrkq.rkq.family import PAPER_METHOD, Z_METHODS, get_member
 from hamrkq.rkq.layout import GAM, K1, ZHI, U
 from hamrkq.rkq.start import initial_step
